@@ -1,0 +1,254 @@
+//! The outer force loop: admittance filters (eqs. 30 and 38) and the impedance reference of
+//! eq. (20) as a baseline (SPEC §5). Each turns the force error (or the desired force) into
+//! the position modification x_a with its rate and acceleration for feed-forward.
+
+use nalgebra::{Matrix2, Matrix3, Vector2};
+
+use crate::error::{check, Result};
+use crate::reference::Sample;
+
+/// `m ẍ_a + b ẋ_a + k x_a = k_a e_f`, e_f = f_d − f.
+/// Scheme 1 (eq. 30) has k > 0; Scheme 2 (eq. 38) has k = 0.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AdmittanceParams {
+    /// Mass m [kg]. Default 1.
+    pub m: f64,
+    /// Damping b [N·s/m]. Default 800.
+    pub b: f64,
+    /// Stiffness k [N/m]; 0 is Scheme 2. Default 0.
+    pub k: f64,
+    /// Filter gain k_a [-]. Default 1.
+    pub ka: f64,
+}
+
+impl Default for AdmittanceParams {
+    fn default() -> Self {
+        Self::scheme2(800.0, 1.0)
+    }
+}
+
+impl AdmittanceParams {
+    /// Scheme 1, eq. (30): force tracking impedance with stiffness; keeps an offset.
+    pub fn scheme1(b: f64, k: f64, ka: f64) -> Self {
+        Self { m: 1.0, b, k, ka }
+    }
+
+    /// Scheme 2, eq. (38): k = 0, infinite compliance; no steady-state force error.
+    pub fn scheme2(b: f64, ka: f64) -> Self {
+        Self {
+            m: 1.0,
+            b,
+            k: 0.0,
+            ka,
+        }
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        check::positive("m", self.m)?;
+        check::non_negative("b", self.b)?;
+        check::non_negative("k", self.k)?;
+        check::non_negative("ka", self.ka)
+    }
+
+    /// Exact zero-order-hold discretisation: expm([[A, B], [0, 0]] T) = [[Ad, Bd], [0, 1]]
+    /// for the state [x_a, ẋ_a].
+    pub fn discretize(&self, period: f64) -> (Matrix2<f64>, Vector2<f64>) {
+        let (m, b, k, ka) = (self.m, self.b, self.k, self.ka);
+        #[rustfmt::skip]
+        let augmented = Matrix3::new(
+            0.0,    1.0,    0.0,
+            -k / m, -b / m, ka / m,
+            0.0,    0.0,    0.0,
+        ) * period;
+        let e = augmented.exp();
+        (
+            Matrix2::new(e[(0, 0)], e[(0, 1)], e[(1, 0)], e[(1, 1)]),
+            Vector2::new(e[(0, 2)], e[(1, 2)]),
+        )
+    }
+}
+
+/// A discretised admittance filter: a small state machine.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AdmittanceFilter {
+    params: AdmittanceParams,
+    ad: Matrix2<f64>,
+    bd: Vector2<f64>,
+    state: Vector2<f64>,
+}
+
+impl AdmittanceFilter {
+    pub fn new(params: AdmittanceParams, period: f64) -> Self {
+        let (ad, bd) = params.discretize(period);
+        Self {
+            params,
+            ad,
+            bd,
+            state: Vector2::zeros(),
+        }
+    }
+
+    pub fn reset(&mut self) {
+        self.state = Vector2::zeros();
+    }
+
+    /// Output at t_k, then advance to t_{k+1}. The filter is strictly proper: x_a,k and
+    /// ẋ_a,k depend on e_f up to k−1; the feed-forward ẍ_a,k uses the current sample.
+    #[inline]
+    pub fn step(&mut self, force_error: f64) -> Sample {
+        let p = &self.params;
+        let (xa, xa_dot) = (self.state[0], self.state[1]);
+        let out = Sample {
+            value: xa,
+            rate: xa_dot,
+            accel: (p.ka * force_error - p.b * xa_dot - p.k * xa) / p.m,
+        };
+        self.state = self.ad * self.state + self.bd * force_error;
+        out
+    }
+}
+
+/// Eq. (20): x_d = x̂_e + f_d / k_eff with k_eff = k k̂_e / (k + k̂_e), an assumed wall
+/// stiffness and no force feedback. The baseline the admittance schemes improve on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImpedanceParams {
+    /// Impedance stiffness k [N/m].
+    pub k: f64,
+    /// The wall stiffness the designer assumes, k̂_e [N/m].
+    pub assumed_stiffness: f64,
+}
+
+impl ImpedanceParams {
+    pub fn validate(&self) -> Result<()> {
+        check::positive("k", self.k)?;
+        check::positive("assumed_stiffness", self.assumed_stiffness)
+    }
+
+    pub fn effective_stiffness(&self) -> f64 {
+        self.k * self.assumed_stiffness / (self.k + self.assumed_stiffness)
+    }
+}
+
+/// Which outer loop shapes the x reference.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ForceControlParams {
+    Admittance(AdmittanceParams),
+    Impedance(ImpedanceParams),
+}
+
+impl ForceControlParams {
+    pub fn validate(&self) -> Result<()> {
+        match self {
+            ForceControlParams::Admittance(p) => p.validate(),
+            ForceControlParams::Impedance(p) => p.validate(),
+        }
+    }
+}
+
+/// The outer force loop as a state machine.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ForceControl {
+    Admittance(AdmittanceFilter),
+    Impedance { effective_stiffness: f64 },
+}
+
+impl ForceControl {
+    pub fn new(p: &ForceControlParams, period: f64) -> Self {
+        match p {
+            ForceControlParams::Admittance(a) => {
+                ForceControl::Admittance(AdmittanceFilter::new(*a, period))
+            }
+            ForceControlParams::Impedance(i) => ForceControl::Impedance {
+                effective_stiffness: i.effective_stiffness(),
+            },
+        }
+    }
+
+    pub fn reset(&mut self) {
+        if let ForceControl::Admittance(f) = self {
+            f.reset();
+        }
+    }
+
+    /// x_a (with rate and acceleration) from the desired force and the measured force.
+    #[inline]
+    pub fn step(&mut self, desired: &Sample, measured: f64) -> Sample {
+        match self {
+            ForceControl::Admittance(f) => f.step(desired.value - measured),
+            ForceControl::Impedance {
+                effective_stiffness: k,
+            } => Sample {
+                value: desired.value / *k,
+                rate: desired.rate / *k,
+                accel: desired.accel / *k,
+            },
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scheme2_zoh_closed_form() {
+        let (b, ka, t) = (800.0, 0.1, 1e-3);
+        let (ad, bd) = AdmittanceParams::scheme2(b, ka).discretize(t);
+        let e = (-b * t).exp();
+        let g = (1.0 - e) / b;
+        assert!((ad - Matrix2::new(1.0, g, 0.0, e)).abs().max() < 1e-14);
+        assert!((bd - Vector2::new(ka * (t - g) / b, ka * g)).abs().max() < 1e-15);
+    }
+
+    /// With a constant input the ZOH model is exact at the samples: compare with the
+    /// analytic step response of k_a / (m s² + b s + k).
+    #[test]
+    fn step_response_is_exact_at_samples() {
+        let (m, b, k, ka, ef) = (1.0, 800.0, 400.0, 0.1, 10.0);
+        let mut f = AdmittanceFilter::new(AdmittanceParams { m, b, k, ka }, 1e-3);
+        let disc = (b * b - 4.0 * m * k).sqrt();
+        let (p1, p2) = ((-b + disc) / (2.0 * m), (-b - disc) / (2.0 * m));
+        let fin = ka * ef / k;
+        for n in 0..3000 {
+            let t = n as f64 * 1e-3;
+            let exact = fin * (1.0 + (p2 * (p1 * t).exp() - p1 * (p2 * t).exp()) / (p1 - p2));
+            let out = f.step(ef);
+            assert!((out.value - exact).abs() < 1e-12 * fin.max(1.0), "n={n}");
+        }
+    }
+
+    #[test]
+    fn feed_forward_uses_current_error() {
+        let mut f = AdmittanceFilter::new(AdmittanceParams::scheme2(800.0, 1.0), 1e-3);
+        let first = f.step(10.0);
+        assert_eq!(first.value, 0.0);
+        assert_eq!(first.rate, 0.0);
+        assert_eq!(first.accel, 10.0);
+        f.reset();
+        assert_eq!(f.step(0.0), Sample::default());
+    }
+
+    #[test]
+    fn impedance_reference_eq20() {
+        let p = ImpedanceParams {
+            k: 1e4,
+            assumed_stiffness: 3e4,
+        };
+        assert!((p.effective_stiffness() - 7500.0).abs() < 1e-9);
+        let mut fc = ForceControl::new(&ForceControlParams::Impedance(p), 1e-3);
+        let fd = Sample {
+            value: 15.0,
+            rate: 3.0,
+            accel: 0.0,
+        };
+        let xa = fc.step(&fd, 123.0);
+        assert!((xa.value - 0.002).abs() < 1e-15);
+        assert!((xa.rate - 0.0004).abs() < 1e-15);
+    }
+
+    #[test]
+    fn negative_damping_rejected() {
+        let p = AdmittanceParams::scheme2(-1.0, 1.0);
+        assert!(p.validate().unwrap_err().to_string().starts_with("b = -1"));
+    }
+}

@@ -1,0 +1,196 @@
+//! Per-run metrics (SPEC §7). Step metrics also come in python-control's `step_info`
+//! convention (`rise_time_10_90`, `peak_time`; `settling_time` is its 2 % `SettlingTime`).
+
+use crate::reference::Signal;
+use crate::simulation::{col, Outcome, ScenarioConfig, Trace};
+
+/// The steady-state window: the last 2 s.
+pub const STEADY_STATE_WINDOW: f64 = 2.0;
+/// Transients before this time are left out of `force_rms_error` and `contact_loss`.
+pub const TRANSIENT_END: f64 = 1.0;
+/// Settling band, as a fraction of f_d.
+pub const SETTLING_BAND: f64 = 0.02;
+
+/// Metrics of one run. Force metrics are NaN in position-only runs, step metrics NaN when
+/// f_d is not a step, and every error metric NaN when the run diverged (`force_peak`
+/// still reports the largest force seen).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Metrics {
+    /// mean(f_d − f) over the last 2 s [N].
+    pub force_ss_error: f64,
+    /// RMS of f_d − f for t ≥ 1 s [N].
+    pub force_rms_error: f64,
+    /// max f [N].
+    pub force_peak: f64,
+    /// 100 (force_peak − f_d,final) / f_d,final [%]; negative when f never reaches f_d.
+    pub overshoot_pct: f64,
+    /// First time after which |f − f_d| ≤ 2 % f_d to the end [s].
+    pub settling_time: f64,
+    /// First time f ≥ 63.2 % f_d [s].
+    pub rise_time_63: f64,
+    /// step_info RiseTime: from 10 % to 90 % of f_d [s].
+    pub rise_time_10_90: f64,
+    /// step_info PeakTime: time of the first maximum of |f| [s].
+    pub peak_time: f64,
+    /// RMS of z_d − z over the whole run [m].
+    pub z_rms_error: f64,
+    /// RMS of X_d,x − x over the whole run [m].
+    pub x_rms_error: f64,
+    /// Fraction of samples with f = 0 for t ≥ 1 s.
+    pub contact_loss: f64,
+    pub stable: bool,
+}
+
+/// Metric names in the order of `Metrics::values`.
+pub const METRIC_NAMES: [&str; 11] = [
+    "force_ss_error",
+    "force_rms_error",
+    "force_peak",
+    "overshoot_pct",
+    "settling_time",
+    "rise_time_63",
+    "rise_time_10_90",
+    "peak_time",
+    "z_rms_error",
+    "x_rms_error",
+    "contact_loss",
+];
+
+impl Metrics {
+    pub fn values(&self) -> [f64; METRIC_NAMES.len()] {
+        [
+            self.force_ss_error,
+            self.force_rms_error,
+            self.force_peak,
+            self.overshoot_pct,
+            self.settling_time,
+            self.rise_time_63,
+            self.rise_time_10_90,
+            self.peak_time,
+            self.z_rms_error,
+            self.x_rms_error,
+            self.contact_loss,
+        ]
+    }
+
+    pub fn compute(trace: &Trace, config: &ScenarioConfig, outcome: &Outcome) -> Self {
+        let c = &trace.columns;
+        let (t, f, f_d) = (&c[col::T], &c[col::F], &c[col::F_D]);
+        let stable = outcome.is_stable();
+        let force_control = config.admittance.is_some();
+        let nan = f64::NAN;
+        let mut m = Metrics {
+            force_ss_error: nan,
+            force_rms_error: nan,
+            force_peak: if force_control { max(f) } else { nan },
+            overshoot_pct: nan,
+            settling_time: nan,
+            rise_time_63: nan,
+            rise_time_10_90: nan,
+            peak_time: nan,
+            z_rms_error: nan,
+            x_rms_error: nan,
+            contact_loss: nan,
+            stable,
+        };
+        if !stable || trace.is_empty() {
+            return m;
+        }
+        m.z_rms_error = rms_difference(&c[col::Z_REF], &c[col::Z]);
+        m.x_rms_error = rms_difference(&c[col::X_REF], &c[col::X]);
+        if !force_control {
+            return m;
+        }
+        let end = t[t.len() - 1];
+        let period = config.period;
+        let ss = first_index_at(end - STEADY_STATE_WINDOW, period);
+        let late = first_index_at(TRANSIENT_END, period).min(t.len());
+        m.force_ss_error = mean_difference(&f_d[ss..], &f[ss..]);
+        m.force_rms_error = rms_difference(&f_d[late..], &f[late..]);
+        m.contact_loss = if late < f.len() {
+            f[late..].iter().filter(|v| **v == 0.0).count() as f64 / (f.len() - late) as f64
+        } else {
+            nan
+        };
+        if let Signal::Step { value, .. } = config.force_reference {
+            m.overshoot_pct = 100.0 * (m.force_peak - value) / value;
+            m.settling_time = settling_time(t, f, value, SETTLING_BAND);
+            m.rise_time_63 = first_crossing(t, f, 0.632 * value, value);
+            m.rise_time_10_90 = first_crossing(t, f, 0.9 * value, value)
+                - first_crossing(t, f, 0.1 * value, value);
+            let peak = f
+                .iter()
+                .enumerate()
+                .fold(0, |best, (i, v)| if v.abs() > f[best].abs() { i } else { best });
+            m.peak_time = t[peak];
+        }
+        m
+    }
+}
+
+/// Index of the first sample with time ≥ `time` (sample k is at k·T).
+fn first_index_at(time: f64, period: f64) -> usize {
+    if time <= 0.0 {
+        0
+    } else {
+        (time / period - 1e-9).ceil() as usize
+    }
+}
+
+fn max(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+}
+
+fn mean_difference(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x - y).sum::<f64>() / a.len() as f64
+}
+
+fn rms_difference(a: &[f64], b: &[f64]) -> f64 {
+    (a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>() / a.len() as f64).sqrt()
+}
+
+/// First time the signal reaches `level` on the side of `target`'s sign (NaN if never).
+fn first_crossing(t: &[f64], y: &[f64], level: f64, target: f64) -> f64 {
+    let sign = target.signum();
+    y.iter()
+        .position(|v| sign * (v - level) >= 0.0)
+        .map_or(f64::NAN, |i| t[i])
+}
+
+/// First time after which |y − target| ≤ band·|target| to the end (NaN if the last sample
+/// is outside the band).
+fn settling_time(t: &[f64], y: &[f64], target: f64, band: f64) -> f64 {
+    let tol = band * target.abs();
+    match y.iter().rposition(|v| (v - target).abs() > tol) {
+        None => t[0],
+        Some(i) if i + 1 < t.len() => t[i + 1],
+        Some(_) => f64::NAN,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn step_metrics_on_a_known_signal() {
+        // f rises linearly from 0 to 11 over 1.1 s, then sits at 10.
+        let t: Vec<f64> = (0..=3000).map(|k| k as f64 * 1e-3).collect();
+        let f: Vec<f64> = t.iter().map(|&t| if t <= 1.1 { 10.0 * t } else { 10.0 }).collect();
+        assert_eq!(settling_time(&t, &f, 10.0, 0.02), t[1101]);
+        assert!((first_crossing(&t, &f, 6.32, 10.0) - 0.632).abs() < 1e-12);
+        assert!((first_crossing(&t, &f, 9.0, 10.0) - first_crossing(&t, &f, 1.0, 10.0) - 0.8).abs() < 1e-9);
+        assert!(first_crossing(&t, &f, 20.0, 10.0).is_nan());
+        let never: Vec<f64> = t.iter().map(|_| 5.0).collect();
+        assert!(settling_time(&t, &never, 10.0, 0.02).is_nan());
+    }
+
+    #[test]
+    fn windows_by_index() {
+        assert_eq!(first_index_at(8.0, 1e-3), 8000);
+        assert_eq!(first_index_at(1.0, 1e-3), 1000);
+        assert_eq!(first_index_at(-1.0, 1e-3), 0);
+        assert!((rms_difference(&[1.0, -1.0], &[0.0, 0.0]) - 1.0).abs() < 1e-15);
+        assert_eq!(mean_difference(&[3.0, 5.0], &[1.0, 1.0]), 3.0);
+    }
+}

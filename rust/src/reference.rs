@@ -1,0 +1,184 @@
+//! Reference signals for the desired force and the z position (SPEC §3).
+
+use crate::error::{check, Error, Result};
+
+/// A value with its first and second time derivatives.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Sample {
+    pub value: f64,
+    pub rate: f64,
+    pub accel: f64,
+}
+
+/// A scalar signal of time. Derivatives are analytic where the signal has them; a step
+/// contributes no impulse to the derivatives.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Signal {
+    /// `initial` before `time`, `value` from `time` on.
+    Step { value: f64, time: f64, initial: f64 },
+    /// `offset + amplitude · sin(omega t + phase)`, omega in rad/s.
+    Sine {
+        offset: f64,
+        amplitude: f64,
+        omega: f64,
+        phase: f64,
+    },
+    /// Linear interpolation through (times, values), held constant outside; the rate is
+    /// the segment's slope and the acceleration zero.
+    Sampled { times: Vec<f64>, values: Vec<f64> },
+}
+
+impl Signal {
+    pub fn validate(&self) -> Result<()> {
+        match self {
+            Signal::Step {
+                value,
+                time,
+                initial,
+            } => {
+                check::finite("value", *value)?;
+                check::finite("time", *time)?;
+                check::finite("initial", *initial)
+            }
+            Signal::Sine {
+                offset,
+                amplitude,
+                omega,
+                phase,
+            } => {
+                check::finite("offset", *offset)?;
+                check::finite("amplitude", *amplitude)?;
+                check::finite("omega", *omega)?;
+                check::finite("phase", *phase)
+            }
+            Signal::Sampled { times, values } => {
+                if times.is_empty() || times.len() != values.len() {
+                    return Err(Error::parameter(
+                        "values",
+                        format!("{} samples for {} times", values.len(), times.len()),
+                        "one value per time, at least one sample",
+                    ));
+                }
+                for (i, v) in values.iter().enumerate() {
+                    check::finite(&format!("values[{i}]"), *v)?;
+                }
+                for (i, t) in times.iter().enumerate() {
+                    check::finite(&format!("times[{i}]"), *t)?;
+                    if i > 0 && *t <= times[i - 1] {
+                        return Err(Error::parameter(
+                            &format!("times[{i}]"),
+                            t,
+                            "strictly increasing times",
+                        ));
+                    }
+                }
+                Ok(())
+            }
+        }
+    }
+
+    #[inline]
+    pub fn at(&self, t: f64) -> Sample {
+        match self {
+            Signal::Step {
+                value,
+                time,
+                initial,
+            } => Sample {
+                value: if t >= *time { *value } else { *initial },
+                ..Sample::default()
+            },
+            Signal::Sine {
+                offset,
+                amplitude,
+                omega,
+                phase,
+            } => {
+                let (s, c) = (omega * t + phase).sin_cos();
+                Sample {
+                    value: offset + amplitude * s,
+                    rate: amplitude * omega * c,
+                    accel: -amplitude * omega * omega * s,
+                }
+            }
+            Signal::Sampled { times, values } => sampled_at(times, values, t),
+        }
+    }
+
+    /// True for a step: the step-response metrics (rise, settling, overshoot) apply.
+    pub fn is_step(&self) -> bool {
+        matches!(self, Signal::Step { .. })
+    }
+}
+
+fn sampled_at(times: &[f64], values: &[f64], t: f64) -> Sample {
+    let n = times.len();
+    // validate() guarantees n ≥ 1; an empty signal would be caught before a run.
+    if n == 0 {
+        return Sample::default();
+    }
+    if t <= times[0] {
+        return Sample {
+            value: values[0],
+            ..Sample::default()
+        };
+    }
+    if t >= times[n - 1] {
+        return Sample {
+            value: values[n - 1],
+            ..Sample::default()
+        };
+    }
+    // First index with times[i] > t; t lies in [times[i-1], times[i]).
+    let i = times.partition_point(|&ti| ti <= t);
+    let (t0, t1, v0, v1) = (times[i - 1], times[i], values[i - 1], values[i]);
+    let slope = (v1 - v0) / (t1 - t0);
+    Sample {
+        value: v0 + slope * (t - t0),
+        rate: slope,
+        accel: 0.0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn step_and_sine() {
+        let s = Signal::Step {
+            value: 10.0,
+            time: 0.0,
+            initial: 0.0,
+        };
+        assert_eq!(s.at(0.0).value, 10.0);
+        assert_eq!(s.at(-1e-9).value, 0.0);
+        let s = Signal::Sine {
+            offset: 10.0,
+            amplitude: 5.0,
+            omega: 2.0,
+            phase: 0.0,
+        };
+        let x = s.at(0.3);
+        assert!((x.value - (10.0 + 5.0 * 0.6f64.sin())).abs() < 1e-15);
+        assert!((x.rate - 10.0 * 0.6f64.cos()).abs() < 1e-14);
+        assert!((x.accel + 20.0 * 0.6f64.sin()).abs() < 1e-14);
+    }
+
+    #[test]
+    fn sampled_interpolates_and_holds() {
+        let s = Signal::Sampled {
+            times: vec![0.0, 1.0, 3.0],
+            values: vec![0.0, 2.0, 0.0],
+        };
+        assert_eq!(s.at(-1.0).value, 0.0);
+        assert_eq!(s.at(0.5), Sample { value: 1.0, rate: 2.0, accel: 0.0 });
+        assert_eq!(s.at(2.0), Sample { value: 1.0, rate: -1.0, accel: 0.0 });
+        assert_eq!(s.at(5.0).value, 0.0);
+        let bad = Signal::Sampled {
+            times: vec![0.0, 0.0],
+            values: vec![1.0, 2.0],
+        };
+        assert!(bad.validate().unwrap_err().to_string().starts_with("times[1]"));
+    }
+}

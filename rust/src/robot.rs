@@ -1,0 +1,512 @@
+//! Robot dynamics: the three-link arm of Table 1 (SPEC §1).
+//!
+//! q1 is a yaw about +z at the origin; q2 and q3 are pitches (positive raises the link).
+//! Link 1 lies on the yaw axis, so it adds nothing to D, C or G. The closed forms below come
+//! from the arm's Lagrangian; the Python test suite checks them against Pinocchio.
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::error::{check, Error, Result};
+
+pub type Vec3 = Vector3<f64>;
+pub type Mat3 = Matrix3<f64>;
+
+/// How link mass is distributed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MassModel {
+    /// Uniform thin rods: centre of mass at l/2, transverse inertia m l²/12, axial 0.
+    Rod,
+    /// A point mass at each link's distal end.
+    Point,
+}
+
+/// Parameters of the three-link arm. Defaults are the paper's Table 1 (SPEC §1).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotParams {
+    /// Link lengths l1, l2, l3 [m]. Default 0.66, 0.43, 0.43.
+    pub lengths: [f64; 3],
+    /// Link masses [kg]. Default 30, 17.4, 4.8.
+    pub masses: [f64; 3],
+    /// Mass distribution. Default `Rod`.
+    pub mass_model: MassModel,
+    /// Viscous friction per joint [N·m·s/rad]. Default 3.
+    pub viscous_friction: [f64; 3],
+    /// Coulomb friction per joint [N·m]. Default 5.
+    pub coulomb_friction: [f64; 3],
+    /// Coulomb smoothing ε [rad/s]: sgn(q̇) ≈ tanh(q̇/ε); ε ≤ 0 uses the exact sign. Default 0.01.
+    pub friction_smoothing: f64,
+    /// Gravity along −z [m/s²]. Default 9.81.
+    pub gravity: f64,
+    /// Initial joint angles [rad]. Default [0, π/4, −π/4].
+    pub q0: [f64; 3],
+}
+
+impl Default for RobotParams {
+    fn default() -> Self {
+        Self {
+            lengths: [0.66, 0.43, 0.43],
+            masses: [30.0, 17.4, 4.8],
+            mass_model: MassModel::Rod,
+            viscous_friction: [3.0; 3],
+            coulomb_friction: [5.0; 3],
+            friction_smoothing: 0.01,
+            gravity: 9.81,
+            q0: [0.0, std::f64::consts::FRAC_PI_4, -std::f64::consts::FRAC_PI_4],
+        }
+    }
+}
+
+impl RobotParams {
+    pub fn validate(&self) -> Result<()> {
+        check::all("lengths", &self.lengths, check::positive)?;
+        check::all("masses", &self.masses, check::positive)?;
+        check::all("viscous_friction", &self.viscous_friction, check::non_negative)?;
+        check::all("coulomb_friction", &self.coulomb_friction, check::non_negative)?;
+        check::finite("friction_smoothing", self.friction_smoothing)?;
+        check::non_negative("gravity", self.gravity)?;
+        check::all("q0", &self.q0, check::finite)?;
+        let arm = ThreeLinkArm::new(self);
+        let q0 = Vec3::from(self.q0);
+        if arm.jacobian_conditioning(&q0) < SINGULARITY_TOLERANCE {
+            return Err(Error::parameter(
+                "q0",
+                format!("{:?}", self.q0),
+                "a configuration with a regular Jacobian (tip off the yaw axis and q3 not a multiple of π)",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The model a controller believes in: masses (and so inertias) scaled by `mass_scale`,
+    /// friction by `friction_scale`; geometry is shared with the plant.
+    pub fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {
+        let mut p = self.clone();
+        p.masses.iter_mut().for_each(|m| *m *= mass_scale);
+        p.viscous_friction.iter_mut().for_each(|f| *f *= friction_scale);
+        p.coulomb_friction.iter_mut().for_each(|f| *f *= friction_scale);
+        p
+    }
+}
+
+/// Below this `jacobian_conditioning` the Jacobian is treated as singular.
+pub const SINGULARITY_TOLERANCE: f64 = 1e-6;
+
+/// Tip position, Jacobian and the velocity-product acceleration J̇q̇ at one state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Kinematics {
+    pub position: Vec3,
+    pub jacobian: Mat3,
+    pub jdot_qd: Vec3,
+}
+
+/// D(q), C(q, q̇) and G(q) of eq. (1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Dynamics {
+    pub inertia: Mat3,
+    pub coriolis: Vec3,
+    pub gravity: Vec3,
+}
+
+/// What controllers and the plant integrator need from an arm. A general serial chain
+/// (SPEC §10) will implement the same interface.
+pub trait RobotModel: Send + Sync {
+    fn kinematics(&self, q: &Vec3, qd: &Vec3) -> Kinematics;
+    fn dynamics(&self, q: &Vec3, qd: &Vec3) -> Dynamics;
+    /// Joint friction τ_f(q̇).
+    fn friction(&self, qd: &Vec3) -> Vec3;
+    /// Tip position only (cheaper than `kinematics`).
+    fn forward_kinematics(&self, q: &Vec3) -> Vec3;
+    /// Joint accelerations of eq. (1): D q̈ = τ + Jᵀ F_tip − C − G − τ_f,
+    /// with `tip_force` the Cartesian force the environment applies to the tip.
+    fn forward_dynamics(&self, q: &Vec3, qd: &Vec3, tau: &Vec3, tip_force: &Vec3) -> Vec3;
+}
+
+/// Sines and cosines of one configuration, computed once and shared by every term.
+#[derive(Debug, Clone, Copy)]
+struct Trig {
+    s1: f64,
+    c1: f64,
+    s2: f64,
+    c2: f64,
+    s3: f64,
+    c3: f64,
+    s23: f64,
+    c23: f64,
+}
+
+impl Trig {
+    #[inline]
+    fn new(q: &Vec3) -> Self {
+        let (s1, c1) = q[0].sin_cos();
+        let (s2, c2) = q[1].sin_cos();
+        let (s3, c3) = q[2].sin_cos();
+        Self {
+            s1,
+            c1,
+            s2,
+            c2,
+            s3,
+            c3,
+            // cos/sin of q2+q3 from those of q2 and q3: no extra transcendental call.
+            s23: s2 * c3 + c2 * s3,
+            c23: c2 * c3 - s2 * s3,
+        }
+    }
+}
+
+/// The arm of Table 1 with its constants folded once (centre-of-mass distances a2, a3 and
+/// transverse inertias i2, i3 depend on the mass model).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ThreeLinkArm {
+    l1: f64,
+    l2: f64,
+    l3: f64,
+    m2: f64,
+    m3: f64,
+    a2: f64,
+    a3: f64,
+    i2: f64,
+    i3: f64,
+    g: f64,
+    fv: Vec3,
+    fc: Vec3,
+    eps: f64,
+}
+
+impl ThreeLinkArm {
+    pub fn new(p: &RobotParams) -> Self {
+        let [l1, l2, l3] = p.lengths;
+        let [_, m2, m3] = p.masses;
+        let (a2, a3, i2, i3) = match p.mass_model {
+            MassModel::Rod => (l2 / 2.0, l3 / 2.0, m2 * l2 * l2 / 12.0, m3 * l3 * l3 / 12.0),
+            MassModel::Point => (l2, l3, 0.0, 0.0),
+        };
+        Self {
+            l1,
+            l2,
+            l3,
+            m2,
+            m3,
+            a2,
+            a3,
+            i2,
+            i3,
+            g: p.gravity,
+            fv: Vec3::from(p.viscous_friction),
+            fc: Vec3::from(p.coulomb_friction),
+            eps: p.friction_smoothing,
+        }
+    }
+
+    /// |det J| / (l2 l3 (l2 + l3)) = |r sin q3| / (l2 + l3): zero exactly at the singular
+    /// configurations (det J = −r l2 l3 sin q3, r the tip's distance from the yaw axis).
+    pub fn jacobian_conditioning(&self, q: &Vec3) -> f64 {
+        let t = Trig::new(q);
+        let r = self.l2 * t.c2 + self.l3 * t.c23;
+        (r * t.s3).abs() / (self.l2 + self.l3)
+    }
+
+    #[inline]
+    fn kinematics_from(&self, t: &Trig, qd: &Vec3) -> Kinematics {
+        let (l2, l3) = (self.l2, self.l3);
+        let r = l2 * t.c2 + l3 * t.c23; // distance from the yaw axis
+        let h = l2 * t.s2 + l3 * t.s23; // height above the shoulder
+        let position = Vec3::new(t.c1 * r, t.s1 * r, self.l1 + h);
+        let jacobian = Mat3::new(
+            -t.s1 * r,
+            -t.c1 * h,
+            -t.c1 * l3 * t.s23,
+            t.c1 * r,
+            -t.s1 * h,
+            -t.s1 * l3 * t.s23,
+            0.0,
+            r,
+            l3 * t.c23,
+        );
+        let (w1, w2) = (qd[0], qd[1]);
+        let w23 = qd[1] + qd[2];
+        let r_dot = -h * w2 - l3 * t.s23 * qd[2];
+        // Parts of r̈ and z̈ that do not contain q̈.
+        let r_ddot = -(l2 * t.c2 * w2 * w2 + l3 * t.c23 * w23 * w23);
+        let z_ddot = -(l2 * t.s2 * w2 * w2 + l3 * t.s23 * w23 * w23);
+        let jdot_qd = Vec3::new(
+            -t.c1 * w1 * w1 * r - 2.0 * t.s1 * w1 * r_dot + t.c1 * r_ddot,
+            -t.s1 * w1 * w1 * r + 2.0 * t.c1 * w1 * r_dot + t.s1 * r_ddot,
+            z_ddot,
+        );
+        Kinematics {
+            position,
+            jacobian,
+            jdot_qd,
+        }
+    }
+
+    #[inline]
+    fn dynamics_from(&self, t: &Trig, qd: &Vec3) -> Dynamics {
+        let (l2, m2, m3, a2, a3, i2, i3) =
+            (self.l2, self.m2, self.m3, self.a2, self.a3, self.i2, self.i3);
+        // Distances of the two centres of mass from the yaw axis.
+        let r2 = a2 * t.c2;
+        let r3 = l2 * t.c2 + a3 * t.c23;
+        let d11 = m2 * r2 * r2 + i2 * t.c2 * t.c2 + m3 * r3 * r3 + i3 * t.c23 * t.c23;
+        let d22 = m2 * a2 * a2 + i2 + m3 * (l2 * l2 + a3 * a3 + 2.0 * l2 * a3 * t.c3) + i3;
+        let d23 = m3 * (a3 * a3 + l2 * a3 * t.c3) + i3;
+        let d33 = m3 * a3 * a3 + i3;
+        // The yaw inertia is decoupled from the pitch block: D12 = D13 = 0.
+        let inertia = Mat3::new(d11, 0.0, 0.0, 0.0, d22, d23, 0.0, d23, d33);
+
+        // ∂D11/∂q2, ∂D11/∂q3 and ∂D22/∂q3 = 2h, ∂D23/∂q3 = h give C by Christoffel symbols.
+        let dd11_dq2 = -2.0 * (m2 * a2 * a2 + i2) * t.c2 * t.s2
+            - 2.0 * m3 * r3 * (l2 * t.s2 + a3 * t.s23)
+            - 2.0 * i3 * t.c23 * t.s23;
+        let dd11_dq3 = -2.0 * m3 * r3 * a3 * t.s23 - 2.0 * i3 * t.c23 * t.s23;
+        let h = -m3 * l2 * a3 * t.s3;
+        let (w1, w2, w3) = (qd[0], qd[1], qd[2]);
+        let coriolis = Vec3::new(
+            (dd11_dq2 * w2 + dd11_dq3 * w3) * w1,
+            2.0 * h * w2 * w3 + h * w3 * w3 - 0.5 * dd11_dq2 * w1 * w1,
+            -h * w2 * w2 - 0.5 * dd11_dq3 * w1 * w1,
+        );
+        let gravity = Vec3::new(
+            0.0,
+            self.g * (m2 * r2 + m3 * r3),
+            self.g * m3 * a3 * t.c23,
+        );
+        Dynamics {
+            inertia,
+            coriolis,
+            gravity,
+        }
+    }
+
+    #[inline]
+    fn sign(&self, v: f64) -> f64 {
+        if self.eps > 0.0 {
+            (v / self.eps).tanh()
+        } else if v > 0.0 {
+            1.0
+        } else if v < 0.0 {
+            -1.0
+        } else {
+            0.0
+        }
+    }
+
+    /// Kinematics and dynamics together, sharing one trigonometric evaluation.
+    #[inline]
+    pub fn evaluate(&self, q: &Vec3, qd: &Vec3) -> (Kinematics, Dynamics) {
+        let t = Trig::new(q);
+        (self.kinematics_from(&t, qd), self.dynamics_from(&t, qd))
+    }
+
+    /// Joint accelerations with the wall's contact force evaluated at the same state:
+    /// eq. (1) with τ_ext = Jᵀ[−f, 0, 0], f = `contact(x)`. Returns (q̈, f).
+    #[inline]
+    pub fn accelerate(
+        &self,
+        q: &Vec3,
+        qd: &Vec3,
+        tau: &Vec3,
+        contact: impl Fn(f64) -> f64,
+    ) -> (Vec3, f64) {
+        let t = Trig::new(q);
+        let r = self.l2 * t.c2 + self.l3 * t.c23;
+        let f = contact(t.c1 * r);
+        // First row of J, times −f: the wall pushes the tip towards −x.
+        let h = self.l2 * t.s2 + self.l3 * t.s23;
+        let contact_torque = Vec3::new(t.s1 * r, t.c1 * h, t.c1 * self.l3 * t.s23) * f;
+        let d = self.dynamics_from(&t, qd);
+        let rhs = tau + contact_torque - d.coriolis - d.gravity - self.friction(qd);
+        (solve_block_inertia(&d.inertia, &rhs), f)
+    }
+}
+
+/// Solves D q̈ = rhs for this arm's block-diagonal D (yaw scalar ⊕ 2×2 pitch block).
+/// A singular D (arm straight up: no yaw inertia) gives non-finite q̈, which the
+/// simulation reports as divergence.
+#[inline]
+fn solve_block_inertia(d: &Mat3, rhs: &Vec3) -> Vec3 {
+    let (a, b, c) = (d[(1, 1)], d[(1, 2)], d[(2, 2)]);
+    let det = a * c - b * b;
+    Vec3::new(
+        rhs[0] / d[(0, 0)],
+        (c * rhs[1] - b * rhs[2]) / det,
+        (a * rhs[2] - b * rhs[1]) / det,
+    )
+}
+
+impl RobotModel for ThreeLinkArm {
+    fn kinematics(&self, q: &Vec3, qd: &Vec3) -> Kinematics {
+        self.kinematics_from(&Trig::new(q), qd)
+    }
+
+    fn dynamics(&self, q: &Vec3, qd: &Vec3) -> Dynamics {
+        self.dynamics_from(&Trig::new(q), qd)
+    }
+
+    fn friction(&self, qd: &Vec3) -> Vec3 {
+        Vec3::new(
+            self.fv[0] * qd[0] + self.fc[0] * self.sign(qd[0]),
+            self.fv[1] * qd[1] + self.fc[1] * self.sign(qd[1]),
+            self.fv[2] * qd[2] + self.fc[2] * self.sign(qd[2]),
+        )
+    }
+
+    fn forward_kinematics(&self, q: &Vec3) -> Vec3 {
+        let t = Trig::new(q);
+        let r = self.l2 * t.c2 + self.l3 * t.c23;
+        Vec3::new(
+            t.c1 * r,
+            t.s1 * r,
+            self.l1 + self.l2 * t.s2 + self.l3 * t.s23,
+        )
+    }
+
+    fn forward_dynamics(&self, q: &Vec3, qd: &Vec3, tau: &Vec3, tip_force: &Vec3) -> Vec3 {
+        let (k, d) = self.evaluate(q, qd);
+        let rhs = tau + k.jacobian.transpose() * tip_force
+            - d.coriolis
+            - d.gravity
+            - self.friction(qd);
+        solve_block_inertia(&d.inertia, &rhs)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn arm() -> (RobotParams, ThreeLinkArm) {
+        let p = RobotParams::default();
+        let a = ThreeLinkArm::new(&p);
+        (p, a)
+    }
+
+    fn q0() -> Vec3 {
+        Vec3::from(RobotParams::default().q0)
+    }
+
+    #[test]
+    fn spec_check_values_at_q0() {
+        let (_, arm) = arm();
+        let k = arm.kinematics(&q0(), &Vec3::zeros());
+        assert!((k.position - Vec3::new(0.734056, 0.0, 0.964056)).abs().max() < 5e-7);
+        let d = arm.dynamics(&q0(), &Vec3::zeros());
+        let expected = Mat3::new(1.903, 0.0, 0.0, 0.0, 2.883, 0.610, 0.0, 0.610, 0.296);
+        assert!((d.inertia - expected).abs().max() < 5e-4, "{}", d.inertia);
+        assert!((d.gravity - Vec3::new(0.0, 50.39, 10.12)).abs().max() < 5e-3);
+    }
+
+    #[test]
+    fn jacobian_matches_finite_differences_and_jdot() {
+        let (_, arm) = arm();
+        let q = Vec3::new(0.3, 0.7, -1.1);
+        let qd = Vec3::new(0.4, -0.9, 1.3);
+        let k = arm.kinematics(&q, &qd);
+        let h = 1e-6;
+        for j in 0..3 {
+            let mut dq = Vec3::zeros();
+            dq[j] = h;
+            let col = (arm.forward_kinematics(&(q + dq)) - arm.forward_kinematics(&(q - dq)))
+                / (2.0 * h);
+            assert!((col - k.jacobian.column(j)).abs().max() < 1e-8);
+        }
+        // J̇q̇ = d/dt (J q̇) along q(t) = q + q̇ t with q̇ constant.
+        let jqd = |t: f64| arm.kinematics(&(q + qd * t), &qd).jacobian * qd;
+        let fd = (jqd(h) - jqd(-h)) / (2.0 * h);
+        assert!((fd - k.jdot_qd).abs().max() < 1e-7);
+    }
+
+    #[test]
+    fn jacobian_determinant_closed_form() {
+        let (p, arm) = arm();
+        let q = Vec3::new(0.2, 0.5, -0.8);
+        let k = arm.kinematics(&q, &Vec3::zeros());
+        let r = p.lengths[1] * q[1].cos() + p.lengths[2] * (q[1] + q[2]).cos();
+        let det = -r * p.lengths[1] * p.lengths[2] * q[2].sin();
+        assert!((k.jacobian.determinant() - det).abs() < 1e-12);
+    }
+
+    /// Energy balance: with no friction and no torque, d/dt(T + V) = 0 along the flow,
+    /// which checks C against D (q̇ᵀ(Ḋ/2 q̇ − C) = 0) and G against the potential.
+    #[test]
+    fn coriolis_and_gravity_conserve_energy() {
+        for model in [MassModel::Rod, MassModel::Point] {
+            let p = RobotParams {
+                mass_model: model,
+                viscous_friction: [0.0; 3],
+                coulomb_friction: [0.0; 3],
+                ..RobotParams::default()
+            };
+            let arm = ThreeLinkArm::new(&p);
+            let q = Vec3::new(0.3, 0.6, -0.9);
+            let qd = Vec3::new(1.1, -0.7, 0.5);
+            let qdd = arm.forward_dynamics(&q, &qd, &Vec3::zeros(), &Vec3::zeros());
+            let energy = |q: &Vec3, qd: &Vec3| {
+                let d = arm.dynamics(q, qd);
+                let (a2, a3) = match model {
+                    MassModel::Rod => (p.lengths[1] / 2.0, p.lengths[2] / 2.0),
+                    MassModel::Point => (p.lengths[1], p.lengths[2]),
+                };
+                let z2 = a2 * q[1].sin();
+                let z3 = p.lengths[1] * q[1].sin() + a3 * (q[1] + q[2]).sin();
+                0.5 * qd.dot(&(d.inertia * qd)) + p.gravity * (p.masses[1] * z2 + p.masses[2] * z3)
+            };
+            let h = 1e-6;
+            let de = (energy(&(q + qd * h), &(qd + qdd * h))
+                - energy(&(q - qd * h), &(qd - qdd * h)))
+                / (2.0 * h);
+            assert!(de.abs() < 1e-6, "{model:?}: dE/dt = {de}");
+        }
+    }
+
+    #[test]
+    fn accelerate_matches_forward_dynamics_with_contact() {
+        let (_, arm) = arm();
+        let q = Vec3::new(0.1, 0.7, -0.6);
+        let qd = Vec3::new(0.2, 0.3, -0.4);
+        let tau = Vec3::new(1.0, 40.0, 9.0);
+        let (qdd, f) = arm.accelerate(&q, &qd, &tau, |x| 1000.0 * x);
+        let x = arm.forward_kinematics(&q)[0];
+        assert_eq!(f, 1000.0 * x);
+        let reference = arm.forward_dynamics(&q, &qd, &tau, &Vec3::new(-f, 0.0, 0.0));
+        assert!((qdd - reference).abs().max() < 1e-12);
+    }
+
+    #[test]
+    fn friction_smoothed_and_exact() {
+        let (mut p, arm) = arm();
+        let f = arm.friction(&Vec3::new(0.01, 0.0, -1.0));
+        assert!((f[0] - (0.03 + 5.0 * 1f64.tanh())).abs() < 1e-12);
+        assert_eq!(f[1], 0.0);
+        assert!((f[2] - (-3.0 - 5.0 * 100f64.tanh())).abs() < 1e-12);
+        p.friction_smoothing = 0.0;
+        let exact = ThreeLinkArm::new(&p).friction(&Vec3::new(0.01, 0.0, -1.0));
+        assert_eq!(exact, Vec3::new(5.03, 0.0, -8.0));
+    }
+
+    #[test]
+    fn singular_start_is_a_parameter_error() {
+        let p = RobotParams {
+            q0: [0.0, 0.5, 0.0],
+            ..RobotParams::default()
+        };
+        let err = p.validate().unwrap_err();
+        assert!(err.to_string().starts_with("q0 ="), "{err}");
+        let p = RobotParams {
+            masses: [30.0, -1.0, 4.8],
+            ..RobotParams::default()
+        };
+        assert!(p.validate().unwrap_err().to_string().starts_with("masses[1]"));
+    }
+
+    #[test]
+    fn model_error_scales_inertia_and_friction() {
+        let (p, arm) = arm();
+        let wrong = ThreeLinkArm::new(&p.with_model_error(1.2, 0.5));
+        let (d, dw) = (arm.dynamics(&q0(), &Vec3::zeros()), wrong.dynamics(&q0(), &Vec3::zeros()));
+        assert!((dw.inertia - d.inertia * 1.2).abs().max() < 1e-12);
+        let qd = Vec3::new(1.0, -1.0, 0.5);
+        assert!((wrong.friction(&qd) - arm.friction(&qd) * 0.5).abs().max() < 1e-12);
+    }
+}
