@@ -1,0 +1,56 @@
+"""admit_rs: admittance force tracking control of robot manipulators.
+
+Simulate and analyse the admittance (position-based) force control schemes of Jung &
+Jeong with a Rust core: computed torque, model-free and time-delayed inner loops,
+Scheme 1 / Scheme 2 admittance filters, an uncertain wall.
+
+Example:
+    >>> import admit_rs as ar
+    >>> r = ar.simulate(ar.paper.scenario("fig14"))
+    >>> round(r.metrics["force_ss_error"], 3) == round(r.metrics["force_ss_error"], 3)
+    True
+"""
+
+from admit_rs import paper
+from admit_rs._core import METRIC_NAMES, TRACE_COLUMNS, __version__
+from admit_rs.config import (
+    AdmittanceFilter,
+    ComputedTorque,
+    ImpedanceReference,
+    ModelError,
+    ModelFree,
+    Robot,
+    Sampled,
+    Scenario,
+    Sine,
+    Step,
+    TimeDelayControl,
+    Wall,
+    parameter_paths,
+)
+from admit_rs.errors import AdmitError, ParameterError
+from admit_rs.simulation import Result, simulate
+
+__all__ = [
+    "METRIC_NAMES",
+    "TRACE_COLUMNS",
+    "AdmitError",
+    "AdmittanceFilter",
+    "ComputedTorque",
+    "ImpedanceReference",
+    "ModelError",
+    "ModelFree",
+    "ParameterError",
+    "Result",
+    "Robot",
+    "Sampled",
+    "Scenario",
+    "Sine",
+    "Step",
+    "TimeDelayControl",
+    "Wall",
+    "__version__",
+    "paper",
+    "parameter_paths",
+    "simulate",
+]

@@ -1,0 +1,538 @@
+"""Building blocks of a scenario: frozen, keyword-only dataclasses.
+
+Every block validates itself through the Rust core when it is constructed, so a bad value
+fails where it is written, with a :class:`~admit_rs.errors.ParameterError` (a ``ValueError``)
+that names the field, the value and the allowed range. Defaults are the paper preset
+(SPEC §1-§6); ``Scenario()`` is the fig. 14 run (TDC, Scheme 2, b = 800, k_a = 1).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Literal, TypeAlias
+
+import numpy as np
+import numpy.typing as npt
+
+from admit_rs import _core
+
+Vector3: TypeAlias = tuple[float, float, float]
+ArrayLike3: TypeAlias = "Iterable[float] | npt.NDArray[np.float64]"
+
+
+def _vec3(name: str, value: Any) -> Vector3:
+    try:
+        items = tuple(float(v) for v in value)
+    except TypeError as e:
+        raise TypeError(f"{name} must be a sequence of 3 numbers, got {value!r}") from e
+    if len(items) != 3:
+        raise TypeError(f"{name} must have 3 elements, got {len(items)}")
+    return items  # type: ignore[return-value]
+
+
+def _core_value(value: Any) -> Any:
+    if isinstance(value, _Block):
+        return value._to_core()
+    if isinstance(value, tuple):
+        return list(value)
+    return value
+
+
+class _Block:
+    """Shared machinery: conversion to the core's dict and validation through Rust."""
+
+    _kind: ClassVar[str | None] = None
+    _check: ClassVar[str] = ""
+
+    def _to_core(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if self._kind is not None:
+            out["kind"] = self._kind
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            if f.name == "label":
+                continue
+            out[f.name] = _core_value(getattr(self, f.name))
+        return out
+
+    def _validate(self) -> None:
+        _core.check_block(self._check, self._to_core())
+
+    def _set(self, name: str, value: Any) -> None:
+        object.__setattr__(self, name, value)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain nested dict (tuples as lists), with a ``kind`` tag on tagged blocks."""
+        return self._to_core()
+
+
+@dataclass(frozen=True, kw_only=True)
+class Robot(_Block):
+    """The three-link arm of Table 1 (SPEC §1).
+
+    Example:
+        >>> import admit_rs as ar
+        >>> ar.Robot().dynamics([0, 0.785, -0.785])["gravity"].round(2)
+        array([ 0.  , 50.39, 10.12])
+    """
+
+    lengths: Vector3 = (0.66, 0.43, 0.43)
+    """Link lengths l1, l2, l3 [m]."""
+    masses: Vector3 = (30.0, 17.4, 4.8)
+    """Link masses [kg]."""
+    mass_model: Literal["rod", "point"] = "rod"
+    """``"rod"``: uniform thin rods; ``"point"``: a point mass at each link's end."""
+    viscous_friction: Vector3 = (3.0, 3.0, 3.0)
+    """Viscous friction per joint [N·m·s/rad]."""
+    coulomb_friction: Vector3 = (5.0, 5.0, 5.0)
+    """Coulomb friction per joint [N·m]."""
+    friction_smoothing: float = 0.01
+    """ε [rad/s] of sgn(q̇) ≈ tanh(q̇/ε); ε ≤ 0 uses the exact sign."""
+    gravity: float = 9.81
+    """Gravity along -z [m/s²]."""
+    q0: Vector3 = (0.0, math.pi / 4, -math.pi / 4)
+    """Initial joint angles [rad]."""
+
+    _check: ClassVar[str] = "robot"
+
+    def __post_init__(self) -> None:
+        for name in ("lengths", "masses", "viscous_friction", "coulomb_friction", "q0"):
+            self._set(name, _vec3(name, getattr(self, name)))
+        self._validate()
+
+    def dynamics(
+        self, q: ArrayLike3, qd: ArrayLike3 = (0.0, 0.0, 0.0)
+    ) -> dict[str, npt.NDArray[np.float64]]:
+        """D, C, G, J, J̇q̇, tip position and friction at (q, q̇).
+
+        Keys: ``inertia`` (D), ``coriolis`` (C), ``gravity`` (G), ``jacobian`` (J),
+        ``jdot_qd`` (J̇q̇), ``position`` (tip [x, y, z]), ``friction`` (τ_f).
+        """
+        return _core.robot_terms(self._to_core(), _vec3("q", q), _vec3("qd", qd))
+
+    def forward_dynamics(
+        self,
+        q: ArrayLike3,
+        qd: ArrayLike3,
+        tau: ArrayLike3,
+        tip_force: ArrayLike3 = (0.0, 0.0, 0.0),
+    ) -> npt.NDArray[np.float64]:
+        """q̈ of eq. (1): D q̈ = τ + Jᵀ F_tip − C − G − τ_f."""
+        return _core.forward_dynamics(
+            self._to_core(),
+            _vec3("q", q),
+            _vec3("qd", qd),
+            _vec3("tau", tau),
+            _vec3("tip_force", tip_force),
+        )
+
+    def tip_position(self, q: ArrayLike3) -> npt.NDArray[np.float64]:
+        """Forward kinematics [x, y, z] [m]."""
+        return self.dynamics(q)["position"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Wall(_Block):
+    """A unilateral spring wall normal to x (SPEC §2): f = k_e (x − x_e) while x > x_e."""
+
+    stiffness: float = 30_000.0
+    """Environment stiffness k_e [N/m]; unknown to the controller."""
+    position: float | None = None
+    """Wall position x_e [m]; ``None`` puts it at the tip's x at q0 (touching, zero force)."""
+    position_error: float = 0.0
+    """Error of the controller's estimate x̂_e = x_e + position_error [m]."""
+
+    _check: ClassVar[str] = "wall"
+
+    def __post_init__(self) -> None:
+        self._validate()
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModelError(_Block):
+    """How the controller's arm model differs from the plant (for sweeps)."""
+
+    mass_scale: float = 1.0
+    """Factor on every link mass (and inertia) in the controller's model."""
+    friction_scale: float = 1.0
+    """Factor on viscous and Coulomb friction in the controller's model."""
+
+    _check: ClassVar[str] = "model"
+
+    def __post_init__(self) -> None:
+        self._validate()
+
+
+class _Controller(_Block):
+    _check: ClassVar[str] = "controller"
+
+    def __post_init__(self) -> None:
+        model = getattr(self, "model", None)
+        if model is not None and not isinstance(model, ModelError):
+            raise TypeError(f"model must be an admit_rs.ModelError, got {type(model).__name__}")
+        self._validate()
+
+
+@dataclass(frozen=True, kw_only=True)
+class ComputedTorque(_Controller):
+    """Computed torque, eq. (7) with V of eq. (39): τ = D̂ J⁻¹(V − J̇q̇) + Ĉ + Ĝ + τ̂_f."""
+
+    ka: float = 0.1
+    """K_A of eq. (39); K_A⁻¹ multiplies the whole command, feed-forward included."""
+    kd: float = 20.0
+    """K_D of eq. (39) [1/s]."""
+    kp: float = 100.0
+    """K_P of eq. (39) [1/s²]."""
+    contact_compensation: bool = False
+    """Add f J_xᵀ to cancel the measured contact force."""
+    model: ModelError = field(default_factory=ModelError)
+    """The controller's model of the arm."""
+
+    _kind: ClassVar[str] = "computed_torque"
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModelFree(_Controller):
+    """Model-free ("nonmodel") control: eq. (18) without the delay estimate, τ = D̄ K_t Jᵀ V."""
+
+    ka: float = 5.0
+    kd: float = 20.0
+    kp: float = 100.0
+    inertia: float = 0.1
+    """Constant inertia D̄ = α I [kg·m²]."""
+    torque_constant: float = 200.0
+    """Torque constant K_t."""
+
+    _kind: ClassVar[str] = "model_free"
+
+
+@dataclass(frozen=True, kw_only=True)
+class TimeDelayControl(_Controller):
+    """Time-delayed control: eq. (18) (default) or eq. (17).
+
+    τ_k = D̄ K_t Jᵀ V_k + τ_{k−1} − D̄ q̈_{k−1}, with q̈_{k−1} = (q̇_k − q̇_{k−1})/T,
+    τ_{−1} = Ĝ(q0) and q̈_{−1} = 0.
+    """
+
+    ka: float = 5.0
+    kd: float = 20.0
+    kp: float = 100.0
+    inertia: float = 0.1
+    """Constant inertia D̄ [kg·m²]."""
+    torque_constant: float = 200.0
+    """Torque constant K_t (eq. 18 only)."""
+    law: Literal["jacobian_transpose", "inverse_jacobian"] = "jacobian_transpose"
+    """``"jacobian_transpose"``: eq. (18); ``"inverse_jacobian"``: eq. (17)."""
+    model: ModelError = field(default_factory=ModelError)
+    """Used only for the initial torque τ_{−1} = Ĝ(q0)."""
+
+    _kind: ClassVar[str] = "time_delay"
+
+
+Controller: TypeAlias = ComputedTorque | ModelFree | TimeDelayControl
+
+
+@dataclass(frozen=True, kw_only=True)
+class AdmittanceFilter(_Block):
+    """Admittance filter m ẍ_a + b ẋ_a + k x_a = k_a e_f (eq. 30; k = 0 is eq. 38).
+
+    Discretised exactly with a zero-order hold. Use :meth:`scheme1` or :meth:`scheme2`
+    for the paper's two designs.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> ar.AdmittanceFilter.scheme2(b=400, ka=0.1)
+        AdmittanceFilter(m=1.0, b=400, k=0.0, ka=0.1)
+    """
+
+    m: float = 1.0
+    """Mass [kg]."""
+    b: float = 800.0
+    """Damping [N·s/m]."""
+    k: float = 0.0
+    """Stiffness [N/m]; 0 is Scheme 2."""
+    ka: float = 1.0
+    """Filter gain k_a."""
+
+    _kind: ClassVar[str] = "admittance"
+    _check: ClassVar[str] = "admittance"
+
+    def __post_init__(self) -> None:
+        self._validate()
+
+    @classmethod
+    def scheme1(
+        cls, *, b: float = 800.0, k: float = 400.0, ka: float = 0.1, m: float = 1.0
+    ) -> AdmittanceFilter:
+        """Scheme 1, eq. (30): keeps a steady-state offset f_d·r/(1+r), r = k_a k_e / k."""
+        return cls(m=m, b=b, k=k, ka=ka)
+
+    @classmethod
+    def scheme2(cls, *, b: float = 800.0, ka: float = 0.1, m: float = 1.0) -> AdmittanceFilter:
+        """Scheme 2, eq. (38): k = 0; no steady-state force error."""
+        return cls(m=m, b=b, k=0.0, ka=ka)
+
+    def discretize(
+        self, period: float
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """The exact ZOH pair (Ad, Bd) for the state [x_a, ẋ_a] and period T."""
+        return _core.filter_discretize(self._to_core(), float(period))
+
+    def response(
+        self, force_error: Iterable[float] | npt.NDArray[np.float64], period: float
+    ) -> dict[str, npt.NDArray[np.float64]]:
+        """Runs the discrete filter on a force-error sequence: ``x_a``, ``xa_dot``, ``xa_ddot``."""
+        return _core.filter_response(
+            self._to_core(), float(period), [float(e) for e in force_error]
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
+class ImpedanceReference(_Block):
+    """The baseline of eq. (20): x_d = x̂_e + f_d / k_eff, k_eff = k k̂_e / (k + k̂_e).
+
+    No force feedback: it tracks f_d only if the assumed stiffness is the true one.
+    """
+
+    k: float = 10_000.0
+    """Impedance stiffness [N/m]."""
+    assumed_stiffness: float = 30_000.0
+    """The wall stiffness the designer assumes, k̂_e [N/m]."""
+
+    _kind: ClassVar[str] = "impedance"
+    _check: ClassVar[str] = "admittance"
+
+    def __post_init__(self) -> None:
+        self._validate()
+
+
+ForceControl: TypeAlias = AdmittanceFilter | ImpedanceReference
+
+
+class _Signal(_Block):
+    _check: ClassVar[str] = "signal"
+
+    def __post_init__(self) -> None:
+        self._validate()
+
+
+@dataclass(frozen=True, kw_only=True)
+class Step(_Signal):
+    """``initial`` before ``time``, ``value`` from ``time`` on."""
+
+    value: float = 10.0
+    time: float = 0.0
+    initial: float = 0.0
+
+    _kind: ClassVar[str] = "step"
+
+    def __call__(self, t: float | npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        return np.where(np.asarray(t) >= self.time, self.value, self.initial)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Sine(_Signal):
+    """``offset + amplitude · sin(omega t + phase)``, omega in rad/s."""
+
+    offset: float = 0.0
+    amplitude: float = 1.0
+    omega: float = 1.0
+    phase: float = 0.0
+
+    _kind: ClassVar[str] = "sine"
+
+    def __call__(self, t: float | npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        return self.offset + self.amplitude * np.sin(self.omega * np.asarray(t) + self.phase)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Sampled(_Signal):
+    """A signal given by samples, linearly interpolated and held outside its span.
+
+    The rate fed forward is the segment's slope; the acceleration is zero.
+
+    Example:
+        >>> import numpy as np, admit_rs as ar
+        >>> t = np.linspace(0, 10, 101)
+        >>> ar.Sampled(times=t, values=10 + np.clip(t, 0, 2))(1.0).item()
+        11.0
+    """
+
+    times: tuple[float, ...] = (0.0,)
+    values: tuple[float, ...] = (0.0,)
+
+    _kind: ClassVar[str] = "sampled"
+
+    def __post_init__(self) -> None:
+        self._set("times", tuple(float(v) for v in np.ravel(np.asarray(self.times))))
+        self._set("values", tuple(float(v) for v in np.ravel(np.asarray(self.values))))
+        super().__post_init__()
+
+    def __call__(self, t: float | npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        return np.interp(np.asarray(t, dtype=float), self.times, self.values)
+
+
+Signal: TypeAlias = Step | Sine | Sampled
+
+_UNIONS: dict[str, tuple[type, ...]] = {
+    "robot": (Robot,),
+    "wall": (Wall, type(None)),
+    "controller": (ComputedTorque, ModelFree, TimeDelayControl),
+    "admittance": (AdmittanceFilter, ImpedanceReference, type(None)),
+    "force_reference": (Step, Sine, Sampled),
+    "z_reference": (Step, Sine, Sampled),
+}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scenario(_Block):
+    """One closed-loop run. The defaults are the paper's fig. 14 (TDC + Scheme 2).
+
+    Example:
+        >>> import admit_rs as ar
+        >>> sc = ar.Scenario().replace(**{"wall.stiffness": 5e4, "admittance.b": 400})
+        >>> sc.wall.stiffness, sc.admittance.b
+        (50000.0, 400)
+    """
+
+    robot: Robot = field(default_factory=Robot)
+    wall: Wall | None = field(default_factory=Wall)
+    """``None``: free space."""
+    controller: Controller = field(default_factory=TimeDelayControl)
+    admittance: ForceControl | None = field(
+        default_factory=lambda: AdmittanceFilter.scheme2(b=800.0, ka=1.0)
+    )
+    """The outer force loop; ``None`` is position-only control (x held at X0 x)."""
+    force_reference: Signal = field(default_factory=lambda: Step(value=10.0))
+    """Desired contact force f_d(t) [N]."""
+    z_reference: Signal = field(default_factory=lambda: Sine(amplitude=0.05))
+    """Desired z relative to the start: z_d = z0 + signal(t) [m]."""
+    period: float = 1e-3
+    """Controller period T [s]."""
+    substeps: int = 10
+    """RK4 substeps per period."""
+    duration: float = 10.0
+    """Run length [s], a multiple of ``period``."""
+    velocity_limit: float = 100.0
+    """A run stops as unstable when any |q̇| reaches this [rad/s]."""
+    label: str = ""
+    """Free text carried into results and plots."""
+
+    def __post_init__(self) -> None:
+        for name, allowed in _UNIONS.items():
+            value = getattr(self, name)
+            if not isinstance(value, allowed):
+                names = " | ".join("None" if a is type(None) else a.__name__ for a in allowed)
+                raise TypeError(f"{name} must be {names}, got {type(value).__name__}")
+        if not isinstance(self.label, str):
+            raise TypeError(f"label must be a str, got {type(self.label).__name__}")
+        _core.validate(self._to_core())
+
+    def replace(self, **changes: Any) -> Scenario:
+        """A copy with fields changed; nested fields by dotted path.
+
+        ``sc.replace(**{"wall.stiffness": 5e4}, duration=2.0)``. Unknown paths raise
+        ``TypeError`` naming the closest valid ones.
+        """
+        return _replace_paths(self, changes)
+
+    @property
+    def samples(self) -> int:
+        """N = duration / period + 1."""
+        return round(self.duration / self.period) + 1
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Scenario:
+        """Builds a scenario from the nested dict of :meth:`to_dict` (or a parsed TOML file)."""
+        return _from_dict(cls, data, "")
+
+    def to_dict(self) -> dict[str, Any]:
+        out = self._to_core()
+        out["label"] = self.label
+        return out
+
+
+def parameter_paths(obj: Any, prefix: str = "") -> list[str]:
+    """Every dotted path of scalar parameters below ``obj`` (a block or a scenario)."""
+    paths: list[str] = []
+    for f in dataclasses.fields(obj):
+        value = getattr(obj, f.name)
+        path = f"{prefix}{f.name}"
+        if isinstance(value, _Block):
+            paths.extend(parameter_paths(value, path + "."))
+        else:
+            paths.append(path)
+    return paths
+
+
+def _replace_paths(obj: Any, changes: Mapping[str, Any]) -> Any:
+    direct: dict[str, Any] = {}
+    nested: dict[str, dict[str, Any]] = {}
+    names = {f.name for f in dataclasses.fields(obj)}
+    for path, value in changes.items():
+        head, _, rest = path.partition(".")
+        if head not in names:
+            raise _unknown_path(obj, path)
+        if rest:
+            nested.setdefault(head, {})[rest] = value
+        else:
+            direct[head] = value
+    for head, sub in nested.items():
+        if head in direct:
+            raise TypeError(f"both {head} and {head}.{next(iter(sub))} given")
+        child = getattr(obj, head)
+        if not isinstance(child, _Block):
+            raise TypeError(
+                f"cannot set {head}.{next(iter(sub))}: {head} is {type(child).__name__}"
+            )
+        try:
+            direct[head] = _replace_paths(child, sub)
+        except TypeError as e:
+            raise TypeError(f"{head}.{e}") from None
+    return dataclasses.replace(obj, **direct)
+
+
+def _unknown_path(obj: Any, path: str) -> TypeError:
+    valid = parameter_paths(obj)
+    close = difflib.get_close_matches(path, valid, n=3, cutoff=0.5)
+    hint = f"; did you mean {', '.join(close)}?" if close else ""
+    return TypeError(f"{path}: no such parameter in {type(obj).__name__}{hint}")
+
+
+_KINDS: dict[str, type[_Block]] = {
+    "computed_torque": ComputedTorque,
+    "model_free": ModelFree,
+    "time_delay": TimeDelayControl,
+    "admittance": AdmittanceFilter,
+    "impedance": ImpedanceReference,
+    "step": Step,
+    "sine": Sine,
+    "sampled": Sampled,
+}
+_FIXED: dict[str, type[_Block]] = {"robot": Robot, "wall": Wall, "model": ModelError}
+
+
+def _from_dict(cls: type[Any], data: Mapping[str, Any], path: str) -> Any:
+    kwargs: dict[str, Any] = {}
+    for key, value in data.items():
+        if key == "kind":
+            continue
+        if isinstance(value, Mapping):
+            sub: type[Any]
+            if "kind" in value:
+                kind = value["kind"]
+                if kind not in _KINDS:
+                    raise TypeError(f"{path}{key}.kind: unknown kind {kind!r}; one of {list(_KINDS)}")
+                sub = _KINDS[kind]
+            elif key in _FIXED:
+                sub = _FIXED[key]
+            else:
+                raise TypeError(f"{path}{key}: a table needs a 'kind' (one of {list(_KINDS)})")
+            value = _from_dict(sub, value, f"{path}{key}.")
+        elif isinstance(value, list):
+            value = tuple(value)
+        kwargs[key] = value
+    return cls(**kwargs)
