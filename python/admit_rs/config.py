@@ -275,9 +275,7 @@ class AdmittanceFilter(_Block):
         """Scheme 2, eq. (38): k = 0; no steady-state force error."""
         return cls(m=m, b=b, k=0.0, ka=ka)
 
-    def discretize(
-        self, period: float
-    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    def discretize(self, period: float) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """The exact ZOH pair (Ad, Bd) for the state [x_a, ẋ_a] and period T."""
         return _core.filter_discretize(self._to_core(), float(period))
 
@@ -469,13 +467,32 @@ def parameter_paths(obj: Any, prefix: str = "") -> list[str]:
 
 
 def _replace_paths(obj: Any, changes: Mapping[str, Any]) -> Any:
+    for path in changes:
+        _check_path(obj, path)
+    return _apply(obj, changes)
+
+
+def _check_path(obj: Any, path: str) -> None:
+    """Raises TypeError for a path that names no field, with the closest valid ones."""
+    node, walked = obj, []
+    for part in path.split("."):
+        if not isinstance(node, _Block):
+            where = ".".join(walked)
+            raise TypeError(f"cannot set {path}: {where} is {type(node).__name__}")
+        if part not in {f.name for f in dataclasses.fields(node)}:  # type: ignore[arg-type]
+            valid = parameter_paths(obj)
+            close = difflib.get_close_matches(path, valid, n=3, cutoff=0.6)
+            hint = f"; did you mean {', '.join(close)}?" if close else ""
+            raise TypeError(f"{path}: no such parameter in {type(obj).__name__}{hint}")
+        node = getattr(node, part)
+        walked.append(part)
+
+
+def _apply(obj: Any, changes: Mapping[str, Any]) -> Any:
     direct: dict[str, Any] = {}
     nested: dict[str, dict[str, Any]] = {}
-    names = {f.name for f in dataclasses.fields(obj)}
     for path, value in changes.items():
         head, _, rest = path.partition(".")
-        if head not in names:
-            raise _unknown_path(obj, path)
         if rest:
             nested.setdefault(head, {})[rest] = value
         else:
@@ -483,23 +500,8 @@ def _replace_paths(obj: Any, changes: Mapping[str, Any]) -> Any:
     for head, sub in nested.items():
         if head in direct:
             raise TypeError(f"both {head} and {head}.{next(iter(sub))} given")
-        child = getattr(obj, head)
-        if not isinstance(child, _Block):
-            raise TypeError(
-                f"cannot set {head}.{next(iter(sub))}: {head} is {type(child).__name__}"
-            )
-        try:
-            direct[head] = _replace_paths(child, sub)
-        except TypeError as e:
-            raise TypeError(f"{head}.{e}") from None
+        direct[head] = _apply(getattr(obj, head), sub)
     return dataclasses.replace(obj, **direct)
-
-
-def _unknown_path(obj: Any, path: str) -> TypeError:
-    valid = parameter_paths(obj)
-    close = difflib.get_close_matches(path, valid, n=3, cutoff=0.5)
-    hint = f"; did you mean {', '.join(close)}?" if close else ""
-    return TypeError(f"{path}: no such parameter in {type(obj).__name__}{hint}")
 
 
 _KINDS: dict[str, type[_Block]] = {
@@ -525,7 +527,9 @@ def _from_dict(cls: type[Any], data: Mapping[str, Any], path: str) -> Any:
             if "kind" in value:
                 kind = value["kind"]
                 if kind not in _KINDS:
-                    raise TypeError(f"{path}{key}.kind: unknown kind {kind!r}; one of {list(_KINDS)}")
+                    raise TypeError(
+                        f"{path}{key}.kind: unknown kind {kind!r}; one of {list(_KINDS)}"
+                    )
                 sub = _KINDS[kind]
             elif key in _FIXED:
                 sub = _FIXED[key]

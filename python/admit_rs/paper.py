@@ -147,7 +147,9 @@ def _build(name: str) -> list[Scenario]:
                 _run("CT, Scheme 2, k_a=0.1", _ct(), ka=0.1),
             ]
         case "fig9":
-            return [_run(f"CT, Scheme 2, b={b}, k_a=0.1", _ct(), b=b, ka=0.1) for b in (200, 400, 800)]
+            return [
+                _run(f"CT, Scheme 2, b={b}, k_a=0.1", _ct(), b=b, ka=0.1) for b in (200, 400, 800)
+            ]
         case "fig10":
             return [_run(f"CT, Scheme 2, b=800, k_a={ka}", _ct(), ka=ka) for ka in (1, 2)]
         case "fig11":

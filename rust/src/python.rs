@@ -18,7 +18,7 @@ use crate::filter::{AdmittanceFilter, AdmittanceParams, ForceControlParams, Impe
 use crate::metrics::METRIC_NAMES;
 use crate::reference::Signal;
 use crate::robot::{MassModel, RobotModel, RobotParams, ThreeLinkArm, Vec3};
-use crate::simulation::{Outcome, RunResult, ScenarioConfig, TRACE_COLUMNS};
+use crate::simulation::{Outcome, RunResult, ScenarioConfig, MAX_SUBSTEPS, TRACE_COLUMNS};
 
 create_exception!(
     _core,
@@ -279,12 +279,12 @@ fn signal_from(b: &Block) -> PyResult<Signal> {
 fn scenario_from(obj: &Bound<'_, PyAny>) -> PyResult<ScenarioConfig> {
     let b = Block::new(obj, "")?;
     let substeps = b.f64("substeps")?;
-    if !(substeps.fract() == 0.0 && substeps >= 1.0 && substeps <= usize::MAX as f64) {
+    if !(substeps.fract() == 0.0 && substeps >= 1.0 && substeps <= MAX_SUBSTEPS as f64) {
         return Err(parameter_error(
             obj.py(),
             "substeps",
             &substeps.to_string(),
-            "a whole number >= 1",
+            &format!("an integer from 1 to {MAX_SUBSTEPS}"),
         ));
     }
     let config = ScenarioConfig {

@@ -1,0 +1,68 @@
+"""Type stubs for the Rust extension ``admit_rs._core``.
+
+The functions take plain nested dicts as produced by ``Scenario._to_core()`` and the
+blocks' ``_to_core()``; users call them through the dataclasses in :mod:`admit_rs.config`.
+"""
+
+from typing import Any, Final
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: Final[str]
+TRACE_COLUMNS: Final[list[str]]
+"""Trace column names in order: t, q1..q3, qd1..qd3, x, y, z, x_ref, y_ref, z_ref, f, f_d,
+x_a, tau1..tau3, xa_dot."""
+METRIC_NAMES: Final[list[str]]
+"""Float metric names (SPEC §7 plus step_info-convention extras); ``stable`` comes besides."""
+
+class AdmitError(Exception):
+    """Base of admit_rs runtime errors."""
+
+class ParameterError(ValueError):
+    """A parameter outside its allowed range."""
+
+    field: str
+    """Dotted path of the parameter, e.g. ``wall.stiffness``."""
+    value: str
+    """The rejected value, as text."""
+    allowed: str
+    """The allowed range, in words."""
+
+def check_block(kind: str, params: dict[str, Any]) -> None:
+    """Validate one block (kind: robot, wall, controller, admittance, signal, model)."""
+
+def validate(scenario: dict[str, Any]) -> None:
+    """Validate a whole scenario dict, cross-field checks included."""
+
+def simulate(scenario: dict[str, Any]) -> dict[str, Any]:
+    """Run one scenario with the GIL released.
+
+    Returns ``{"columns": {name: ndarray}, "metrics": {name: float, "stable": bool},
+    "diverged_at": float | None, "divergence_cause": str | None}``.
+    """
+
+def robot_terms(
+    robot: dict[str, Any], q: tuple[float, float, float], qd: tuple[float, float, float]
+) -> dict[str, npt.NDArray[np.float64]]:
+    """D (``inertia``), C (``coriolis``), G (``gravity``), J (``jacobian``), ``jdot_qd``,
+    tip ``position`` and ``friction`` at (q, q̇)."""
+
+def forward_dynamics(
+    robot: dict[str, Any],
+    q: tuple[float, float, float],
+    qd: tuple[float, float, float],
+    tau: tuple[float, float, float],
+    tip_force: tuple[float, float, float],
+) -> npt.NDArray[np.float64]:
+    """q̈ of eq. (1): D q̈ = τ + Jᵀ F_tip − C − G − τ_f."""
+
+def filter_discretize(
+    params: dict[str, Any], period: float
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Exact ZOH matrices (Ad 2×2, Bd 2) of an admittance filter."""
+
+def filter_response(
+    params: dict[str, Any], period: float, force_error: list[float]
+) -> dict[str, npt.NDArray[np.float64]]:
+    """Run the discrete filter: ``x_a``, ``xa_dot``, ``xa_ddot`` per sample."""
