@@ -12,7 +12,10 @@ Example:
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 from admit_rs.config import (
     AdmittanceFilter,
@@ -25,6 +28,10 @@ from admit_rs.config import (
     TimeDelayControl,
     Wall,
 )
+
+if TYPE_CHECKING:
+    import polars as pl
+    from matplotlib.figure import Figure as MplFigure
 
 STEP_FORCE = Step(value=10.0)
 """f_d = 10 N from t = 0."""
@@ -191,6 +198,23 @@ def _build(name: str) -> list[Scenario]:
                 for ke in (10_000.0, 30_000.0, 50_000.0, 100_000.0)
             ]
     raise KeyError(f"unknown figure {name!r}; the paper's simulations are {', '.join(FIGURES)}")
+
+
+def figure(name: str | int) -> MplFigure:
+    """The paper's figure ``name`` (e.g. 14 or "fig14") as a matplotlib Figure."""
+    from admit_rs.reproduction import figure as draw
+
+    return draw(name)
+
+
+def reproduce(
+    out_dir: str | Path, figures: Iterable[str | int] | None = None, *, progress: bool = True
+) -> pl.DataFrame:
+    """Every figure (or ``figures``) as PNGs plus metrics.parquet, metrics.md and README.md
+    in ``out_dir``; returns the metrics table. See :func:`admit_rs.reproduction.reproduce`."""
+    from admit_rs.reproduction import reproduce as run
+
+    return run(out_dir, figures, progress=progress)
 
 
 def _name(figure: str | int) -> str:

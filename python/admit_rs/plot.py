@@ -64,3 +64,67 @@ def plot_result(result: Result, title: str | None = None) -> Figure:
         heading += f" — diverged at {result.diverged_at:.3g} s: {result.divergence_cause}"
     fig.suptitle(heading)
     return fig
+
+
+def plot_paper_figure(
+    results: list[Result], title: str, size: tuple[float, float] = (15.0, 8.0)
+) -> Figure:
+    """A paper figure: every curve overlaid, panels like the paper's (a), (b), ...
+
+    Force runs: force and f_d, force error, x and x_ref, z and z_ref, x_a, joint torques
+    (of the first curve). Position-only runs: x, z, their errors and the joint torques.
+    """
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=size, layout="constrained")
+    axes = list(fig.subplots(2, 3, sharex=True).flat)
+    force_control = results[0].scenario.admittance is not None
+    many = len(results) > 1
+    for i, r in enumerate(results):
+        tr = r.trace
+        t = tr["t"].to_numpy()
+        label = r.scenario.label or f"curve {i + 1}"
+        color = f"C{i}"
+        ref_style = {"color": color if many else "k", "ls": "--", "lw": 1}
+        ref_label = f"reference ({label})" if many else "reference"
+        if force_control:
+            ax = axes[0]
+            ax.plot(t, tr["f"].to_numpy(), color=color, label=label)
+            if i == 0:
+                ax.plot(t, tr["f_d"].to_numpy(), "k--", lw=1, label="f_d")
+            axes[1].plot(t, (tr["f_d"] - tr["f"]).to_numpy(), color=color, label=label)
+            axes[4].plot(t, 1e3 * tr["x_a"].to_numpy(), color=color, label=label)
+        else:
+            axes[0].plot(t, 1e3 * (tr["x_ref"] - tr["x"]).to_numpy(), color=color, label=label)
+            axes[1].plot(t, 1e3 * (tr["z_ref"] - tr["z"]).to_numpy(), color=color, label=label)
+        axes[2].plot(t, tr["x"].to_numpy(), color=color, label=label)
+        axes[2].plot(t, tr["x_ref"].to_numpy(), label=ref_label, **ref_style)
+        axes[3].plot(t, tr["z"].to_numpy(), color=color, label=label)
+        if i == 0 or many:
+            axes[3].plot(t, tr["z_ref"].to_numpy(), label=ref_label if i == 0 else None,
+                         **ref_style)  # fmt: skip
+        if i == 0:
+            for j in range(1, 4):
+                axes[5].plot(t, tr[f"tau{j}"].to_numpy(), label=f"τ{j}")
+        if r.diverged_at is not None:
+            for ax in axes:
+                ax.axvline(r.diverged_at, color="r", lw=1)
+    if force_control:
+        names = ["(a) contact force [N]", "(b) force error f_d − f [N]", "(c) x position [m]",
+                 "(d) z position [m]", "(e) admittance output x_a [mm]"]  # fmt: skip
+    else:
+        names = ["(a) x error x_d − x [mm]", "(b) z error z_d − z [mm]", "(c) x position [m]",
+                 "(d) z position [m]", ""]  # fmt: skip
+        axes[4].set_visible(False)
+    tau_title = "joint torques [N·m]" + (f" ({results[0].scenario.label})" if many else "")
+    names.append(("(f) " if force_control else "(e) ") + tau_title)
+    for ax, name in zip(axes, names, strict=True):
+        ax.set_title(name, fontsize=10)
+        ax.grid(True, alpha=0.3)
+        ax.tick_params(labelsize=9)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7, loc="best")
+    for ax in axes[3:]:
+        ax.set_xlabel("t [s]")
+    fig.suptitle(title, fontsize=12)
+    return fig

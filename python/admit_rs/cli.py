@@ -1,0 +1,90 @@
+"""The ``admit-rs`` command line.
+
+admit-rs paper --out paper-results          # every figure, metrics table, report
+admit-rs paper --figure 14 --out results    # one figure
+admit-rs run SCENARIO.toml [-o trace.parquet] [--plot run.png]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import tomllib
+
+from admit_rs.errors import ParameterError
+
+
+def _paper(args: argparse.Namespace) -> int:
+    from admit_rs.reproduction import reproduce, verdicts
+
+    start = time.perf_counter()
+    table = reproduce(args.out, args.figure, progress=not args.no_progress)
+    elapsed = time.perf_counter() - start
+    judged = verdicts(table)
+    differs = [name for name, v in judged.items() if not v.agrees]
+    print(f"wrote {table.height} curves of {len(set(table['figure']))} figures to {args.out}"
+          f" in {elapsed:.1f} s")  # fmt: skip
+    if differs:
+        print(f"differ from the paper (see {args.out}/README.md): {', '.join(differs)}")
+    return 0
+
+
+def _run(args: argparse.Namespace) -> int:
+    from admit_rs.config import Scenario
+    from admit_rs.simulation import simulate
+
+    with open(args.scenario, "rb") as fh:
+        data = tomllib.load(fh)
+    scenario = Scenario.from_dict(data.get("scenario", data))
+    result = simulate(scenario)
+    if args.output:
+        result.trace.write_parquet(args.output)
+    if args.plot:
+        result.plot().savefig(args.plot, dpi=100)
+    print(json.dumps({"stable": result.stable, "diverged_at": result.diverged_at,
+                      "divergence_cause": result.divergence_cause,
+                      "metrics": result.metrics}, indent=2))  # fmt: skip
+    return 0 if result.stable else 3
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="admit-rs",
+        description="Admittance force tracking control of robot manipulators (Jung & Jeong).",
+    )
+    sub = p.add_subparsers(dest="command", required=True)
+    paper = sub.add_parser("paper", help="reproduce the paper's figures 5-20 and a metrics table")
+    paper.add_argument("--out", type=Path, default=Path("paper-results"), help="output folder")
+    paper.add_argument(
+        "--figure", type=int, action="append", choices=range(5, 21), metavar="N",
+        help="only figure N (5-20); repeat for several",
+    )  # fmt: skip
+    paper.add_argument("--no-progress", action="store_true", help="no progress bar")
+    paper.set_defaults(func=_paper)
+    run = sub.add_parser("run", help="run one scenario from a TOML file, print its metrics")
+    run.add_argument("scenario", type=Path, help="TOML file (Scenario.to_dict layout)")
+    run.add_argument("-o", "--output", type=Path, help="write the trace as Parquet")
+    run.add_argument("--plot", type=Path, help="write the standard plot as PNG")
+    run.set_defaults(func=_run)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        return int(args.func(args))
+    except (ParameterError, TypeError, FileNotFoundError, tomllib.TOMLDecodeError) as e:
+        print(f"admit-rs: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("admit-rs: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,174 @@
+"""The paper's figures: every scenario runs, and SPEC §9's checkable claims hold."""
+
+from __future__ import annotations
+
+import struct
+
+import admit_rs as ar
+import polars as pl
+import pytest
+from admit_rs import cli, reproduction
+from admit_rs.paper import FIGURES
+
+
+@pytest.fixture(scope="module")
+def table() -> pl.DataFrame:
+    rows = [
+        reproduction.metrics_row(name, i, r)
+        for name in FIGURES
+        for i, r in enumerate(reproduction.run_figure(name))
+    ]
+    return pl.DataFrame(rows)
+
+
+def curves(table: pl.DataFrame, fig: str) -> pl.DataFrame:
+    return table.filter(pl.col("figure") == fig).sort("curve")
+
+
+def test_every_figure_has_its_curves():
+    counts = {name: len(ar.paper.scenarios(name)) for name in FIGURES}
+    assert list(counts) == [f"fig{n}" for n in range(5, 21)]
+    assert counts == {
+        "fig5": 1, "fig6": 1, "fig7": 1, "fig8": 2, "fig9": 3, "fig10": 2, "fig11": 3,
+        "fig12": 1, "fig13": 1, "fig14": 1, "fig15": 3, "fig16": 1, "fig17": 3, "fig18": 1,
+        "fig19": 1, "fig20": 4,
+    }  # fmt: skip
+    assert ar.paper.scenario(14) == ar.paper.scenarios("fig14")[0]
+    with pytest.raises(KeyError, match="fig21"):
+        ar.paper.scenarios("fig21")
+
+
+def test_scenarios_follow_spec_section_9():
+    fig8 = ar.paper.scenarios("fig8")
+    assert fig8[0].admittance == ar.AdmittanceFilter(m=1.0, b=800.0, k=400.0, ka=0.1)
+    assert fig8[1].admittance == ar.AdmittanceFilter.scheme2(b=800.0, ka=0.1)
+    assert all(isinstance(s.controller, ar.ComputedTorque) for s in fig8)
+    assert [s.admittance.b for s in ar.paper.scenarios("fig9")] == [200, 400, 800]
+    assert [s.admittance.ka for s in ar.paper.scenarios("fig10")] == [1, 2]
+    assert [s.wall.stiffness for s in ar.paper.scenarios("fig20")] == [1e4, 3e4, 5e4, 1e5]
+    assert all(s.wall.position_error == 0.01 for s in ar.paper.scenarios("fig20"))
+    assert isinstance(ar.paper.scenario("fig18").controller, ar.ModelFree)
+    assert ar.paper.scenario("fig13").force_reference == ar.Sine(offset=10, amplitude=5)
+    fig5 = ar.paper.scenario("fig5")
+    assert fig5.wall is None and fig5.admittance is None
+
+
+def test_every_curve_is_stable(table):
+    assert table.height == 29
+    assert table["stable"].all()
+
+
+def test_scheme1_offset_and_scheme2_none(table):
+    ss = curves(table, "fig8")["force_ss_error"]
+    assert ss[0] > 1.0
+    assert abs(ss[1]) < 0.5
+
+
+def test_scheme1_offset_matches_series_compliance(table):
+    """CT without contact compensation is a spring K_P/K_A · Λ_xx in series with the wall;
+    eq. (26) with that series stiffness predicts the offset within 2 %."""
+    import numpy as np
+
+    robot = ar.Robot()
+    terms = robot.dynamics(robot.q0)
+    jac, inertia = terms["jacobian"], terms["inertia"]
+    lam = np.linalg.inv(jac @ np.linalg.inv(inertia) @ jac.T)[0, 0]
+    k_inner = 100.0 / 0.1 * lam
+    k_series = 30_000.0 * k_inner / (30_000.0 + k_inner)
+    r = 0.1 * k_series / 400.0
+    predicted = 10.0 * r / (1 + r)
+    measured = 10.0 - curves(table, "fig8")["force_ss_error"][0]
+    assert measured == pytest.approx(predicted, rel=0.02)
+
+
+def test_larger_damping_is_slower(table):
+    rise = curves(table, "fig9")["rise_time_63"].to_list()
+    assert rise[0] < rise[1] < rise[2]
+    # With a sine f_d, more damping means more lag, so a larger tracking error.
+    lag = curves(table, "fig11")["force_rms_error"].to_list()
+    assert lag[0] < lag[1] < lag[2]
+
+
+def test_z_error_does_not_depend_on_b(table):
+    z = curves(table, "fig11")["z_rms_error"].to_list()
+    assert max(z) < 1.05 * min(z)
+
+
+def test_model_free_tracks_poorly_and_tdc_restores(table):
+    for mf, tdc in [("fig12", "fig14"), ("fig13", "fig16"), ("fig6", "fig7")]:
+        assert curves(table, mf)["z_rms_error"][0] > 10 * curves(table, tdc)["z_rms_error"][0]
+    assert abs(curves(table, "fig14")["force_ss_error"][0]) < 0.5
+
+
+def test_wall_error_overshoots(table):
+    with_tdc = curves(table, "fig19")["force_peak"][0]
+    without = curves(table, "fig18")["force_peak"][0]
+    assert 25.0 < with_tdc < 50.0
+    assert without > 60.0
+
+
+def test_peak_force_grows_with_stiffness(table):
+    for fig in ("fig17", "fig20"):
+        peaks = curves(table, fig)["force_peak"].to_list()
+        assert all(b > a for a, b in zip(peaks, peaks[1:], strict=False)), fig
+
+
+def test_verdicts_report_the_known_differences(table):
+    judged = reproduction.verdicts(table)
+    assert set(judged) == set(FIGURES)
+    assert {name for name, v in judged.items() if not v.agrees} == {"fig9", "fig10", "fig20"}
+
+
+def png_size(path) -> tuple[int, int]:
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    assert data[12:16] == b"IHDR"
+    return struct.unpack(">II", data[16:24])
+
+
+def test_cli_writes_every_promised_file(tmp_path):
+    out = tmp_path / "results"
+    assert cli.main(["paper", "--out", str(out), "--figure", "8", "--figure", "19",
+                     "--no-progress"]) == 0  # fmt: skip
+    for name in ("fig8", "fig19"):
+        png = out / f"{name}.png"
+        assert png.stat().st_size > 20_000
+        assert png_size(png) == (1500, 800)
+    table = pl.read_parquet(out / "metrics.parquet")
+    assert table["figure"].to_list() == ["fig8", "fig8", "fig19"]
+    for col in ar.METRIC_NAMES + ["stable", "label", "b", "ka", "stiffness"]:
+        assert col in table.columns
+    md = (out / "metrics.md").read_text()
+    assert md.count("\n") == 2 + 3
+    report = (out / "README.md").read_text()
+    assert "![fig8](fig8.png)" in report and "![fig19](fig19.png)" in report
+    assert "overshoot reduced to ~40 N" in report and "peak force 36 N" in report
+
+
+def test_figure_returns_a_matplotlib_figure():
+    fig = ar.paper.figure(8)
+    assert len([ax for ax in fig.axes if ax.get_visible()]) == 6
+    assert fig.axes[0].get_title() == "(a) contact force [N]"
+    assert fig.axes[3].get_xlabel() == "t [s]"
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    assert "CT, Scheme 1, k=400, k_a=0.1" in labels and "f_d" in labels
+
+
+def test_cli_run_scenario_toml(tmp_path, capsys):
+    toml = tmp_path / "sc.toml"
+    toml.write_text(
+        "duration = 0.5\n[wall]\nstiffness = 50000.0\nposition_error = 0.0\n"
+        '[admittance]\nkind = "admittance"\nb = 400.0\nka = 1.0\n'
+    )
+    trace = tmp_path / "trace.parquet"
+    assert cli.main(["run", str(toml), "-o", str(trace)]) == 0
+    assert pl.read_parquet(trace).height == 501
+    assert '"stable": true' in capsys.readouterr().out
+    toml.write_text("duration = -1.0\n")
+    assert cli.main(["run", str(toml)]) == 2
+    assert "duration = -1" in capsys.readouterr().err
+
+
+def test_reproduce_rejects_unknown_figures(tmp_path):
+    with pytest.raises(ValueError, match="fig4"):
+        ar.paper.reproduce(tmp_path, figures=[4], progress=False)
