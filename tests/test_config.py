@@ -115,8 +115,8 @@ BAD_BLOCKS = [
     (lambda: ar.Robot(q0=(0.0, math.pi / 2, 0.3)), None, None),  # regular: no error
     (lambda: ar.Wall(stiffness=-1.0), "stiffness", ">= 0"),
     (lambda: ar.Wall(position_error=math.nan), "position_error", "finite"),
-    (lambda: ar.ComputedTorque(ka=0.0), "gains.ka", "> 0"),
-    (lambda: ar.ModelFree(kd=-1.0), "gains.kd", ">= 0"),
+    (lambda: ar.ComputedTorque(ka=0.0), "ka", "> 0"),
+    (lambda: ar.ModelFree(kd=-1.0), "kd", ">= 0"),
     (lambda: ar.ModelFree(inertia=0.0), "inertia", "> 0"),
     (lambda: ar.TimeDelayControl(torque_constant=math.inf), "torque_constant", "> 0"),
     (lambda: ar.TimeDelayControl(law="eq99"), "law", "'jacobian_transpose'"),

@@ -186,6 +186,9 @@ class ComputedTorque(_Controller):
     """K_D of eq. (39) [1/s]."""
     kp: float = 100.0
     """K_P of eq. (39) [1/s²]."""
+    scale_feedforward: bool = True
+    """``True`` (SPEC, the paper as written): K_A⁻¹ multiplies Ẍ_d too. ``False``:
+    V = Ẍ_d + K_A⁻¹(K_D ė + K_P e), a variant reading (see docs/reproduction.md)."""
     contact_compensation: bool = False
     """Add f J_xᵀ to cancel the measured contact force."""
     model: ModelError = field(default_factory=ModelError)
@@ -201,6 +204,8 @@ class ModelFree(_Controller):
     ka: float = 5.0
     kd: float = 20.0
     kp: float = 100.0
+    scale_feedforward: bool = True
+    """See :attr:`ComputedTorque.scale_feedforward`."""
     inertia: float = 0.1
     """Constant inertia D̄ = α I [kg·m²]."""
     torque_constant: float = 200.0
@@ -220,6 +225,8 @@ class TimeDelayControl(_Controller):
     ka: float = 5.0
     kd: float = 20.0
     kp: float = 100.0
+    scale_feedforward: bool = True
+    """See :attr:`ComputedTorque.scale_feedforward`."""
     inertia: float = 0.1
     """Constant inertia D̄ [kg·m²]."""
     torque_constant: float = 200.0

@@ -217,6 +217,30 @@ def reproduce(
     return run(out_dir, figures, progress=progress)
 
 
+VARIANT_SUFFIX = "-variant"
+VARIANTS: dict[str, str] = {
+    "fig9": "K_A⁻¹ on the feedback only",
+    "fig10": "K_A⁻¹ on the feedback only",
+    "fig14": "K_A⁻¹ on the feedback only",
+}
+"""Figures with a labelled variant: a different reading of eq. (39) that the paper's text
+allows, V = Ẍ_d + K_A⁻¹(K_D ė + K_P e). SPEC §4 (the default) applies K_A⁻¹ literally."""
+
+
+def variant_scenarios(figure: str | int) -> list[Scenario]:
+    """A figure's curves under the variant reading of eq. (39) (see :data:`VARIANTS`)."""
+    name = _name(figure)
+    if name not in VARIANTS:
+        raise KeyError(f"no variant for {name!r}; variants exist for {', '.join(VARIANTS)}")
+    return [
+        sc.replace(
+            **{"controller.scale_feedforward": False},
+            label=f"{sc.label} [variant: {VARIANTS[name]}]",
+        )
+        for sc in scenarios(name)
+    ]
+
+
 def _name(figure: str | int) -> str:
     return f"fig{figure}" if isinstance(figure, int) else figure
 

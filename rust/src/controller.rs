@@ -6,12 +6,26 @@ use crate::error::{check, Result};
 use crate::robot::{Kinematics, Mat3, RobotModel, RobotParams, ThreeLinkArm, Vec3};
 
 /// Gains of eq. (39): V = K_A⁻¹ (Ẍ_d + K_D (Ẋ_d − Ẋ) + K_P (X_d − X)), each a scalar times I.
-/// K_A⁻¹ multiplies the feed-forward too, as the paper writes it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PositionGains {
     pub ka: f64,
     pub kd: f64,
     pub kp: f64,
+    /// `true` (SPEC §4, the paper as written): K_A⁻¹ multiplies the feed-forward Ẍ_d too.
+    /// `false`: V = Ẍ_d + K_A⁻¹ (K_D ė + K_P e), a reading under which computed torque
+    /// tracks X_d exactly; offered as a labelled variant, never the default.
+    pub scale_feedforward: bool,
+}
+
+impl PositionGains {
+    pub const fn new(ka: f64, kd: f64, kp: f64) -> Self {
+        Self {
+            ka,
+            kd,
+            kp,
+            scale_feedforward: true,
+        }
+    }
 }
 
 impl PositionGains {
@@ -24,10 +38,13 @@ impl PositionGains {
     /// eq. (39)
     #[inline]
     pub fn command(&self, desired: &Desired, position: &Vec3, velocity: &Vec3) -> Vec3 {
-        (desired.acceleration
-            + (desired.velocity - velocity) * self.kd
-            + (desired.position - position) * self.kp)
-            / self.ka
+        let feedback =
+            (desired.velocity - velocity) * self.kd + (desired.position - position) * self.kp;
+        if self.scale_feedforward {
+            (desired.acceleration + feedback) / self.ka
+        } else {
+            desired.acceleration + feedback / self.ka
+        }
     }
 }
 
@@ -82,11 +99,7 @@ pub struct ComputedTorqueParams {
 impl Default for ComputedTorqueParams {
     fn default() -> Self {
         Self {
-            gains: PositionGains {
-                ka: 0.1,
-                kd: 20.0,
-                kp: 100.0,
-            },
+            gains: PositionGains::new(0.1, 20.0, 100.0),
             contact_compensation: false,
             model: ModelError::default(),
         }
@@ -107,11 +120,7 @@ pub struct ModelFreeParams {
 impl Default for ModelFreeParams {
     fn default() -> Self {
         Self {
-            gains: PositionGains {
-                ka: 5.0,
-                kd: 20.0,
-                kp: 100.0,
-            },
+            gains: PositionGains::new(5.0, 20.0, 100.0),
             inertia: 0.1,
             torque_constant: 200.0,
         }
@@ -154,7 +163,7 @@ pub enum ControllerParams {
 
 impl ControllerParams {
     pub fn validate(&self) -> Result<()> {
-        let gains = |g: &PositionGains| g.validate().map_err(|e| e.within("gains"));
+        let gains = |g: &PositionGains| g.validate();
         match self {
             ControllerParams::ComputedTorque(p) => {
                 gains(&p.gains)?;
@@ -341,11 +350,7 @@ mod tests {
 
     #[test]
     fn command_is_eq39() {
-        let g = PositionGains {
-            ka: 5.0,
-            kd: 20.0,
-            kp: 100.0,
-        };
+        let g = PositionGains::new(5.0, 20.0, 100.0);
         let d = Desired {
             position: Vec3::new(1.0, 0.0, 0.0),
             velocity: Vec3::new(0.0, 1.0, 0.0),
@@ -353,6 +358,12 @@ mod tests {
         };
         let v = g.command(&d, &Vec3::zeros(), &Vec3::zeros());
         assert_eq!(v, Vec3::new(20.0, 4.0, 1.0));
+        let unscaled = PositionGains {
+            scale_feedforward: false,
+            ..g
+        };
+        let v = unscaled.command(&d, &Vec3::zeros(), &Vec3::zeros());
+        assert_eq!(v, Vec3::new(20.0, 4.0, 5.0));
     }
 
     #[test]

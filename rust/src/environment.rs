@@ -97,6 +97,10 @@ mod tests {
             stiffness: -1.0,
             ..WallParams::default()
         };
-        assert!(p.validate().unwrap_err().to_string().starts_with("stiffness = -1"));
+        assert!(p
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .starts_with("stiffness = -1"));
     }
 }

@@ -95,7 +95,9 @@ mod tests {
 
     #[test]
     fn message_names_field_value_and_range() {
-        let e = check::positive("stiffness", -1.0).unwrap_err().within("wall");
+        let e = check::positive("stiffness", -1.0)
+            .unwrap_err()
+            .within("wall");
         assert_eq!(
             e.to_string(),
             "wall.stiffness = -1 is invalid: must be finite and > 0"

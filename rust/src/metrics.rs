@@ -116,12 +116,12 @@ impl Metrics {
             m.overshoot_pct = 100.0 * (m.force_peak - value) / value;
             m.settling_time = settling_time(t, f, value, SETTLING_BAND);
             m.rise_time_63 = first_crossing(t, f, 0.632 * value, value);
-            m.rise_time_10_90 = first_crossing(t, f, 0.9 * value, value)
-                - first_crossing(t, f, 0.1 * value, value);
-            let peak = f
-                .iter()
-                .enumerate()
-                .fold(0, |best, (i, v)| if v.abs() > f[best].abs() { i } else { best });
+            m.rise_time_10_90 =
+                first_crossing(t, f, 0.9 * value, value) - first_crossing(t, f, 0.1 * value, value);
+            let peak = f.iter().enumerate().fold(
+                0,
+                |best, (i, v)| if v.abs() > f[best].abs() { i } else { best },
+            );
             m.peak_time = t[peak];
         }
         m
@@ -176,10 +176,16 @@ mod tests {
     fn step_metrics_on_a_known_signal() {
         // f rises linearly from 0 to 11 over 1.1 s, then sits at 10.
         let t: Vec<f64> = (0..=3000).map(|k| k as f64 * 1e-3).collect();
-        let f: Vec<f64> = t.iter().map(|&t| if t <= 1.1 { 10.0 * t } else { 10.0 }).collect();
+        let f: Vec<f64> = t
+            .iter()
+            .map(|&t| if t <= 1.1 { 10.0 * t } else { 10.0 })
+            .collect();
         assert_eq!(settling_time(&t, &f, 10.0, 0.02), t[1101]);
         assert!((first_crossing(&t, &f, 6.32, 10.0) - 0.632).abs() < 1e-12);
-        assert!((first_crossing(&t, &f, 9.0, 10.0) - first_crossing(&t, &f, 1.0, 10.0) - 0.8).abs() < 1e-9);
+        assert!(
+            (first_crossing(&t, &f, 9.0, 10.0) - first_crossing(&t, &f, 1.0, 10.0) - 0.8).abs()
+                < 1e-9
+        );
         assert!(first_crossing(&t, &f, 20.0, 10.0).is_nan());
         let never: Vec<f64> = t.iter().map(|_| 5.0).collect();
         assert!(settling_time(&t, &never, 10.0, 0.02).is_nan());

@@ -26,7 +26,12 @@ create_exception!(
     PyValueError,
     "A parameter outside its allowed range; `field`, `value` and `allowed` say which and why."
 );
-create_exception!(_core, AdmitError, PyException, "Base of admit_rs runtime errors.");
+create_exception!(
+    _core,
+    AdmitError,
+    PyException,
+    "Base of admit_rs runtime errors."
+);
 
 fn parameter_error(py: Python<'_>, field: &str, value: &str, allowed: &str) -> PyErr {
     let err = ParameterError::new_err(format!("{field} = {value} is invalid: must be {allowed}"));
@@ -78,9 +83,9 @@ impl<'py> Block<'py> {
     }
 
     fn item(&self, key: &str) -> PyResult<Bound<'py, PyAny>> {
-        self.dict.get_item(key)?.ok_or_else(|| {
-            PyTypeError::new_err(format!("missing field {}", self.field_path(key)))
-        })
+        self.dict
+            .get_item(key)?
+            .ok_or_else(|| PyTypeError::new_err(format!("missing field {}", self.field_path(key))))
     }
 
     fn typed<T: for<'a> FromPyObjectOwned<'a>>(&self, key: &str, what: &str) -> PyResult<T> {
@@ -194,6 +199,7 @@ fn gains_from(b: &Block) -> PyResult<PositionGains> {
         ka: b.f64("ka")?,
         kd: b.f64("kd")?,
         kp: b.f64("kp")?,
+        scale_feedforward: b.bool("scale_feedforward")?,
     })
 }
 
@@ -388,9 +394,9 @@ fn checked_robot(robot: &Bound<'_, PyAny>) -> PyResult<ThreeLinkArm> {
 }
 
 fn state3(v: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec3> {
-    let a: [f64; 3] = v.extract().map_err(|_| {
-        PyTypeError::new_err(format!("{name} must be a sequence of 3 numbers"))
-    })?;
+    let a: [f64; 3] = v
+        .extract()
+        .map_err(|_| PyTypeError::new_err(format!("{name} must be a sequence of 3 numbers")))?;
     Ok(Vec3::from(a))
 }
 
@@ -466,8 +472,11 @@ fn filter_response<'py>(
     let py = params.py();
     let mut filter = AdmittanceFilter::new(checked_admittance(params, period)?, period);
     let n = force_error.len();
-    let (mut xa, mut xa_dot, mut xa_ddot) =
-        (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
+    let (mut xa, mut xa_dot, mut xa_ddot) = (
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+    );
     for e in force_error {
         let s = filter.step(e);
         xa.push(s.value);

@@ -172,13 +172,31 @@ mod tests {
             values: vec![0.0, 2.0, 0.0],
         };
         assert_eq!(s.at(-1.0).value, 0.0);
-        assert_eq!(s.at(0.5), Sample { value: 1.0, rate: 2.0, accel: 0.0 });
-        assert_eq!(s.at(2.0), Sample { value: 1.0, rate: -1.0, accel: 0.0 });
+        assert_eq!(
+            s.at(0.5),
+            Sample {
+                value: 1.0,
+                rate: 2.0,
+                accel: 0.0
+            }
+        );
+        assert_eq!(
+            s.at(2.0),
+            Sample {
+                value: 1.0,
+                rate: -1.0,
+                accel: 0.0
+            }
+        );
         assert_eq!(s.at(5.0).value, 0.0);
         let bad = Signal::Sampled {
             times: vec![0.0, 0.0],
             values: vec![1.0, 2.0],
         };
-        assert!(bad.validate().unwrap_err().to_string().starts_with("times[1]"));
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .starts_with("times[1]"));
     }
 }

@@ -51,7 +51,11 @@ impl Default for RobotParams {
             coulomb_friction: [5.0; 3],
             friction_smoothing: 0.01,
             gravity: 9.81,
-            q0: [0.0, std::f64::consts::FRAC_PI_4, -std::f64::consts::FRAC_PI_4],
+            q0: [
+                0.0,
+                std::f64::consts::FRAC_PI_4,
+                -std::f64::consts::FRAC_PI_4,
+            ],
         }
     }
 }
@@ -60,8 +64,16 @@ impl RobotParams {
     pub fn validate(&self) -> Result<()> {
         check::all("lengths", &self.lengths, check::positive)?;
         check::all("masses", &self.masses, check::positive)?;
-        check::all("viscous_friction", &self.viscous_friction, check::non_negative)?;
-        check::all("coulomb_friction", &self.coulomb_friction, check::non_negative)?;
+        check::all(
+            "viscous_friction",
+            &self.viscous_friction,
+            check::non_negative,
+        )?;
+        check::all(
+            "coulomb_friction",
+            &self.coulomb_friction,
+            check::non_negative,
+        )?;
         check::finite("friction_smoothing", self.friction_smoothing)?;
         check::non_negative("gravity", self.gravity)?;
         check::all("q0", &self.q0, check::finite)?;
@@ -82,8 +94,12 @@ impl RobotParams {
     pub fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {
         let mut p = self.clone();
         p.masses.iter_mut().for_each(|m| *m *= mass_scale);
-        p.viscous_friction.iter_mut().for_each(|f| *f *= friction_scale);
-        p.coulomb_friction.iter_mut().for_each(|f| *f *= friction_scale);
+        p.viscous_friction
+            .iter_mut()
+            .for_each(|f| *f *= friction_scale);
+        p.coulomb_friction
+            .iter_mut()
+            .for_each(|f| *f *= friction_scale);
         p
     }
 }
@@ -243,8 +259,9 @@ impl ThreeLinkArm {
 
     #[inline]
     fn dynamics_from(&self, t: &Trig, qd: &Vec3) -> Dynamics {
-        let (l2, m2, m3, a2, a3, i2, i3) =
-            (self.l2, self.m2, self.m3, self.a2, self.a3, self.i2, self.i3);
+        let (l2, m2, m3, a2, a3, i2, i3) = (
+            self.l2, self.m2, self.m3, self.a2, self.a3, self.i2, self.i3,
+        );
         // Distances of the two centres of mass from the yaw axis.
         let r2 = a2 * t.c2;
         let r3 = l2 * t.c2 + a3 * t.c23;
@@ -267,11 +284,7 @@ impl ThreeLinkArm {
             2.0 * h * w2 * w3 + h * w3 * w3 - 0.5 * dd11_dq2 * w1 * w1,
             -h * w2 * w2 - 0.5 * dd11_dq3 * w1 * w1,
         );
-        let gravity = Vec3::new(
-            0.0,
-            self.g * (m2 * r2 + m3 * r3),
-            self.g * m3 * a3 * t.c23,
-        );
+        let gravity = Vec3::new(0.0, self.g * (m2 * r2 + m3 * r3), self.g * m3 * a3 * t.c23);
         Dynamics {
             inertia,
             coriolis,
@@ -364,10 +377,8 @@ impl RobotModel for ThreeLinkArm {
 
     fn forward_dynamics(&self, q: &Vec3, qd: &Vec3, tau: &Vec3, tip_force: &Vec3) -> Vec3 {
         let (k, d) = self.evaluate(q, qd);
-        let rhs = tau + k.jacobian.transpose() * tip_force
-            - d.coriolis
-            - d.gravity
-            - self.friction(qd);
+        let rhs =
+            tau + k.jacobian.transpose() * tip_force - d.coriolis - d.gravity - self.friction(qd);
         solve_block_inertia(&d.inertia, &rhs)
     }
 }
@@ -390,7 +401,12 @@ mod tests {
     fn spec_check_values_at_q0() {
         let (_, arm) = arm();
         let k = arm.kinematics(&q0(), &Vec3::zeros());
-        assert!((k.position - Vec3::new(0.734056, 0.0, 0.964056)).abs().max() < 5e-7);
+        assert!(
+            (k.position - Vec3::new(0.734056, 0.0, 0.964056))
+                .abs()
+                .max()
+                < 5e-7
+        );
         let d = arm.dynamics(&q0(), &Vec3::zeros());
         let expected = Mat3::new(1.903, 0.0, 0.0, 0.0, 2.883, 0.610, 0.0, 0.610, 0.296);
         assert!((d.inertia - expected).abs().max() < 5e-4, "{}", d.inertia);
@@ -407,8 +423,8 @@ mod tests {
         for j in 0..3 {
             let mut dq = Vec3::zeros();
             dq[j] = h;
-            let col = (arm.forward_kinematics(&(q + dq)) - arm.forward_kinematics(&(q - dq)))
-                / (2.0 * h);
+            let col =
+                (arm.forward_kinematics(&(q + dq)) - arm.forward_kinematics(&(q - dq))) / (2.0 * h);
             assert!((col - k.jacobian.column(j)).abs().max() < 1e-8);
         }
         // J̇q̇ = d/dt (J q̇) along q(t) = q + q̇ t with q̇ constant.
@@ -497,14 +513,21 @@ mod tests {
             masses: [30.0, -1.0, 4.8],
             ..RobotParams::default()
         };
-        assert!(p.validate().unwrap_err().to_string().starts_with("masses[1]"));
+        assert!(p
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .starts_with("masses[1]"));
     }
 
     #[test]
     fn model_error_scales_inertia_and_friction() {
         let (p, arm) = arm();
         let wrong = ThreeLinkArm::new(&p.with_model_error(1.2, 0.5));
-        let (d, dw) = (arm.dynamics(&q0(), &Vec3::zeros()), wrong.dynamics(&q0(), &Vec3::zeros()));
+        let (d, dw) = (
+            arm.dynamics(&q0(), &Vec3::zeros()),
+            wrong.dynamics(&q0(), &Vec3::zeros()),
+        );
         assert!((dw.inertia - d.inertia * 1.2).abs().max() < 1e-12);
         let qd = Vec3::new(1.0, -1.0, 0.5);
         assert!((wrong.friction(&qd) - arm.friction(&qd) * 0.5).abs().max() < 1e-12);

@@ -105,11 +105,7 @@ impl ScenarioConfig {
             return Err(Error::parameter(
                 "duration",
                 self.duration,
-                &format!(
-                    "at most {} periods of {} s",
-                    MAX_SAMPLES - 1,
-                    self.period
-                ),
+                &format!("at most {} periods of {} s", MAX_SAMPLES - 1, self.period),
             ));
         }
         Ok(())
@@ -145,7 +141,10 @@ impl std::fmt::Display for Divergence {
                 joint + 1
             ),
             Divergence::SingularJacobian => {
-                write!(f, "the Jacobian became singular (arm at a kinematic singularity)")
+                write!(
+                    f,
+                    "the Jacobian became singular (arm at a kinematic singularity)"
+                )
             }
         }
     }
@@ -156,7 +155,10 @@ impl std::fmt::Display for Divergence {
 pub enum Outcome {
     Completed,
     /// Stopped at `time` [s]; the trace holds every sample before it.
-    Diverged { time: f64, cause: Divergence },
+    Diverged {
+        time: f64,
+        cause: Divergence,
+    },
 }
 
 impl Outcome {
@@ -414,11 +416,7 @@ mod tests {
     fn ideal_inner_loop(admittance: AdmittanceParams) -> ScenarioConfig {
         ScenarioConfig {
             controller: ControllerParams::ComputedTorque(ComputedTorqueParams {
-                gains: PositionGains {
-                    ka: 1.0,
-                    kd: 200.0,
-                    kp: 1e4,
-                },
+                gains: PositionGains::new(1.0, 200.0, 1e4),
                 contact_compensation: true,
                 ..Default::default()
             }),
@@ -489,11 +487,7 @@ mod tests {
     fn model_free_with_small_ka_diverges_and_says_when() {
         let cfg = ScenarioConfig {
             controller: ControllerParams::ModelFree(ModelFreeParams {
-                gains: PositionGains {
-                    ka: 0.1,
-                    kd: 20.0,
-                    kp: 100.0,
-                },
+                gains: PositionGains::new(0.1, 20.0, 100.0),
                 ..Default::default()
             }),
             ..ScenarioConfig::default()
