@@ -158,7 +158,8 @@ def test_invalid_parameters_raise_parameter_error(make, field, allowed):
 def test_scenario_level_errors_name_the_dotted_path():
     with pytest.raises(ar.ParameterError) as info:
         ar.Scenario().replace(**{"controller.model.friction_scale": -1.0})
-    assert info.value.field == "friction_scale"
+    assert info.value.field == "controller.model.friction_scale"
+    assert str(info.value).startswith("controller.model.friction_scale = -1 is invalid")
     # The full scenario check reports the path inside the scenario.
     sc = ar.Scenario()
     bad = sc.to_dict()

@@ -192,3 +192,9 @@ def test_step_has_no_contact_overshoot_with_z_still():
     for sc in ar.paper.scenarios("fig9"):
         m = ar.simulate(sc.replace(z_reference=ar.Step(value=0.0))).metrics
         assert m["overshoot_pct"] < 0.01
+
+
+def test_stiffness_labels():
+    assert [s.label for s in ar.paper.scenarios("fig15")] == [
+        "TDC, Scheme 2, k_e=10 000", "TDC, Scheme 2, k_e=50 000", "TDC, Scheme 2, k_e=100 000",
+    ]  # fmt: skip

@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from admit_rs import _core
+from admit_rs.errors import ParameterError, within
 
 Vector3: TypeAlias = tuple[float, float, float]
 ArrayLike3: TypeAlias = "Iterable[float] | npt.NDArray[np.float64]"
@@ -507,7 +508,10 @@ def _apply(obj: Any, changes: Mapping[str, Any]) -> Any:
     for head, sub in nested.items():
         if head in direct:
             raise TypeError(f"both {head} and {head}.{next(iter(sub))} given")
-        direct[head] = _apply(getattr(obj, head), sub)
+        try:
+            direct[head] = _apply(getattr(obj, head), sub)
+        except ParameterError as e:
+            raise within(e, head) from None
     return dataclasses.replace(obj, **direct)
 
 

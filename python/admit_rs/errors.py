@@ -8,3 +8,11 @@ field's dotted path, its value and the allowed range (also as attributes ``field
 from admit_rs._core import AdmitError, ParameterError
 
 __all__ = ["AdmitError", "ParameterError"]
+
+
+def within(err: ParameterError, prefix: str) -> ParameterError:
+    """The same error with ``prefix.`` in front of its field (its place in a scenario)."""
+    field = f"{prefix}.{err.field}"
+    new = ParameterError(f"{field} = {err.value} is invalid: must be {err.allowed}")
+    new.field, new.value, new.allowed = field, err.value, err.allowed
+    return new

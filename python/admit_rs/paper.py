@@ -136,7 +136,8 @@ def _position_only(label: str, controller: Controller) -> Scenario:
 
 
 def _stiffness_label(prefix: str, ke: float) -> str:
-    return f"{prefix}, k_e={ke:_.0f}".replace("_", " ")
+    thousands = f"{ke:_.0f}".replace("_", " ")
+    return f"{prefix}, k_e={thousands}"
 
 
 def _build(name: str) -> list[Scenario]:
