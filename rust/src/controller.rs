@@ -216,7 +216,8 @@ const SINGULAR_RATIO: f64 = 1e-9;
 #[inline]
 fn solve_jacobian(j: &Mat3, rhs: &Vec3) -> std::result::Result<Vec3, ControlFailure> {
     let bound = j.column(0).norm() * j.column(1).norm() * j.column(2).norm();
-    if !(j.determinant().abs() > SINGULAR_RATIO * bound) {
+    let det = j.determinant().abs();
+    if det.is_nan() || det <= SINGULAR_RATIO * bound {
         return Err(ControlFailure::SingularJacobian);
     }
     j.try_inverse()

@@ -12,6 +12,7 @@ pub mod metrics;
 pub mod reference;
 pub mod robot;
 pub mod simulation;
+pub mod sweep;
 
 #[cfg(feature = "python")]
 mod python;

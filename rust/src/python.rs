@@ -341,11 +341,7 @@ fn validate(scenario: &Bound<'_, PyAny>) -> PyResult<()> {
 
 fn run_to_dict<'py>(py: Python<'py>, run: RunResult) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
-    let columns = PyDict::new(py);
-    for (name, col) in TRACE_COLUMNS.iter().zip(run.trace.columns) {
-        columns.set_item(name, PyArray1::from_vec(py, col))?;
-    }
-    out.set_item("columns", columns)?;
+    out.set_item("columns", trace_dict(py, run.trace)?)?;
     let metrics = PyDict::new(py);
     for (name, v) in METRIC_NAMES.iter().zip(run.metrics.values()) {
         metrics.set_item(name, v)?;
@@ -372,6 +368,98 @@ fn simulate<'py>(scenario: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyDict>> {
     let config = scenario_from(scenario)?;
     let run = py.detach(move || crate::simulation::simulate(&config));
     run_to_dict(py, run.map_err(|e| to_py_err(py, e))?)
+}
+
+fn trace_dict<'py>(
+    py: Python<'py>,
+    trace: crate::simulation::Trace,
+) -> PyResult<Bound<'py, PyDict>> {
+    let columns = PyDict::new(py);
+    for (name, col) in TRACE_COLUMNS.iter().zip(trace.columns) {
+        columns.set_item(name, PyArray1::from_vec(py, col))?;
+    }
+    Ok(columns)
+}
+
+/// Runs a batch of scenario dicts on `threads` threads (None: all cores) with the GIL
+/// released. Returns metric columns (one entry per run, in order), `stable`,
+/// `diverged_at` (NaN when stable), `divergence_cause` and, with `traces`, one column
+/// dict per run. An invalid scenario raises before anything runs, naming its index.
+#[pyfunction]
+#[pyo3(signature = (scenarios, threads=None, traces=false))]
+fn simulate_batch<'py>(
+    scenarios: &Bound<'py, PyList>,
+    threads: Option<usize>,
+    traces: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let py = scenarios.py();
+    let configs = scenarios
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            scenario_from(&s).map_err(|e| {
+                let msg = format!("scenario {i}: {}", e.value(py));
+                if e.is_instance_of::<ParameterError>(py) {
+                    let new = ParameterError::new_err(msg);
+                    for attr in ["field", "value", "allowed"] {
+                        if let Ok(v) = e.value(py).getattr(attr) {
+                            let _ = new.value(py).setattr(attr, v);
+                        }
+                    }
+                    let _ = new.value(py).setattr("index", i);
+                    new
+                } else {
+                    PyTypeError::new_err(msg)
+                }
+            })
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    let runs = py
+        .detach(move || crate::sweep::run_batch(&configs, threads, traces))
+        .map_err(|e| to_py_err(py, e.error))?;
+    let out = PyDict::new(py);
+    let n = runs.len();
+    let mut columns: Vec<Vec<f64>> = vec![Vec::with_capacity(n); METRIC_NAMES.len()];
+    let mut stable = Vec::with_capacity(n);
+    let mut diverged_at = Vec::with_capacity(n);
+    let causes = PyList::empty(py);
+    let trace_list = PyList::empty(py);
+    for run in runs {
+        for (c, v) in columns.iter_mut().zip(run.metrics.values()) {
+            c.push(v);
+        }
+        stable.push(run.metrics.stable);
+        match run.outcome {
+            Outcome::Completed => {
+                diverged_at.push(f64::NAN);
+                causes.append(py.None())?;
+            }
+            Outcome::Diverged { time, cause } => {
+                diverged_at.push(time);
+                causes.append(cause.to_string())?;
+            }
+        }
+        if let Some(trace) = run.trace {
+            trace_list.append(trace_dict(py, trace)?)?;
+        }
+    }
+    let metrics = PyDict::new(py);
+    for (name, col) in METRIC_NAMES.iter().zip(columns) {
+        metrics.set_item(name, PyArray1::from_vec(py, col))?;
+    }
+    out.set_item("metrics", metrics)?;
+    out.set_item("stable", PyArray1::from_vec(py, stable))?;
+    out.set_item("diverged_at", PyArray1::from_vec(py, diverged_at))?;
+    out.set_item("divergence_cause", causes)?;
+    out.set_item(
+        "traces",
+        if traces {
+            trace_list.into_any()
+        } else {
+            py.None().into_bound(py)
+        },
+    )?;
+    Ok(out)
 }
 
 fn matrix<'py>(py: Python<'py>, m: &crate::robot::Mat3) -> PyResult<Bound<'py, PyArray2<f64>>> {
@@ -449,12 +537,11 @@ fn checked_admittance(params: &Bound<'_, PyAny>, period: f64) -> PyResult<Admitt
     Ok(p)
 }
 
+type ZohPair<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
+
 /// The exact ZOH matrices (Ad, Bd) of an admittance filter for period T.
 #[pyfunction]
-fn filter_discretize<'py>(
-    params: &Bound<'py, PyAny>,
-    period: f64,
-) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
+fn filter_discretize<'py>(params: &Bound<'py, PyAny>, period: f64) -> PyResult<ZohPair<'py>> {
     let py = params.py();
     let (ad, bd) = checked_admittance(params, period)?.discretize(period);
     let rows = vec![vec![ad[(0, 0)], ad[(0, 1)]], vec![ad[(1, 0)], ad[(1, 1)]]];
@@ -501,6 +588,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(check_block, m)?)?;
     m.add_function(wrap_pyfunction!(validate, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate_batch, m)?)?;
     m.add_function(wrap_pyfunction!(robot_terms, m)?)?;
     m.add_function(wrap_pyfunction!(forward_dynamics, m)?)?;
     m.add_function(wrap_pyfunction!(filter_discretize, m)?)?;
