@@ -1,6 +1,6 @@
 """Quick start: run the paper's fig. 14, change the wall, compare, plot.
 
-    python examples/quickstart.py
+python examples/quickstart.py
 """
 
 import admit_rs as ar

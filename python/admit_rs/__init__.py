@@ -11,7 +11,7 @@ Example:
     True
 """
 
-from admit_rs import paper
+from admit_rs import paper, plot
 from admit_rs._core import METRIC_NAMES, TRACE_COLUMNS, __version__
 from admit_rs.config import (
     AdmittanceFilter,
@@ -30,12 +30,29 @@ from admit_rs.config import (
 )
 from admit_rs.errors import AdmitError, ParameterError
 from admit_rs.simulation import Result, simulate
+from admit_rs.sweep import (
+    CheckpointMismatchError,
+    Choice,
+    DistributionError,
+    LogUniform,
+    Normal,
+    SweepInterrupted,
+    Uniform,
+    sweep,
+)
 
 __all__ = [
     "METRIC_NAMES",
     "TRACE_COLUMNS",
     "AdmitError",
     "AdmittanceFilter",
+    "CheckpointMismatchError",
+    "Choice",
+    "DistributionError",
+    "LogUniform",
+    "Normal",
+    "SweepInterrupted",
+    "Uniform",
     "ComputedTorque",
     "ImpedanceReference",
     "ModelError",
@@ -52,5 +69,7 @@ __all__ = [
     "__version__",
     "paper",
     "parameter_paths",
+    "plot",
     "simulate",
+    "sweep",
 ]

@@ -1,10 +1,14 @@
-"""Plots people expect from a force-control run."""
+"""Plots people expect: one run, a paper figure, and sweep tables."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import matplotlib
+import numpy as np
+import numpy.typing as npt
+import polars as pl
+from matplotlib.patches import Rectangle
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -128,3 +132,113 @@ def plot_paper_figure(
         ax.set_xlabel("t [s]")
     fig.suptitle(title, fontsize=12)
     return fig
+
+
+def _stable_mask(table: pl.DataFrame) -> npt.NDArray[np.bool_]:
+    return table["stable"].to_numpy().astype(bool)
+
+
+def sweep_scatter(table: pl.DataFrame, x: str, metric: str, *, logx: bool | None = None) -> Figure:
+    """A metric against one parameter, one dot per run; unstable runs as red crosses at
+    the top of the axis (their metrics are NaN)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(8, 5), layout="constrained")
+    ax = fig.subplots()
+    stable = _stable_mask(table)
+    xs, ys = table[x].to_numpy(), table[metric].to_numpy()
+    ax.scatter(xs[stable], ys[stable], s=8, alpha=0.6, label=f"stable ({stable.sum()})")
+    if (~stable).any():
+        top = np.nanmax(ys[stable]) if stable.any() else 1.0
+        ax.scatter(xs[~stable], np.full((~stable).sum(), top), marker="x", color="r",
+                   label=f"unstable ({(~stable).sum()})")  # fmt: skip
+    if logx if logx is not None else _looks_logarithmic(xs):
+        ax.set_xscale("log")
+    ax.set_xlabel(x)
+    ax.set_ylabel(metric)
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    ax.set_title(f"{metric} vs {x} ({table.height} runs)")
+    return fig
+
+
+def sweep_hist(table: pl.DataFrame, metric: str, bins: int = 50) -> Figure:
+    """Histogram of a metric over the stable runs; the unstable count in the title."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(8, 5), layout="constrained")
+    ax = fig.subplots()
+    stable = _stable_mask(table)
+    values = table[metric].to_numpy()[stable]
+    values = values[np.isfinite(values)]
+    ax.hist(values, bins=bins)
+    ax.set_xlabel(metric)
+    ax.set_ylabel("runs")
+    ax.grid(True, alpha=0.3)
+    ax.set_title(f"{metric}: {stable.sum()} stable, {(~stable).sum()} unstable runs")
+    return fig
+
+
+def sweep_heatmap(
+    table: pl.DataFrame, x: str, y: str, metric: str, *, bins: int = 12, agg: str = "mean"
+) -> Figure:
+    """A metric over two parameters: the grid values as they are, or ``bins`` bins per
+    axis for random draws; each cell aggregates its stable runs (``mean``, ``max``,
+    ``min`` or ``median``) and cells with any unstable run are hatched and annotated."""
+    from matplotlib.figure import Figure
+
+    if agg not in ("mean", "max", "min", "median"):
+        raise ValueError(f"agg = {agg!r} is invalid: must be mean, max, min or median")
+    xe, xi = _axis(table[x].to_numpy().astype(float), bins)
+    ye, yi = _axis(table[y].to_numpy().astype(float), bins)
+    values = table[metric].to_numpy().astype(float)
+    stable = _stable_mask(table)
+    grid = np.full((len(ye) - 1, len(xe) - 1), np.nan)
+    unstable = np.zeros_like(grid, dtype=int)
+    reducer = {"mean": np.mean, "max": np.max, "min": np.min, "median": np.median}[agg]
+    for r in range(grid.shape[0]):
+        for c in range(grid.shape[1]):
+            cell = (yi == r) & (xi == c)
+            good = values[cell & stable]
+            good = good[np.isfinite(good)]
+            if good.size:
+                grid[r, c] = reducer(good)
+            unstable[r, c] = int((cell & ~stable).sum())
+    fig = Figure(figsize=(8, 6), layout="constrained")
+    ax = fig.subplots()
+    mesh = ax.pcolormesh(xe, ye, grid, shading="flat")
+    fig.colorbar(mesh, ax=ax, label=f"{agg} {metric} (stable runs)")
+    for r, c in zip(*np.nonzero(unstable), strict=True):
+        ax.add_patch(Rectangle((xe[c], ye[r]), xe[c + 1] - xe[c], ye[r + 1] - ye[r],
+                               fill=False, hatch="xx", edgecolor="r", lw=0))  # fmt: skip
+        ax.text((xe[c] + xe[c + 1]) / 2, (ye[r] + ye[r + 1]) / 2, f"{unstable[r, c]} ✗",
+                color="r", ha="center", va="center", fontsize=8)  # fmt: skip
+    ax.set_xlabel(x)
+    ax.set_ylabel(y)
+    ax.set_title(f"{metric} over {x} × {y} ({table.height} runs)")
+    return fig
+
+
+def _looks_logarithmic(xs: npt.NDArray[Any]) -> bool:
+    xs = np.asarray(xs, dtype=float)
+    xs = xs[np.isfinite(xs)]
+    return bool(xs.size and xs.min() > 0 and xs.max() / xs.min() > 50)
+
+
+def _axis(values: npt.NDArray[np.float64], bins: int) -> tuple[npt.NDArray[np.float64], Any]:
+    """Cell edges and each value's cell: distinct values if few, else equal-width bins."""
+    distinct = np.unique(values[np.isfinite(values)])
+    if distinct.size == 0:
+        raise ValueError("no finite values to place on the axis")
+    if distinct.size <= bins:
+        if distinct.size == 1:
+            edges = np.array([distinct[0] - 0.5, distinct[0] + 0.5])
+        else:
+            mids = (distinct[1:] + distinct[:-1]) / 2
+            edges = np.concatenate(
+                [[distinct[0] - (mids[0] - distinct[0])], mids,
+                 [distinct[-1] + (distinct[-1] - mids[-1])]]
+            )  # fmt: skip
+        return edges, np.searchsorted(distinct, values)
+    edges = np.linspace(distinct[0], distinct[-1], bins + 1)
+    return edges, np.clip(np.searchsorted(edges, values, side="right") - 1, 0, bins - 1)

@@ -1,0 +1,549 @@
+"""Monte Carlo and grid sweeps over any scenario parameter, run in the Rust core.
+
+Example:
+    >>> import admit_rs as ar
+    >>> table = ar.sweep(ar.paper.scenario("fig19").replace(duration=1.0),
+    ...                  vary={"wall.stiffness": ar.LogUniform(1e4, 1e5)},
+    ...                  samples=4, seed=0, progress=False)
+    >>> table.select("run_id", "stable").to_dicts()[0]
+    {'run_id': 0, 'stable': True}
+
+Each run draws its random numbers from a generator seeded by ``(seed, run_id)`` only, and
+runs share nothing, so the table is bit-identical on 1 thread or many, in any chunking,
+resumed from a checkpoint, or computed on Dask workers.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+import math
+import os
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import polars as pl
+
+from admit_rs import _core
+from admit_rs.config import Scenario, _Block, _check_path
+
+if TYPE_CHECKING:
+    from dask.distributed import Client
+
+__all__ = [
+    "CheckpointMismatchError",
+    "Choice",
+    "DistributionError",
+    "LogUniform",
+    "Normal",
+    "SweepInterrupted",
+    "Uniform",
+    "sweep",
+]
+
+DEFAULT_CHUNK_SIZE = 256
+"""Runs per checkpoint file and per Dask task."""
+
+
+class DistributionError(ValueError):
+    """A distribution with impossible parameters (low > high, negative sigma, ...)."""
+
+
+class CheckpointMismatchError(ValueError):
+    """A checkpoint folder holds a different sweep than the one asked for."""
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a sweep. ``table`` holds every run that finished (checkpointed chunks
+    stay on disk); rerunning the same call with the same ``checkpoint`` resumes."""
+
+    def __init__(self, table: pl.DataFrame) -> None:
+        super().__init__(f"sweep interrupted after {table.height} finished runs")
+        self.table = table
+
+
+def _finite(name: str, value: float) -> float:
+    value = float(value)
+    if not math.isfinite(value):
+        raise DistributionError(f"{name} = {value} is invalid: must be finite")
+    return value
+
+
+@dataclass(frozen=True)
+class Uniform:
+    """Uniform on [low, high]."""
+
+    low: float
+    high: float
+
+    def __post_init__(self) -> None:
+        if _finite("low", self.low) > _finite("high", self.high):
+            raise DistributionError(f"Uniform: low = {self.low} > high = {self.high}")
+
+    def draw(self, rng: np.random.Generator) -> float:
+        return float(rng.uniform(self.low, self.high))
+
+
+@dataclass(frozen=True)
+class LogUniform:
+    """log-uniform on [low, high], 0 < low ≤ high (for stiffnesses and gains)."""
+
+    low: float
+    high: float
+
+    def __post_init__(self) -> None:
+        if _finite("low", self.low) <= 0:
+            raise DistributionError(f"LogUniform: low = {self.low} is invalid: must be > 0")
+        if self.low > _finite("high", self.high):
+            raise DistributionError(f"LogUniform: low = {self.low} > high = {self.high}")
+
+    def draw(self, rng: np.random.Generator) -> float:
+        return float(math.exp(rng.uniform(math.log(self.low), math.log(self.high))))
+
+
+@dataclass(frozen=True)
+class Normal:
+    """Normal(mean, std), optionally truncated to [low, high] by rejection."""
+
+    mean: float
+    std: float
+    low: float | None = None
+    high: float | None = None
+
+    MAX_TRIES = 10_000
+
+    def __post_init__(self) -> None:
+        _finite("mean", self.mean)
+        if _finite("std", self.std) < 0:
+            raise DistributionError(f"Normal: std = {self.std} is invalid: must be >= 0")
+        lo = -math.inf if self.low is None else float(self.low)
+        hi = math.inf if self.high is None else float(self.high)
+        if math.isnan(lo) or math.isnan(hi) or lo > hi:
+            raise DistributionError(f"Normal: bounds [{self.low}, {self.high}] are empty")
+        if self.std == 0 and not lo <= self.mean <= hi:
+            raise DistributionError(f"Normal: std = 0 and mean {self.mean} outside the bounds")
+
+    def draw(self, rng: np.random.Generator) -> float:
+        lo = -math.inf if self.low is None else self.low
+        hi = math.inf if self.high is None else self.high
+        for _ in range(self.MAX_TRIES):
+            x = float(rng.normal(self.mean, self.std))
+            if lo <= x <= hi:
+                return x
+        raise DistributionError(
+            f"Normal({self.mean}, {self.std}) truncated to [{lo}, {hi}]: no draw inside the"
+            f" bounds in {self.MAX_TRIES} tries; the bounds are too far in the tail"
+        )
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One of ``values`` (numbers, strings or building blocks), optionally weighted."""
+
+    values: tuple[Any, ...]
+    weights: tuple[float, ...] | None = field(default=None)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "values", tuple(self.values))
+        if not self.values:
+            raise DistributionError("Choice: values is empty")
+        if self.weights is not None:
+            w = tuple(float(x) for x in self.weights)
+            if len(w) != len(self.values) or any(not math.isfinite(x) or x < 0 for x in w):
+                raise DistributionError("Choice: weights must be one finite w >= 0 per value")
+            if sum(w) <= 0:
+                raise DistributionError("Choice: weights sum to 0")
+            object.__setattr__(self, "weights", w)
+
+    def draw(self, rng: np.random.Generator) -> Any:
+        p = None if self.weights is None else np.asarray(self.weights) / sum(self.weights)
+        return self.values[int(rng.choice(len(self.values), p=p))]
+
+
+Distribution = Uniform | LogUniform | Normal | Choice
+
+
+def _describe(value: Any) -> Any:
+    """A JSON-able description, for checkpoint manifests."""
+    if isinstance(value, _Block):
+        return {"block": type(value).__name__, **value.to_dict()}
+    if isinstance(value, Uniform | LogUniform | Normal | Choice):
+        d = {"dist": type(value).__name__}
+        for k, v in value.__dict__.items():
+            d[k] = _describe(v)
+        return d
+    if isinstance(value, tuple | list):
+        return [_describe(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)
+    return value
+
+
+def _column_value(value: Any) -> Any:
+    if isinstance(value, _Block):
+        return repr(value)
+    return value
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """Everything that defines a sweep: the runs' parameters, in run_id order."""
+
+    base: dict[str, Any]
+    paths: list[str]
+    rows: list[dict[str, Any]]
+    seed: int
+    manifest: dict[str, Any]
+
+
+def _plan(
+    scenario: Scenario,
+    vary: Mapping[str, Distribution] | None,
+    grid: Mapping[str, Sequence[Any]] | None,
+    samples: int | None,
+    seed: int,
+) -> _Plan:
+    if not isinstance(scenario, Scenario):
+        raise TypeError(f"sweep() takes an admit_rs.Scenario, got {type(scenario).__name__}")
+    vary = dict(vary or {})
+    grid = {k: list(v) for k, v in (grid or {}).items()}
+    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+        raise ValueError(f"seed = {seed!r} is invalid: must be an integer >= 0")
+    for path in list(vary) + list(grid):
+        _check_path(scenario, path)
+    both = set(vary) & set(grid)
+    if both:
+        raise ValueError(f"{sorted(both)} given in both vary and grid")
+    for path, dist in vary.items():
+        if not isinstance(dist, Uniform | LogUniform | Normal | Choice):
+            raise TypeError(f"vary[{path!r}] must be a Uniform, LogUniform, Normal or Choice")
+    for path, values in grid.items():
+        if not values:
+            raise ValueError(f"grid[{path!r}] is empty")
+    if samples is None:
+        if vary:
+            raise ValueError("samples is required with vary (how many draws per grid point)")
+        samples = 1
+    if not isinstance(samples, int) or isinstance(samples, bool) or samples < 1:
+        raise ValueError(f"samples = {samples!r} is invalid: must be an integer >= 1")
+
+    rows = []
+    points = list(itertools.product(*grid.values())) if grid else [()]
+    for g, point in enumerate(points):
+        for s in range(samples):
+            run_id = g * samples + s
+            row: dict[str, Any] = dict(zip(grid, point, strict=True))
+            rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, run_id])))
+            for path, dist in vary.items():
+                row[path] = dist.draw(rng)
+            rows.append(row)
+    manifest = {
+        "format": 1,
+        "scenario": _describe(scenario),
+        "vary": {k: _describe(v) for k, v in vary.items()},
+        "grid": {k: _describe(v) for k, v in grid.items()},
+        "samples": samples,
+        "seed": seed,
+    }
+    return _Plan(scenario._to_core(), list(grid) + list(vary), rows, seed, manifest)
+
+
+def _set_path(config: dict[str, Any], path: str, value: Any) -> None:
+    *parents, leaf = path.split(".")
+    node = config
+    for p in parents:
+        node = node[p]
+    if isinstance(value, _Block):
+        value = value._to_core()
+    elif isinstance(value, tuple):
+        value = list(value)
+    node[leaf] = value
+
+
+def _configs(base: dict[str, Any], rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    out = []
+    for row in rows:
+        config = copy.deepcopy(base)
+        for path, value in row.items():
+            _set_path(config, path, value)
+        out.append(config)
+    return out
+
+
+def _run_chunk(
+    base: dict[str, Any],
+    rows: Sequence[dict[str, Any]],
+    run_ids: Sequence[int],
+    seed: int,
+    threads: int | None,
+    traces: bool,
+) -> tuple[pl.DataFrame, pl.DataFrame | None]:
+    """Runs one chunk in the Rust core and returns its rows (and long traces).
+
+    Top-level so that Dask workers can import it.
+    """
+    try:
+        raw = _core.simulate_batch(_configs(base, rows), threads, traces)
+    except _core.ParameterError as e:
+        index = getattr(e, "index", 0)
+        raise _core.ParameterError(f"run_id {run_ids[index]}: {e}") from None
+    n = len(run_ids)
+    columns: dict[str, Any] = {
+        "run_id": pl.Series("run_id", list(run_ids), dtype=pl.Int64),
+        "seed": pl.Series("seed", [seed] * n, dtype=pl.Int64),
+    }
+    for path in rows[0] if rows else []:
+        columns[path] = [_column_value(r[path]) for r in rows]
+    columns.update(raw["metrics"])
+    columns["stable"] = raw["stable"]
+    columns["diverged_at"] = raw["diverged_at"]
+    columns["divergence_cause"] = pl.Series(raw["divergence_cause"], dtype=pl.String)
+    table = pl.DataFrame(columns)
+    long = None
+    if traces:
+        long = pl.concat(
+            [
+                pl.DataFrame(t).with_columns(pl.lit(rid, dtype=pl.Int64).alias("run_id"))
+                for rid, t in zip(run_ids, raw["traces"], strict=True)
+            ]
+        ).select("run_id", *_core.TRACE_COLUMNS)
+    return table, long
+
+
+def _run_chunk_remote(
+    base: dict[str, Any],
+    rows: Sequence[dict[str, Any]],
+    run_ids: Sequence[int],
+    seed: int,
+    traces: bool,
+) -> tuple[pl.DataFrame, pl.DataFrame | None]:
+    # One task per worker thread: the worker's own cores run it, one Rust thread each.
+    return _run_chunk(base, rows, run_ids, seed, 1, traces)
+
+
+class _Checkpoint:
+    """Finished chunks as Parquet files plus a manifest of the sweep's definition."""
+
+    def __init__(self, folder: str | os.PathLike[str], manifest: dict[str, Any]) -> None:
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        path = self.folder / "manifest.json"
+        text = json.dumps(manifest, sort_keys=True, indent=1)
+        if path.exists():
+            old = json.loads(path.read_text())
+            if old != json.loads(text):
+                keys = sorted(k for k in set(old) | set(manifest) if old.get(k) != manifest.get(k))
+                raise CheckpointMismatchError(
+                    f"checkpoint {self.folder} holds a different sweep (differs in"
+                    f" {', '.join(keys)}); use another folder or delete it"
+                )
+        else:
+            path.write_text(text)
+
+    def _path(self, kind: str, index: int) -> Path:
+        return self.folder / f"{kind}-{index:06d}.parquet"
+
+    def load(self, index: int) -> tuple[pl.DataFrame, pl.DataFrame | None] | None:
+        path = self._path("chunk", index)
+        if not path.exists():
+            return None
+        tpath = self._path("traces", index)
+        return pl.read_parquet(path), (pl.read_parquet(tpath) if tpath.exists() else None)
+
+    def save(self, index: int, table: pl.DataFrame, traces: pl.DataFrame | None) -> None:
+        # Traces first, the chunk last and atomically: a chunk file means a finished chunk.
+        if traces is not None:
+            _atomic_parquet(traces, self._path("traces", index))
+        _atomic_parquet(table, self._path("chunk", index))
+
+
+def _atomic_parquet(frame: pl.DataFrame, path: Path) -> None:
+    tmp = path.with_suffix(".tmp")
+    frame.write_parquet(tmp)
+    os.replace(tmp, path)
+
+
+def _chunks(n: int, size: int) -> Iterator[tuple[int, range]]:
+    for index, start in enumerate(range(0, n, size)):
+        yield index, range(start, min(start + size, n))
+
+
+def sweep(
+    scenario: Scenario,
+    vary: Mapping[str, Distribution] | None = None,
+    grid: Mapping[str, Sequence[Any]] | None = None,
+    samples: int | None = None,
+    seed: int = 0,
+    *,
+    threads: int | None = None,
+    traces: bool = False,
+    checkpoint: str | os.PathLike[str] | None = None,
+    client: Client | None = None,
+    chunk_size: int = DEFAULT_CHUNK_SIZE,
+    progress: bool = True,
+) -> pl.DataFrame | tuple[pl.DataFrame, pl.DataFrame]:
+    """Runs ``scenario`` over a grid and/or random draws of its parameters.
+
+    Args:
+        scenario: the base scenario.
+        vary: dotted path → distribution (``Uniform``, ``LogUniform``, ``Normal``, ``Choice``);
+            ``samples`` draws per grid point.
+        grid: dotted path → list of values, full factorial.
+        samples: draws per grid point (required with ``vary``; default 1).
+        seed: run ``run_id`` draws from a generator seeded by ``(seed, run_id)`` only.
+        threads: Rust threads (default: all cores).
+        traces: also return every run's trace as a long table (run_id, t, ...).
+        checkpoint: folder; finished chunks are written there as Parquet and a rerun of
+            the same call computes only the missing ones.
+        client: a ``dask.distributed.Client``: chunks run as tasks on its workers.
+        chunk_size: runs per checkpoint file and per Dask task.
+        progress: show a tqdm bar (runs/s, ETA).
+
+    Returns:
+        One row per run: ``run_id``, ``seed``, a column per varied path, the metrics of
+        SPEC §7, ``stable``, ``diverged_at`` and ``divergence_cause``; with ``traces``, the
+        tuple ``(table, traces)``. An unstable run is a row with ``stable = False``.
+
+    Raises:
+        TypeError: unknown path (with the closest valid ones) or wrong type.
+        DistributionError, ValueError: impossible distribution or sweep definition.
+        ParameterError: a drawn or listed value outside its range (names the run_id).
+        CheckpointMismatchError: ``checkpoint`` holds a different sweep.
+        SweepInterrupted: Ctrl-C; ``.table`` holds the finished runs.
+    """
+    if not isinstance(chunk_size, int) or chunk_size < 1:
+        raise ValueError(f"chunk_size = {chunk_size!r} is invalid: must be an integer >= 1")
+    if threads is not None and (not isinstance(threads, int) or threads < 1):
+        raise ValueError(f"threads = {threads!r} is invalid: must be an integer >= 1")
+    plan = _plan(scenario, vary, grid, samples, seed)
+    plan.manifest["traces"] = traces
+    plan.manifest["chunk_size"] = chunk_size
+    store = _Checkpoint(checkpoint, plan.manifest) if checkpoint is not None else None
+    n = len(plan.rows)
+    done: dict[int, tuple[pl.DataFrame, pl.DataFrame | None]] = {}
+    todo = []
+    for index, ids in _chunks(n, chunk_size):
+        loaded = store.load(index) if store is not None else None
+        if loaded is not None:
+            done[index] = loaded
+        else:
+            todo.append((index, ids))
+
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=n, unit="run", desc="sweep", disable=not progress, smoothing=0.1)
+    bar.update(sum(t.height for t, _ in done.values()))
+    partial: list[tuple[pl.DataFrame, pl.DataFrame | None]] = []
+    try:
+        if client is not None:
+            _run_on_dask(client, plan, todo, traces, store, done, bar)
+        else:
+            _run_local(plan, todo, threads, traces, store, done, partial, bar)
+    except KeyboardInterrupt:
+        bar.close()
+        finished = [done[i] for i in sorted(done)] + partial
+        raise SweepInterrupted(_assemble(finished, plan)[0]) from None
+    bar.close()
+    table, long = _assemble([done[i] for i in sorted(done)], plan)
+    if traces:
+        assert long is not None
+        return table, long
+    return table
+
+
+def _run_local(
+    plan: _Plan,
+    todo: list[tuple[int, range]],
+    threads: int | None,
+    traces: bool,
+    store: _Checkpoint | None,
+    done: dict[int, tuple[pl.DataFrame, pl.DataFrame | None]],
+    partial: list[tuple[pl.DataFrame, pl.DataFrame | None]],
+    bar: Any,
+) -> None:
+    # Small Rust calls so that Ctrl-C (seen between calls) stops within about a second.
+    step = 4 * (threads or os.cpu_count() or 1)
+    for index, ids in todo:
+        pieces = []
+        for start in range(ids.start, ids.stop, step):
+            sub = range(start, min(start + step, ids.stop))
+            piece = _run_chunk(
+                plan.base, plan.rows[sub.start : sub.stop], list(sub), plan.seed, threads, traces
+            )
+            pieces.append(piece)
+            partial.append(piece)
+            bar.update(len(sub))
+        chunk = _concat(pieces)
+        if store is not None:
+            store.save(index, *chunk)
+        done[index] = chunk
+        partial.clear()
+
+
+def _run_on_dask(
+    client: Client,
+    plan: _Plan,
+    todo: list[tuple[int, range]],
+    traces: bool,
+    store: _Checkpoint | None,
+    done: dict[int, tuple[pl.DataFrame, pl.DataFrame | None]],
+    bar: Any,
+) -> None:
+    from dask.distributed import as_completed
+
+    base = client.scatter(plan.base, broadcast=True)
+    futures = {
+        client.submit(
+            _run_chunk_remote,
+            base,
+            plan.rows[ids.start : ids.stop],
+            list(ids),
+            plan.seed,
+            traces,
+            key=f"admit-rs-chunk-{_key(plan)}-{index}",
+            pure=False,
+        ): index
+        for index, ids in todo
+    }
+    try:
+        for future in as_completed(futures):
+            index = futures[future]
+            chunk = future.result()
+            if store is not None:
+                store.save(index, *chunk)
+            done[index] = chunk
+            bar.update(chunk[0].height)
+    except KeyboardInterrupt:
+        client.cancel(list(futures))
+        raise
+
+
+def _key(plan: _Plan) -> str:
+    return hashlib.sha1(json.dumps(plan.manifest, sort_keys=True).encode()).hexdigest()[:12]
+
+
+def _concat(
+    pieces: Sequence[tuple[pl.DataFrame, pl.DataFrame | None]],
+) -> tuple[pl.DataFrame, pl.DataFrame | None]:
+    tables = [t for t, _ in pieces]
+    longs = [x for _, x in pieces if x is not None]
+    return (
+        pl.concat(tables, how="vertical_relaxed") if tables else pl.DataFrame(),
+        pl.concat(longs) if longs else None,
+    )
+
+
+def _assemble(
+    pieces: Sequence[tuple[pl.DataFrame, pl.DataFrame | None]], plan: _Plan
+) -> tuple[pl.DataFrame, pl.DataFrame | None]:
+    table, long = _concat(pieces)
+    if table.height:
+        table = table.sort("run_id")
+    if long is not None:
+        long = long.sort("run_id", maintain_order=True)
+    return table, long

@@ -1,0 +1,269 @@
+"""Sweeps: determinism, checkpoints and resume, Ctrl-C, Dask, errors, plots."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import admit_rs as ar
+import numpy as np
+import polars as pl
+import pytest
+
+BASE = ar.paper.scenario("fig19").replace(duration=0.5)
+VARY = {
+    "wall.stiffness": ar.LogUniform(1e4, 1e5),
+    "wall.position_error": ar.Uniform(0.0, 0.01),
+    "controller.model.mass_scale": ar.Normal(1.0, 0.1, low=0.5, high=1.5),
+}
+
+
+def run(**kw):
+    kw.setdefault("progress", False)
+    return ar.sweep(BASE, **kw)
+
+
+def test_table_layout_and_values():
+    table = run(vary=VARY, samples=6, seed=3)
+    assert table.height == 6
+    assert table["run_id"].to_list() == list(range(6))
+    assert (table["seed"] == 3).all()
+    for col in ["wall.stiffness", "wall.position_error", "controller.model.mass_scale",
+                *ar.METRIC_NAMES, "stable", "diverged_at", "divergence_cause"]:  # fmt: skip
+        assert col in table.columns
+    k = table["wall.stiffness"].to_numpy()
+    assert ((k >= 1e4) & (k <= 1e5)).all()
+    # Each row is exactly the single run with those parameters.
+    row = table.row(4, named=True)
+    single = ar.simulate(BASE.replace(**{p: row[p] for p in VARY}))
+    for name in ar.METRIC_NAMES:
+        np.testing.assert_equal(row[name], single.metrics[name])
+
+
+def test_draws_depend_on_seed_and_run_id_only():
+    a = run(vary=VARY, samples=8, seed=5)
+    b = run(vary={"wall.stiffness": VARY["wall.stiffness"]}, samples=8, seed=5)
+    # The first path's draws are the same whatever else is varied: same (seed, run_id).
+    assert a["wall.stiffness"].equals(b["wall.stiffness"])
+    c = run(vary=VARY, samples=8, seed=6)
+    assert not a["wall.stiffness"].equals(c["wall.stiffness"])
+
+
+def test_bit_identical_across_threads_and_chunking():
+    ref = run(vary=VARY, samples=10, seed=1, threads=1)
+    assert ref.equals(run(vary=VARY, samples=10, seed=1, threads=2))
+    assert ref.equals(run(vary=VARY, samples=10, seed=1, chunk_size=3))
+    assert ref.equals(run(vary=VARY, samples=10, seed=1, threads=2, chunk_size=1))
+
+
+def test_grid_times_samples():
+    table = run(grid={"admittance.b": [400.0, 800.0], "admittance.ka": [0.5, 1.0]},
+                vary={"wall.stiffness": ar.Uniform(2e4, 4e4)}, samples=2)  # fmt: skip
+    assert table.height == 8
+    assert table["admittance.b"].to_list() == [400.0] * 4 + [800.0] * 4
+    assert table["admittance.ka"].to_list() == [0.5, 0.5, 1.0, 1.0] * 2
+    grid_only = run(grid={"admittance.b": [200.0, 400.0, 800.0]})
+    assert grid_only.height == 3
+
+
+def test_choice_of_blocks_and_values():
+    table = run(vary={"controller": ar.Choice([ar.ModelFree(), ar.TimeDelayControl()])},
+                samples=6, seed=0)  # fmt: skip
+    names = set(table["controller"].to_list())
+    assert names <= {repr(ar.ModelFree()), repr(ar.TimeDelayControl())}
+    mf = table.filter(pl.col("controller") == repr(ar.ModelFree()))
+    tdc = table.filter(pl.col("controller") == repr(ar.TimeDelayControl()))
+    assert mf.height and tdc.height
+    assert mf["z_rms_error"].min() > 5 * tdc["z_rms_error"].max()
+
+
+def test_unstable_run_is_a_row():
+    """Model-free control diverges at K_A = 0.1: a row with stable = False, not an error."""
+    table = ar.sweep(ar.paper.scenario("fig12").replace(duration=0.5),
+                     grid={"controller.ka": [5.0, 0.1]}, progress=False)  # fmt: skip
+    assert table["stable"].to_list() == [True, False]
+    bad = table.row(1, named=True)
+    assert bad["diverged_at"] > 0 and "velocity" in bad["divergence_cause"]
+    assert np.isnan(bad["force_ss_error"])
+    assert table.row(0, named=True)["divergence_cause"] is None
+
+
+@pytest.mark.parametrize(
+    ("make", "match"),
+    [
+        (lambda: ar.Uniform(2.0, 1.0), "low = 2.0 > high = 1.0"),
+        (lambda: ar.LogUniform(0.0, 1.0), "must be > 0"),
+        (lambda: ar.Normal(1.0, -0.1), "std = -0.1"),
+        (lambda: ar.Normal(1.0, 0.1, low=2.0, high=1.0), "empty"),
+        (lambda: ar.Uniform(0.0, float("nan")), "finite"),
+        (lambda: ar.Choice([]), "empty"),
+        (lambda: ar.Choice([1, 2], weights=[1.0]), "one finite w"),
+    ],
+)
+def test_bad_distributions(make, match):
+    with pytest.raises(ar.DistributionError, match=match) as info:
+        make()
+    assert isinstance(info.value, ValueError)
+
+
+def test_bad_sweep_definitions():
+    with pytest.raises(TypeError, match=r"did you mean wall\.stiffness"):
+        run(vary={"wall.stifness": ar.Uniform(1.0, 2.0)}, samples=2)
+    with pytest.raises(ValueError, match="samples is required"):
+        run(vary=VARY)
+    with pytest.raises(ValueError, match="both vary and grid"):
+        run(vary={"admittance.b": ar.Uniform(1, 2)}, grid={"admittance.b": [1.0]}, samples=1)
+    with pytest.raises(ValueError, match="seed"):
+        run(grid={"admittance.b": [1.0]}, seed=-1)
+    with pytest.raises(ValueError, match="chunk_size"):
+        run(grid={"admittance.b": [1.0]}, chunk_size=0)
+    with pytest.raises(TypeError, match="must be a Uniform"):
+        run(vary={"admittance.b": (1, 2)}, samples=1)
+    # A drawn value out of range: a ParameterError naming the run and the field.
+    with pytest.raises(ar.ParameterError, match=r"run_id 1: .*admittance\.b = -5"):
+        run(grid={"admittance.b": [400.0, -5.0]})
+
+
+def test_traces_long_table():
+    table, traces = run(grid={"admittance.b": [400.0, 800.0]}, traces=True)
+    assert traces.columns == ["run_id", *ar.TRACE_COLUMNS]
+    assert traces.height == 2 * 501
+    one = ar.simulate(BASE.replace(**{"admittance.b": 800.0})).trace
+    assert traces.filter(pl.col("run_id") == 1).drop("run_id").equals(one)
+
+
+def test_checkpoint_resume_equals_clean_run(tmp_path):
+    clean = run(vary=VARY, samples=9, seed=2, chunk_size=4)
+    ck = tmp_path / "ck"
+    first = run(vary=VARY, samples=9, seed=2, chunk_size=4, checkpoint=ck)
+    assert first.equals(clean)
+    files = sorted(p.name for p in ck.glob("chunk-*.parquet"))
+    assert files == ["chunk-000000.parquet", "chunk-000001.parquet", "chunk-000002.parquet"]
+    # A crash that lost chunk 1: the rerun computes only that one.
+    (ck / "chunk-000001.parquet").unlink()
+    mtime = (ck / "chunk-000000.parquet").stat().st_mtime_ns
+    assert run(vary=VARY, samples=9, seed=2, chunk_size=4, checkpoint=ck).equals(clean)
+    assert (ck / "chunk-000000.parquet").stat().st_mtime_ns == mtime
+    # A different sweep in the same folder is an error, not a silent mix.
+    with pytest.raises(ar.CheckpointMismatchError, match="seed"):
+        run(vary=VARY, samples=9, seed=3, chunk_size=4, checkpoint=ck)
+
+
+SCRIPT = textwrap.dedent(
+    """
+    import sys, admit_rs as ar
+    base = ar.paper.scenario("fig19").replace(duration=2.0)
+    try:
+        ar.sweep(base, vary={"wall.stiffness": ar.LogUniform(1e4, 1e5)}, samples=400, seed=7,
+                 chunk_size=8, threads=1, checkpoint=sys.argv[1], progress=False)
+    except ar.SweepInterrupted as e:
+        print("INTERRUPTED", e.table.height, flush=True)
+        sys.exit(130)
+    print("FINISHED", flush=True)
+    """
+)
+
+
+def _start(tmp_path, ck):
+    script = tmp_path / "sweep_job.py"
+    script.write_text(SCRIPT)
+    proc = subprocess.Popen([sys.executable, str(script), str(ck)], stdout=subprocess.PIPE,
+                            text=True)  # fmt: skip
+    deadline = time.monotonic() + 120
+    while len(list(ck.glob("chunk-*.parquet"))) < 2:
+        assert proc.poll() is None, "the sweep ended before it could be interrupted"
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    return proc
+
+
+def _expected():
+    base = ar.paper.scenario("fig19").replace(duration=2.0)
+    return base, {"wall.stiffness": ar.LogUniform(1e4, 1e5)}
+
+
+def test_resume_after_kill_equals_clean_run(tmp_path):
+    ck = tmp_path / "ck"
+    proc = _start(tmp_path, ck)
+    proc.kill()  # SIGKILL: no cleanup at all
+    proc.communicate(timeout=30)
+    kept = len(list(ck.glob("chunk-*.parquet")))
+    assert 2 <= kept < 50
+    base, vary = _expected()
+    resumed = ar.sweep(base, vary=vary, samples=400, seed=7, chunk_size=8, checkpoint=ck,
+                       progress=False)  # fmt: skip
+    clean = ar.sweep(base, vary=vary, samples=400, seed=7, chunk_size=8, progress=False)
+    assert resumed.equals(clean)
+
+
+def test_ctrl_c_stops_within_a_second_and_keeps_what_finished(tmp_path):
+    ck = tmp_path / "ck"
+    proc = _start(tmp_path, ck)
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=30)
+    stopped = time.monotonic() - sent
+    assert proc.returncode == 130, out
+    assert out.startswith("INTERRUPTED")
+    finished = int(out.split()[1])
+    assert finished >= 16
+    assert stopped < 1.0 + 0.5  # one sub-batch (4 runs of 2 s on 1 thread) plus exit
+    assert len(list(ck.glob("chunk-*.parquet"))) * 8 <= finished
+
+
+def test_dask_local_cluster_equals_local():
+    from dask import distributed
+
+    local = run(vary=VARY, samples=12, seed=4, chunk_size=5)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:  # fmt: skip
+        remote = run(vary=VARY, samples=12, seed=4, chunk_size=5, client=client)
+    assert remote.equals(local)
+
+
+def test_sweep_plots():
+    table = run(grid={"wall.stiffness": [1e4, 3e4, 1e5], "wall.position_error": [0.0, 0.01]})
+    fig = ar.plot.sweep_heatmap(table, x="wall.stiffness", y="wall.position_error",
+                                metric="force_peak")  # fmt: skip
+    assert fig.axes[0].get_xlabel() == "wall.stiffness"
+    mixed = ar.sweep(ar.paper.scenario("fig12").replace(duration=0.5),
+                     grid={"controller.ka": [5.0, 0.1]}, progress=False)  # fmt: skip
+    fig = ar.plot.sweep_scatter(mixed, x="controller.ka", metric="force_peak")
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    assert labels == ["stable (1)", "unstable (1)"]
+    fig = ar.plot.sweep_hist(table, "force_peak")
+    assert "6 stable, 0 unstable" in fig.axes[0].get_title()
+
+
+def test_cli_sweep(tmp_path):
+    from admit_rs import cli
+
+    toml = tmp_path / "sweep.toml"
+    toml.write_text(
+        'base = "fig19"\nsamples = 3\nseed = 1\n[overrides]\nduration = 0.5\n'
+        '[vary."wall.stiffness"]\ndist = "loguniform"\nlow = 1e4\nhigh = 1e5\n'
+    )
+    out = tmp_path / "r.parquet"
+    assert cli.main(["sweep", str(toml), "-o", str(out), "--no-progress"]) == 0
+    table = pl.read_parquet(out)
+    assert table.height == 3
+    expected = ar.sweep(BASE, vary={"wall.stiffness": ar.LogUniform(1e4, 1e5)}, samples=3,
+                        seed=1, progress=False)  # fmt: skip
+    assert table.equals(expected)
+    toml.write_text('base = "fig19"\nsamples = 3\n[vary."wall.stiffness"]\ndist = "gauss"\n')
+    assert cli.main(["sweep", str(toml), "-o", str(out)]) == 2
+
+
+def test_example_toml_parses():
+    from pathlib import Path
+
+    from admit_rs.cli import load_sweep
+
+    kwargs = load_sweep(Path(__file__).parent.parent / "examples" / "stiffness_sweep.toml")
+    assert kwargs["samples"] == 1000
+    assert isinstance(kwargs["vary"]["wall.stiffness"], ar.LogUniform)
+    assert kwargs["scenario"].wall.position_error == 0.01
