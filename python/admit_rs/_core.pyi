@@ -66,3 +66,13 @@ def filter_response(
     params: dict[str, Any], period: float, force_error: list[float]
 ) -> dict[str, npt.NDArray[np.float64]]:
     """Run the discrete filter: ``x_a``, ``xa_dot``, ``xa_ddot`` per sample."""
+
+def simulate_batch(
+    scenarios: list[dict[str, Any]], threads: int | None = None, traces: bool = False
+) -> dict[str, Any]:
+    """Run a batch on ``threads`` threads (None: all cores), GIL released.
+
+    Returns ``{"metrics": {name: ndarray}, "stable": ndarray[bool], "diverged_at": ndarray
+    (NaN when stable), "divergence_cause": list[str | None], "traces": list[dict] | None}``.
+    An invalid scenario raises ``ParameterError`` (with ``index``) before anything runs.
+    """
