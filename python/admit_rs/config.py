@@ -62,6 +62,11 @@ class _Block:
     def _validate(self) -> None:
         _core.check_block(self._check, self._to_core())
 
+    def __post_init__(self) -> None:
+        # Every block checks itself in Rust on construction, so a bad value fails where
+        # it is written.
+        self._validate()
+
     def _set(self, name: str, value: Any) -> None:
         object.__setattr__(self, name, value)
 
@@ -148,8 +153,6 @@ class Wall(_Block):
 
     _check: ClassVar[str] = "wall"
 
-    def __post_init__(self) -> None:
-        self._validate()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -163,8 +166,6 @@ class ModelError(_Block):
 
     _check: ClassVar[str] = "model"
 
-    def __post_init__(self) -> None:
-        self._validate()
 
 
 class _Controller(_Block):
@@ -268,8 +269,6 @@ class AdmittanceFilter(_Block):
     _kind: ClassVar[str] = "admittance"
     _check: ClassVar[str] = "admittance"
 
-    def __post_init__(self) -> None:
-        self._validate()
 
     @classmethod
     def scheme1(
@@ -311,8 +310,6 @@ class ImpedanceReference(_Block):
     _kind: ClassVar[str] = "impedance"
     _check: ClassVar[str] = "admittance"
 
-    def __post_init__(self) -> None:
-        self._validate()
 
 
 ForceControl: TypeAlias = AdmittanceFilter | ImpedanceReference
@@ -321,8 +318,6 @@ ForceControl: TypeAlias = AdmittanceFilter | ImpedanceReference
 class _Signal(_Block):
     _check: ClassVar[str] = "signal"
 
-    def __post_init__(self) -> None:
-        self._validate()
 
 
 @dataclass(frozen=True, kw_only=True)
