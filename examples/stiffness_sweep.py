@@ -38,7 +38,7 @@ print(table.select("force_peak", "force_ss_error", "z_rms_error").describe())
 
 table.write_parquet(args.out / "table.parquet")
 ar.plot.sweep_heatmap(
-    table, x="wall.stiffness", y="wall.position_error", metric="force_peak"
+    table, x="wall.stiffness", y="wall.position_error", metric="force_peak", logx=True
 ).savefig(args.out / "peak_heatmap.png", dpi=100)
 ar.plot.sweep_scatter(table, x="wall.position_error", metric="force_peak").savefig(
     args.out / "peak_vs_error.png", dpi=100

@@ -230,6 +230,13 @@ def test_sweep_plots():
     fig = ar.plot.sweep_heatmap(table, x="wall.stiffness", y="wall.position_error",
                                 metric="force_peak")  # fmt: skip
     assert fig.axes[0].get_xlabel() == "wall.stiffness"
+    assert fig.axes[0].get_xscale() == "linear"
+    # 3 × 2 grid cells, each holding exactly its run's peak (one run per cell).
+    cells = fig.axes[0].collections[0].get_array()
+    assert np.sort(np.ravel(cells)) == pytest.approx(np.sort(table["force_peak"].to_numpy()))
+    log = ar.plot.sweep_heatmap(table, x="wall.stiffness", y="wall.position_error",
+                                metric="force_peak", logx=True)  # fmt: skip
+    assert log.axes[0].get_xscale() == "log"
     mixed = ar.sweep(ar.paper.scenario("fig12").replace(duration=0.5),
                      grid={"controller.ka": [5.0, 0.1]}, progress=False)  # fmt: skip
     fig = ar.plot.sweep_scatter(mixed, x="controller.ka", metric="force_peak")

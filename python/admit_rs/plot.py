@@ -180,17 +180,27 @@ def sweep_hist(table: pl.DataFrame, metric: str, bins: int = 50) -> Figure:
 
 
 def sweep_heatmap(
-    table: pl.DataFrame, x: str, y: str, metric: str, *, bins: int = 12, agg: str = "mean"
+    table: pl.DataFrame,
+    x: str,
+    y: str,
+    metric: str,
+    *,
+    bins: int = 12,
+    agg: str = "mean",
+    logx: bool = False,
+    logy: bool = False,
 ) -> Figure:
     """A metric over two parameters: the grid values as they are, or ``bins`` bins per
     axis for random draws; each cell aggregates its stable runs (``mean``, ``max``,
-    ``min`` or ``median``) and cells with any unstable run are hatched and annotated."""
+    ``min`` or ``median``) and cells with any unstable run are hatched and annotated.
+    ``logx``/``logy`` bin and draw an axis logarithmically (for log-uniform draws)."""
     from matplotlib.figure import Figure
 
     if agg not in ("mean", "max", "min", "median"):
         raise ValueError(f"agg = {agg!r} is invalid: must be mean, max, min or median")
-    xe, xi = _axis(table[x].to_numpy().astype(float), bins)
-    ye, yi = _axis(table[y].to_numpy().astype(float), bins)
+    xs, ys = table[x].to_numpy().astype(float), table[y].to_numpy().astype(float)
+    xe, xi = _axis(xs, bins, logx)
+    ye, yi = _axis(ys, bins, logy)
     values = table[metric].to_numpy().astype(float)
     stable = _stable_mask(table)
     grid = np.full((len(ye) - 1, len(xe) - 1), np.nan)
@@ -213,6 +223,10 @@ def sweep_heatmap(
                                fill=False, hatch="xx", edgecolor="r", lw=0))  # fmt: skip
         ax.text((xe[c] + xe[c + 1]) / 2, (ye[r] + ye[r + 1]) / 2, f"{unstable[r, c]} ✗",
                 color="r", ha="center", va="center", fontsize=8)  # fmt: skip
+    if logx:
+        ax.set_xscale("log")
+    if logy:
+        ax.set_yscale("log")
     ax.set_xlabel(x)
     ax.set_ylabel(y)
     ax.set_title(f"{metric} over {x} × {y} ({table.height} runs)")
@@ -225,8 +239,14 @@ def _looks_logarithmic(xs: npt.NDArray[Any]) -> bool:
     return bool(xs.size and xs.min() > 0 and xs.max() / xs.min() > 50)
 
 
-def _axis(values: npt.NDArray[np.float64], bins: int) -> tuple[npt.NDArray[np.float64], Any]:
-    """Cell edges and each value's cell: distinct values if few, else equal-width bins."""
+def _axis(
+    values: npt.NDArray[np.float64], bins: int, log: bool = False
+) -> tuple[npt.NDArray[np.float64], Any]:
+    """Cell edges and each value's cell: distinct values if few, else equal-width bins
+    (equal in log10 when ``log``)."""
+    if log:
+        edges, index = _axis(np.log10(values), bins)
+        return 10.0**edges, index
     distinct = np.unique(values[np.isfinite(values)])
     if distinct.size == 0:
         raise ValueError("no finite values to place on the axis")
