@@ -123,8 +123,9 @@ def test_bad_sweep_definitions():
     with pytest.raises(TypeError, match="must be a Uniform"):
         run(vary={"admittance.b": (1, 2)}, samples=1)
     # A drawn value out of range: a ParameterError naming the run and the field.
-    with pytest.raises(ar.ParameterError, match=r"run_id 1: .*admittance\.b = -5"):
+    with pytest.raises(ar.ParameterError, match=r"^run_id 1: admittance\.b = -5") as info:
         run(grid={"admittance.b": [400.0, -5.0]})
+    assert (info.value.field, info.value.run_id) == ("admittance.b", 1)
 
 
 def test_traces_long_table():

@@ -31,6 +31,7 @@ import polars as pl
 
 from admit_rs import _core
 from admit_rs.config import Scenario, _Block, _check_path
+from admit_rs.errors import ParameterError, for_run
 
 if TYPE_CHECKING:
     from dask.distributed import Client
@@ -289,9 +290,8 @@ def _run_chunk(
     """
     try:
         raw = _core.simulate_batch(_configs(base, rows), threads, traces)
-    except _core.ParameterError as e:
-        index = getattr(e, "index", 0)
-        raise _core.ParameterError(f"run_id {run_ids[index]}: {e}") from None
+    except ParameterError as e:
+        raise for_run(e, run_ids[getattr(e, "index", 0)]) from None
     n = len(run_ids)
     columns: dict[str, Any] = {
         "run_id": pl.Series("run_id", list(run_ids), dtype=pl.Int64),
