@@ -275,3 +275,15 @@ def test_example_toml_parses():
     assert kwargs["samples"] == 1000
     assert isinstance(kwargs["vary"]["wall.stiffness"], ar.LogUniform)
     assert kwargs["scenario"].wall.position_error == 0.01
+
+
+def test_traces_to_parquet_folder(tmp_path):
+    out = tmp_path / "traces"
+    table = run(grid={"admittance.b": [200.0, 400.0, 800.0]}, traces=out, chunk_size=2)
+    assert isinstance(table, pl.DataFrame) and table.height == 3
+    assert sorted(p.name for p in out.glob("*.parquet")) == [
+        "traces-000000.parquet", "traces-000001.parquet",
+    ]  # fmt: skip
+    on_disk = pl.scan_parquet(out / "*.parquet").collect().sort("run_id", maintain_order=True)
+    _, in_memory = run(grid={"admittance.b": [200.0, 400.0, 800.0]}, traces=True)
+    assert on_disk.equals(in_memory)

@@ -21,7 +21,7 @@ import itertools
 import json
 import math
 import os
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -381,7 +381,7 @@ def sweep(
     seed: int = 0,
     *,
     threads: int | None = None,
-    traces: bool = False,
+    traces: bool | str | os.PathLike[str] = False,
     checkpoint: str | os.PathLike[str] | None = None,
     client: Client | None = None,
     chunk_size: int = DEFAULT_CHUNK_SIZE,
@@ -397,7 +397,9 @@ def sweep(
         samples: draws per grid point (required with ``vary``; default 1).
         seed: run ``run_id`` draws from a generator seeded by ``(seed, run_id)`` only.
         threads: Rust threads (default: all cores).
-        traces: also return every run's trace as a long table (run_id, t, ...).
+        traces: ``True``: also return every run's trace as a long table (run_id, t, ...).
+            A folder: write each chunk's traces there as ``traces-NNNNNN.parquet`` as it
+            finishes and keep none in memory (read them with ``pl.scan_parquet``).
         checkpoint: folder; finished chunks are written there as Parquet and a rerun of
             the same call computes only the missing ones.
         client: a ``dask.distributed.Client``: chunks run as tasks on its workers.
@@ -421,7 +423,11 @@ def sweep(
     if threads is not None and (not isinstance(threads, int) or threads < 1):
         raise ValueError(f"threads = {threads!r} is invalid: must be an integer >= 1")
     plan = _plan(scenario, vary, grid, samples, seed)
-    plan.manifest["traces"] = traces
+    keep_traces = traces is not False
+    trace_dir = None if isinstance(traces, bool) else Path(traces)
+    if trace_dir is not None:
+        trace_dir.mkdir(parents=True, exist_ok=True)
+    plan.manifest["traces"] = keep_traces
     plan.manifest["chunk_size"] = chunk_size
     store = _Checkpoint(checkpoint, plan.manifest) if checkpoint is not None else None
     n = len(plan.rows)
@@ -436,23 +442,34 @@ def sweep(
 
     from tqdm.auto import tqdm
 
+    def finish(index: int, chunk: tuple[pl.DataFrame, pl.DataFrame | None]) -> None:
+        table, long = chunk
+        if store is not None:
+            store.save(index, table, long)
+        if trace_dir is not None and long is not None:
+            _atomic_parquet(long, trace_dir / f"traces-{index:06d}.parquet")
+            long = None  # on disk now; do not hold it in memory
+        done[index] = (table, long)
+
+    if trace_dir is not None:
+        for index in list(done):  # chunks resumed from a checkpoint
+            finish(index, done[index])
     bar = tqdm(total=n, unit="run", desc="sweep", disable=not progress, smoothing=0.1)
     bar.update(sum(t.height for t, _ in done.values()))
     partial: list[tuple[pl.DataFrame, pl.DataFrame | None]] = []
     try:
         if client is not None:
-            _run_on_dask(client, plan, todo, traces, store, done, bar)
+            _run_on_dask(client, plan, todo, keep_traces, finish, bar)
         else:
-            _run_local(plan, todo, threads, traces, store, done, partial, bar)
+            _run_local(plan, todo, threads, keep_traces, finish, partial, bar)
     except KeyboardInterrupt:
         bar.close()
         finished = [done[i] for i in sorted(done)] + partial
         raise SweepInterrupted(_assemble(finished, plan)[0]) from None
     bar.close()
     table, long = _assemble([done[i] for i in sorted(done)], plan)
-    if traces:
-        assert long is not None
-        return table, long
+    if traces is True:
+        return table, long if long is not None else pl.DataFrame()
     return table
 
 
@@ -461,8 +478,7 @@ def _run_local(
     todo: list[tuple[int, range]],
     threads: int | None,
     traces: bool,
-    store: _Checkpoint | None,
-    done: dict[int, tuple[pl.DataFrame, pl.DataFrame | None]],
+    finish: Callable[[int, tuple[pl.DataFrame, pl.DataFrame | None]], None],
     partial: list[tuple[pl.DataFrame, pl.DataFrame | None]],
     bar: Any,
 ) -> None:
@@ -478,10 +494,7 @@ def _run_local(
             pieces.append(piece)
             partial.append(piece)
             bar.update(len(sub))
-        chunk = _concat(pieces)
-        if store is not None:
-            store.save(index, *chunk)
-        done[index] = chunk
+        finish(index, _concat(pieces))
         partial.clear()
 
 
@@ -490,8 +503,7 @@ def _run_on_dask(
     plan: _Plan,
     todo: list[tuple[int, range]],
     traces: bool,
-    store: _Checkpoint | None,
-    done: dict[int, tuple[pl.DataFrame, pl.DataFrame | None]],
+    finish: Callable[[int, tuple[pl.DataFrame, pl.DataFrame | None]], None],
     bar: Any,
 ) -> None:
     from dask.distributed import as_completed
@@ -514,9 +526,7 @@ def _run_on_dask(
         for future in as_completed(futures):
             index = futures[future]
             chunk = future.result()
-            if store is not None:
-                store.save(index, *chunk)
-            done[index] = chunk
+            finish(index, chunk)
             bar.update(chunk[0].height)
     except KeyboardInterrupt:
         client.cancel(list(futures))
