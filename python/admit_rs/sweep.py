@@ -442,18 +442,19 @@ def sweep(
 
     from tqdm.auto import tqdm
 
-    def finish(index: int, chunk: tuple[pl.DataFrame, pl.DataFrame | None]) -> None:
-        table, long = chunk
-        if store is not None:
-            store.save(index, table, long)
+    def spill(index: int, table: pl.DataFrame, long: pl.DataFrame | None) -> None:
         if trace_dir is not None and long is not None:
             _atomic_parquet(long, trace_dir / f"traces-{index:06d}.parquet")
             long = None  # on disk now; do not hold it in memory
         done[index] = (table, long)
 
-    if trace_dir is not None:
-        for index in list(done):  # chunks resumed from a checkpoint
-            finish(index, done[index])
+    def finish(index: int, chunk: tuple[pl.DataFrame, pl.DataFrame | None]) -> None:
+        if store is not None:
+            store.save(index, *chunk)
+        spill(index, *chunk)
+
+    for index in list(done):  # chunks resumed from a checkpoint
+        spill(index, *done[index])
     bar = tqdm(total=n, unit="run", desc="sweep", disable=not progress, smoothing=0.1)
     bar.update(sum(t.height for t, _ in done.values()))
     partial: list[tuple[pl.DataFrame, pl.DataFrame | None]] = []
