@@ -1,0 +1,607 @@
+"""admit_rs against strong peers on the fig. 14 run: NumPy, Numba, and (for reference) CPython.
+
+    python benches/compare.py [--repeats 5] [--duration 10] [--skip-numpy] [--skip-python]
+
+Not a test: prints tables (see docs/performance.md for a recorded run). In order:
+
+1. the machine (CPU model, cores, clock, load) and library versions;
+2. agreement: every peer's trace against admit_rs's, all 20 columns, max |Δ| with a 1e-9
+   absolute criterion (the script stops if a peer disagrees: timing a different computation
+   would be meaningless);
+3. timing: median wall time over ``--repeats`` runs in this process, the implementations
+   interleaved round-robin so that load from other jobs hits them alike; ratios to admit_rs;
+4. a cost model: floating-point operations of one RK4 substep (counted by executing the Rust
+   core's expressions on counting floats, checked against the hand count), libm call costs
+   measured here, the resulting floor on this core and admit_rs's measured time per substep;
+5. how admit_rs's time grows with the run's duration and the number of substeps.
+
+The peers live in ``benches/peers.py``. Numba is optional: without it (b) is skipped with a
+message (``pip install numba``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import os
+import platform
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+# One BLAS thread: the NumPy peer's 3×3 products gain nothing from threads, and idle OpenBLAS
+# workers spin on the second core of this 2-core machine, slowing whatever runs beside them.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import admit_rs as ar  # noqa: E402
+import peers  # noqa: E402
+
+TOLERANCE = 1e-9
+TARGET_NUMBA = 1.5
+TARGET_NUMPY = 300.0
+NUMPY_BUDGET_S = 60.0
+
+
+# --------------------------------------------------------------------------------------------
+# machine
+# --------------------------------------------------------------------------------------------
+
+
+def machine() -> dict[str, str]:
+    info: dict[str, str] = {}
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+        fields = dict(
+            line.split(":", 1) for line in text.splitlines() if ":" in line and line.strip()
+        )
+        fields = {k.strip(): v.strip() for k, v in fields.items()}
+        family = fields.get("cpu family", "?")
+        model = fields.get("model", "?")
+        info["cpu"] = f"{fields.get('model name', '?')} (family {family}, model {model})"
+        info["clock_mhz"] = fields.get("cpu MHz", "?")
+    except OSError:
+        info["cpu"] = platform.processor() or "?"
+        info["clock_mhz"] = "?"
+    affinity = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None
+    info["cores"] = f"{os.cpu_count()} logical ({affinity} usable by this process)"
+    try:
+        info["load"] = " ".join(f"{x:.2f}" for x in os.getloadavg()) + " (1, 5, 15 min)"
+    except OSError:
+        info["load"] = "?"
+    versions = [f"Python {platform.python_version()}", f"NumPy {np.__version__}"]
+    if peers.HAVE_NUMBA:
+        versions.append(f"Numba {peers.numba.__version__}")
+    import scipy
+
+    versions.append(f"SciPy {scipy.__version__}")
+    versions.append(f"admit_rs {getattr(ar, '__version__', '?')}")
+    info["software"] = ", ".join(versions)
+    return info
+
+
+def clock_ghz() -> float:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("cpu MHz"):
+                return float(line.split(":")[1]) / 1000.0
+    except (OSError, ValueError):
+        pass
+    return float("nan")
+
+
+# --------------------------------------------------------------------------------------------
+# the scenario, checked against the library's preset
+# --------------------------------------------------------------------------------------------
+
+
+def check_preset(sc: ar.Scenario, c: peers.Fig14) -> None:
+    """Fails loudly if ``ar.paper.scenario("fig14")`` is no longer what the peers implement."""
+    r, w, ctl, adm = sc.robot, sc.wall, sc.controller, sc.admittance
+    expected = {
+        "robot.lengths": (tuple(r.lengths), c.lengths),
+        "robot.masses": (tuple(r.masses), c.masses),
+        "robot.mass_model": (r.mass_model, "rod"),
+        "robot.viscous_friction": (tuple(r.viscous_friction), (c.viscous,) * 3),
+        "robot.coulomb_friction": (tuple(r.coulomb_friction), (c.coulomb,) * 3),
+        "robot.friction_smoothing": (r.friction_smoothing, c.eps),
+        "robot.gravity": (r.gravity, c.gravity),
+        "robot.q0": (tuple(r.q0), c.q0),
+        "wall.stiffness": (w.stiffness, c.stiffness),
+        "wall.position": (w.position, None),
+        "wall.position_error": (w.position_error, c.position_error),
+        "controller": (type(ctl).__name__, "TimeDelayControl"),
+        "controller.law": (ctl.law, "jacobian_transpose"),
+        "controller.gains": (
+            (ctl.ka, ctl.kd, ctl.kp, ctl.scale_feedforward),
+            (c.ka, c.kd, c.kp, True),
+        ),
+        "controller.inertia": ((ctl.inertia, ctl.torque_constant), (c.inertia, c.torque_constant)),
+        "controller.model": (
+            (ctl.model.mass_scale, ctl.model.friction_scale),
+            (1.0, 1.0),
+        ),
+        "admittance": ((adm.m, adm.b, adm.k, adm.ka), (c.fm, c.fb, c.fk, c.fka)),
+        "force_reference": (
+            (type(sc.force_reference).__name__, sc.force_reference.value, sc.force_reference.time),
+            ("Step", c.force, 0.0),
+        ),
+        "z_reference": (
+            (
+                type(sc.z_reference).__name__,
+                sc.z_reference.offset,
+                sc.z_reference.amplitude,
+                sc.z_reference.omega,
+                sc.z_reference.phase,
+            ),
+            ("Sine", c.z_offset, c.z_amplitude, c.z_omega, c.z_phase),
+        ),
+        "timing": ((sc.period, sc.substeps, sc.duration), (c.period, c.substeps, 10.0)),
+        "velocity_limit": (sc.velocity_limit, 100.0),
+    }
+    bad = {k: v for k, v in expected.items() if v[0] != v[1]}
+    if bad:
+        raise SystemExit(f"fig14 preset differs from the peers' model: {bad}")
+
+
+# --------------------------------------------------------------------------------------------
+# agreement
+# --------------------------------------------------------------------------------------------
+
+# The Rust core's own ZOH matrices for b = 800, k_a = 1, T = 1 ms, as nalgebra's
+# `Matrix3::exp` (Padé) produces them. SciPy's `expm` gives A_d[0,1] and A_d[1,1] one ulp
+# apart from these (it rounds e^{-0.8} correctly; nalgebra is 1 ulp low). Used only by the
+# diagnostic below, never by the agreement check or the timed runs.
+RUST_ZOH = {
+    "ad": (1.0, 0.000688338794853473, 0.0, 0.4493289641172215),
+    "bd": (3.895765064331588e-07, 0.000688338794853473),
+}
+
+
+def admit_trace(duration: float) -> np.ndarray:
+    res = ar.simulate(ar.paper.scenario("fig14").replace(duration=duration))
+    return res.trace.select(peers.COLUMNS).to_numpy()
+
+
+def report_agreement(name: str, trace: np.ndarray, ref: np.ndarray) -> bool:
+    if trace.shape != ref.shape:
+        print(f"  {name}: shape {trace.shape} != admit_rs {ref.shape}")
+        return False
+    diff = np.abs(trace - ref).max(axis=0)
+    worst = float(diff.max())
+    ok = bool(np.all(diff <= TOLERANCE))
+    f = peers.COLUMNS.index("f")
+    rel_f = diff[f] / np.abs(ref[:, f]).max()
+    same = sum(np.array_equal(trace[:, j], ref[:, j]) for j in range(ref.shape[1]))
+    print(
+        f"  {name:8s} {'OK' if ok else 'FAIL'}: max |Δ| over all columns {worst:.2e}; "
+        f"f: {diff[f]:.2e} N ({rel_f:.1e} of max f); "
+        f"{same}/{ref.shape[1]} columns bit-identical"
+    )
+    cells = [f"{c}={d:.1e}" for c, d in zip(peers.COLUMNS, diff, strict=True)]
+    for i in range(0, len(cells), 7):
+        print("      " + "  ".join(cells[i : i + 7]))
+    return ok
+
+
+def rust_zoh_diagnostic(c: peers.Fig14, ref: np.ndarray) -> None:
+    """With the Rust core's exact A_d, B_d, is the Numba kernel bit-identical to admit_rs?"""
+    if not peers.HAVE_NUMBA or (c.fb, c.fka, c.fk, c.fm, c.period) != (800.0, 1.0, 0.0, 1.0, 1e-3):
+        return
+    original = peers.setup
+    try:
+        peers.setup = lambda cfg: dataclasses.replace(original(cfg), **RUST_ZOH)
+        trace = peers.run_numba(c)
+    finally:
+        peers.setup = original
+    same = np.array_equal(trace, ref)
+    print(
+        "  diagnostic: with nalgebra's A_d, B_d in place of SciPy's (1 ulp apart in two entries),"
+        f" the Numba trace is {'bit-identical to' if same else 'NOT bit-identical to'} admit_rs's"
+        f" (max |Δ| {np.abs(trace - ref).max():.1e})."
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# timing
+# --------------------------------------------------------------------------------------------
+
+
+def timed(fn: Callable[[], object]) -> float:
+    start = time.perf_counter()
+    fn()
+    return time.perf_counter() - start
+
+
+def round_robin(runs: dict[str, Callable[[], object]], repeats: int) -> dict[str, list[float]]:
+    times: dict[str, list[float]] = {k: [] for k in runs}
+    for _ in range(repeats):
+        for name, fn in runs.items():
+            times[name].append(timed(fn))
+    return times
+
+
+# --------------------------------------------------------------------------------------------
+# cost model
+# --------------------------------------------------------------------------------------------
+
+
+class Counted:
+    """A float that counts the arithmetic done on it (one shared tally)."""
+
+    tally: dict[str, int] = {}
+
+    __slots__ = ("v",)
+
+    def __init__(self, v: float) -> None:
+        self.v = float(v)
+
+    @classmethod
+    def bump(cls, key: str) -> None:
+        cls.tally[key] = cls.tally.get(key, 0) + 1
+
+    @staticmethod
+    def _v(x: object) -> float:
+        return x.v if isinstance(x, Counted) else float(x)
+
+    def _op(self, other: object, key: str, f: Callable[[float, float], float]) -> Counted:
+        Counted.bump(key)
+        return Counted(f(self.v, Counted._v(other)))
+
+    def _rop(self, other: object, key: str, f: Callable[[float, float], float]) -> Counted:
+        Counted.bump(key)
+        return Counted(f(Counted._v(other), self.v))
+
+    def __add__(self, o: object) -> Counted:
+        return self._op(o, "add/sub", lambda a, b: a + b)
+
+    def __radd__(self, o: object) -> Counted:
+        return self._rop(o, "add/sub", lambda a, b: a + b)
+
+    def __sub__(self, o: object) -> Counted:
+        return self._op(o, "add/sub", lambda a, b: a - b)
+
+    def __rsub__(self, o: object) -> Counted:
+        return self._rop(o, "add/sub", lambda a, b: a - b)
+
+    def __mul__(self, o: object) -> Counted:
+        return self._op(o, "mul", lambda a, b: a * b)
+
+    def __rmul__(self, o: object) -> Counted:
+        return self._rop(o, "mul", lambda a, b: a * b)
+
+    def __truediv__(self, o: object) -> Counted:
+        return self._op(o, "div", lambda a, b: a / b)
+
+    def __rtruediv__(self, o: object) -> Counted:
+        return self._rop(o, "div", lambda a, b: a / b)
+
+    def __neg__(self) -> Counted:
+        Counted.bump("neg (sign flip)")
+        return Counted(-self.v)
+
+    def __gt__(self, o: object) -> bool:
+        Counted.bump("compare")
+        return self.v > Counted._v(o)
+
+
+class CountingMath:
+    """Stands in for the ``math`` module inside the counted function."""
+
+    @staticmethod
+    def sin(x: Counted) -> Counted:
+        Counted.bump("sin")
+        return Counted(math.sin(x.v))
+
+    @staticmethod
+    def cos(x: Counted) -> Counted:
+        Counted.bump("cos")
+        return Counted(math.cos(x.v))
+
+    @staticmethod
+    def tanh(x: Counted) -> Counted:
+        Counted.bump("tanh")
+        return Counted(math.tanh(x.v))
+
+
+# Hand count of `ThreeLinkArm::accelerate` (rust/src/robot.rs), operation by operation; see
+# docs/performance.md for the line-by-line table. Flops = add/sub + mul + div.
+HAND_ACCELERATE = {
+    "trig (s23, c23)": 6,
+    "r, contact x, penetration, k_e·pen": 3 + 3,
+    "h": 3,
+    "contact torque Jₓᵀ f": 7,
+    "r2, r3": 1 + 3,
+    "D11": 11,
+    "D22, D23, D33": 13 + 6 + 3,
+    "∂D11/∂q2, ∂D11/∂q3": 17 + 8,
+    "h_c = −m3 l2 a3 s3": 3,
+    "Coriolis": 4 + 10 + 6,
+    "gravity": 7,
+    "friction (q̇/ε, f_v q̇ + f_c tanh)": 12,
+    "rhs = τ + Jᵀf − C − G − τ_f": 12,
+    "block solve (det, 3 divisions)": 12,
+}
+# The RK4 combinations in `Plant::advance` per substep: q2, q̇2, q3, q̇3, q4, q̇4 (a 3-vector
+# multiply-add each: 6 × 6) and the two final updates (3 × 6 each). h/2, h/6 are hoisted.
+HAND_RK4_COMBINATIONS = 6 * 6 + 2 * 18
+
+
+def count_accelerate(state: np.ndarray) -> dict[str, int]:
+    """Executes the peers' transcription of `accelerate` on counting floats, at a trace row
+    in contact with the wall (so that the contact branch is taken)."""
+    counted = type(peers._accel)(
+        peers._accel.__code__, {**peers._accel.__globals__, "math": CountingMath}
+    )
+    Counted.tally = {}
+    s = peers.setup(peers.Fig14())
+    p = tuple(Counted(v) for v in (*s.arm, 30_000.0, s.wall))
+    cols = [peers.COLUMNS.index(k) for k in ("q1", "q2", "q3", "qd1", "qd2", "qd3")]
+    cols += [peers.COLUMNS.index(k) for k in ("tau1", "tau2", "tau3")]
+    if not state[peers.COLUMNS.index("f")] > 0.0:
+        raise ValueError("count at a state in contact with the wall")
+    counted(*(Counted(state[i]) for i in cols), p)
+    return dict(Counted.tally)
+
+
+def libm_costs(trace: np.ndarray, eps: float) -> dict[str, float]:
+    """ns per sin+cos of one angle and per tanh, over the run's own arguments (Numba calls the
+    same glibc libm as the Rust core)."""
+    if not peers.HAVE_NUMBA:
+        return {}
+    numba = peers.numba
+
+    @numba.njit
+    def sincos_sum(xs: np.ndarray, reps: int) -> float:
+        acc = 0.0
+        for _ in range(reps):
+            for x in xs:
+                acc += math.sin(x) + math.cos(x)
+        return acc
+
+    @numba.njit
+    def tanh_sum(xs: np.ndarray, reps: int) -> float:
+        acc = 0.0
+        for _ in range(reps):
+            for x in xs:
+                acc += math.tanh(x)
+        return acc
+
+    @numba.njit
+    def plain_sum(xs: np.ndarray, reps: int) -> float:
+        acc = 0.0
+        for _ in range(reps):
+            for x in xs:
+                acc += x
+        return acc
+
+    angles = np.ascontiguousarray(trace[:, 1:4].ravel())
+    rates = np.ascontiguousarray(trace[:, 4:7].ravel() / eps)
+    reps = 20
+    out = {}
+    for key, fn, xs in (("sin+cos", sincos_sum, angles), ("tanh", tanh_sum, rates)):
+        fn(xs[:10], 1)
+        plain_sum(xs[:10], 1)
+        best = min(timed(lambda f=fn, a=xs: f(a, reps)) for _ in range(5))
+        base = min(timed(lambda a=xs: plain_sum(a, reps)) for _ in range(5))
+        out[key] = (best - base) / (reps * xs.size) * 1e9
+    out["tanh_fast_path_share"] = float(np.mean(np.abs(rates) > 22.0))
+    return out
+
+
+def cost_model(admit_seconds: float, trace: np.ndarray, c: peers.Fig14) -> None:
+    """`admit_seconds`: admit_rs's median for the run `c` (same duration as `trace`)."""
+    f = trace[:, peers.COLUMNS.index("f")]
+    in_contact = np.flatnonzero(f > 0.0)
+    tally = count_accelerate(trace[in_contact[len(in_contact) // 2]])
+    flops_acc = tally.get("add/sub", 0) + tally.get("mul", 0) + tally.get("div", 0)
+    hand = sum(HAND_ACCELERATE.values())
+    per_substep = 4 * flops_acc + HAND_RK4_COMBINATIONS
+    print("\nCost model: one RK4 substep of the Rust core (rust/src/robot.rs `accelerate` ×4 +")
+    print("integrator.rs `advance`), counted by executing the same expressions on counting floats")
+    print(f"  accelerate: {tally}")
+    print(
+        f"  accelerate flops (add/sub + mul + div): counted {flops_acc}, hand count {hand}"
+        f" -> {'agree' if flops_acc == hand else 'DISAGREE'}"
+    )
+    print(
+        f"  per substep: 4 × {flops_acc} + {HAND_RK4_COMBINATIONS} (RK4 combinations)"
+        f" = {per_substep} flops, of which {4 * tally.get('div', 0)} divisions;"
+        f" plus {4 * (tally.get('sin', 0) + tally.get('cos', 0))} sin/cos values"
+        f" ({4 * 3} sin+cos pairs) and {4 * tally.get('tanh', 0)} tanh"
+    )
+    ghz = clock_ghz()
+    flops_per_cycle = 4.0
+    arith_ns = per_substep / (flops_per_cycle * ghz)
+    print(
+        f"  arithmetic floor: {per_substep} flops / ({flops_per_cycle:.0f} flops/cycle × {ghz:.2f}"
+        f" GHz) = {arith_ns:.0f} ns  [assumes scalar SSE2 code, 2 FP add + 2 FP mul per cycle"
+        " (Zen 3), no FMA (the core is built without target-cpu), divisions pipelined]"
+    )
+    costs = libm_costs(trace, c.eps)
+    pairs, tanhs = 4 * 3, 4 * tally.get("tanh", 0)
+    if costs:
+        libm_ns = pairs * costs["sin+cos"] + tanhs * costs["tanh"]
+        print(
+            f"  libm (glibc, measured here via Numba on the run's own arguments): sin+cos of one"
+            f" angle {costs['sin+cos']:.1f} ns, tanh {costs['tanh']:.1f} ns"
+            f" ({100 * costs['tanh_fast_path_share']:.0f}% of q̇/ε samples on tanh's |x| > 22"
+            f" fast path) -> {pairs} × {costs['sin+cos']:.1f} + {tanhs} × {costs['tanh']:.1f}"
+            f" = {libm_ns:.0f} ns"
+        )
+    else:
+        libm_ns = float("nan")
+        print("  libm call costs: need Numba to measure; see the Criterion libm/* numbers")
+    floor = arith_ns + libm_ns
+    n_sub = (c.samples - 1) * c.substeps
+    measured = admit_seconds / n_sub * 1e9
+    if math.isnan(floor):
+        floor = arith_ns
+        print(f"  floor (arithmetic only, libm unknown) ≈ {floor:.0f} ns per substep")
+    else:
+        print(
+            f"  floor ≈ {arith_ns:.0f} + {libm_ns:.0f} = {floor:.0f} ns per substep (throughput"
+            " bound; ignores the dependency chain through the four stages)"
+        )
+    print(
+        f"  measured: admit_rs fig14 median {admit_seconds * 1e3:.1f} ms / ({c.samples - 1} ×"
+        f" {c.substeps}) = {measured:.0f} ns per substep (includes the per-period controller,"
+        f" filter, trace and metrics) = {measured / floor:.2f} × the floor"
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# main
+# --------------------------------------------------------------------------------------------
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--repeats", type=int, default=5, help="timed runs per implementation")
+    parser.add_argument("--duration", type=float, default=10.0, help="simulated seconds")
+    parser.add_argument("--skip-numpy", action="store_true", help="leave out the NumPy peer")
+    parser.add_argument(
+        "--skip-python", action="store_true", help="leave out the CPython reference point"
+    )
+    parser.add_argument("--skip-scaling", action="store_true", help="no duration/substep table")
+    args = parser.parse_args()
+
+    print("Machine")
+    for k, v in machine().items():
+        print(f"  {k:10s} {v}")
+
+    sc = ar.paper.scenario("fig14")
+    c = peers.Fig14(duration=args.duration)
+    check_preset(sc, peers.Fig14())
+    scenario = sc.replace(duration=args.duration)
+    print(
+        f"\nfig14: TDC eq. 18 + Scheme 2 (b=800, k_a=1), k_e=30000, f_d=10 N step, z sine;"
+        f" {args.duration:g} s = {c.samples} samples × {c.substeps} RK4 substeps"
+    )
+    if not peers.HAVE_NUMBA:
+        print("\n*** Numba is not installed: peer (b) is skipped. `pip install numba` to run it.")
+
+    # -- agreement (also the first, untimed, call of each peer) --------------------------------
+    print(
+        f"\nAgreement with admit_rs's trace (all {len(peers.COLUMNS)} columns, |Δ| ≤ {TOLERANCE:g})"
+    )
+    ref = admit_trace(args.duration)
+    ok = True
+    first: dict[str, float] = {}
+    if peers.HAVE_NUMBA:
+        compile_s = timed(lambda: peers.run_numba(peers.Fig14(duration=0.002)))
+        first["numba"] = compile_s
+        ok &= report_agreement("Numba", peers.run_numba(c), ref)
+        rust_zoh_diagnostic(c, ref)
+    numpy_duration = args.duration
+    if not args.skip_numpy:
+        start = time.perf_counter()
+        trace_np = peers.run_numpy(c)
+        first["numpy"] = time.perf_counter() - start
+        ok &= report_agreement("NumPy", trace_np, ref)
+        if first["numpy"] > NUMPY_BUDGET_S:
+            numpy_duration = max(c.period, round(args.duration * 20.0 / first["numpy"], 3))
+    python_duration = args.duration
+    if not args.skip_python:
+        start = time.perf_counter()
+        trace_py = peers.run_python(c)
+        first["python"] = time.perf_counter() - start
+        ok &= report_agreement("CPython", trace_py, ref)
+        if first["python"] > NUMPY_BUDGET_S:
+            python_duration = max(c.period, round(args.duration * 20.0 / first["python"], 3))
+    if not ok:
+        raise SystemExit("a peer disagrees with admit_rs beyond 1e-9: not timing it")
+
+    # -- timing ---------------------------------------------------------------------------------
+    runs: dict[str, Callable[[], object]] = {"admit_rs": lambda: ar.simulate(scenario)}
+    durations = {"admit_rs": args.duration}
+    if peers.HAVE_NUMBA:
+        runs["numba"] = lambda: peers.run_numba(c)
+        durations["numba"] = args.duration
+    if not args.skip_numpy:
+        c_np = peers.Fig14(duration=numpy_duration)
+        runs["numpy"] = lambda: peers.run_numpy(c_np)
+        durations["numpy"] = numpy_duration
+    if not args.skip_python:
+        c_py = peers.Fig14(duration=python_duration)
+        runs["python"] = lambda: peers.run_python(c_py)
+        durations["python"] = python_duration
+    # Warm-up of admit_rs (the peers' first calls happened above).
+    ar.simulate(scenario)
+    times = round_robin(runs, args.repeats)
+    load_after = " ".join(f"{x:.2f}" for x in os.getloadavg())
+    labels = {
+        "admit_rs": "(c) admit_rs: ar.simulate (Rust core + polars DataFrame)",
+        "numba": "(b) Numba @njit, whole run in one function",
+        "numpy": "(a) NumPy, small arrays",
+        "python": "    CPython floats + math (the Numba kernel, uncompiled)",
+    }
+    scale = {k: args.duration / d for k, d in durations.items()}
+    med = {k: statistics.median(v) * scale[k] for k, v in times.items()}
+    print(
+        f"\nWall time of one {args.duration:g}-s run, median of {args.repeats} (min … max),"
+        f" interleaved; load average after: {load_after}"
+    )
+    print(f"  {'implementation':60s} {'median':>10s} {'min … max':>21s} {'÷ admit_rs':>11s}")
+    for k, v in times.items():
+        note = "" if scale[k] == 1.0 else f"   [timed {durations[k]:g} s, ×{scale[k]:g}]"
+        lo, hi = min(v) * scale[k], max(v) * scale[k]
+        print(
+            f"  {labels[k]:60s} {fmt_s(med[k]):>10s} {fmt_s(lo):>9s} … {fmt_s(hi):<9s}"
+            f" {med[k] / med['admit_rs']:10.1f}×{note}"
+        )
+    if "numba" in first:
+        print(f"  Numba compile time (first call, not in the table): {first['numba']:.2f} s")
+    print("\nTargets (from the issue; informational)")
+    if "numba" in med:
+        r = med["numba"] / med["admit_rs"]
+        print(
+            f"  admit_rs ≥ {TARGET_NUMBA}× faster than Numba: {r:.2f}× -> {met(r >= TARGET_NUMBA)}"
+        )
+    if "numpy" in med:
+        r = med["numpy"] / med["admit_rs"]
+        print(
+            f"  admit_rs ≥ {TARGET_NUMPY:g}× faster than NumPy: {r:.0f}×"
+            f" -> {met(r >= TARGET_NUMPY)}"
+        )
+
+    cost_model(statistics.median(times["admit_rs"]), ref, c)
+
+    if not args.skip_scaling:
+        scaling(sc, args.repeats)
+
+
+def scaling(sc: ar.Scenario, repeats: int) -> None:
+    print("\nadmit_rs cost vs duration and substeps (ar.simulate, median of", repeats, "runs)")
+    cases = [("duration", d, 10) for d in (2.0, 5.0, 10.0)] + [
+        ("substeps", 10.0, s) for s in (5, 10, 20)
+    ]
+    print(
+        f"  {'duration':>8s} {'substeps':>8s} {'median':>9s} {'ns/substep':>11s} {'trace MB':>9s}"
+    )
+    for _, d, s in cases:
+        scn = sc.replace(duration=d, substeps=s)
+        ar.simulate(scn)
+        t = statistics.median(timed(lambda x=scn: ar.simulate(x)) for _ in range(repeats))
+        res = ar.simulate(scn)
+        n_sub = round(d / sc.period) * s
+        mb = res.trace.estimated_size() / 1e6
+        print(f"  {d:8g} {s:8d} {fmt_s(t):>9s} {t / n_sub * 1e9:11.0f} {mb:9.2f}")
+
+
+def fmt_s(seconds: float) -> str:
+    return f"{seconds * 1e3:.1f} ms" if seconds < 1.0 else f"{seconds:.2f} s"
+
+
+def met(flag: bool) -> str:
+    return "MET" if flag else "NOT MET"
+
+
+if __name__ == "__main__":
+    main()
