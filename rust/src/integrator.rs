@@ -49,7 +49,7 @@ impl Plant {
         self.wall.as_ref().map_or(0.0, |w| w.force(x))
     }
 
-    #[inline]
+    #[inline(always)]
     fn acceleration(&self, q: &Vec3, qd: &Vec3, tau: &Vec3) -> Vec3 {
         self.arm.accelerate(q, qd, tau, |x| self.contact(x)).0
     }

@@ -151,11 +151,13 @@ struct Trig {
 }
 
 impl Trig {
-    #[inline]
+    #[inline(always)]
     fn new(q: &Vec3) -> Self {
-        let (s1, c1) = q[0].sin_cos();
-        let (s2, c2) = q[1].sin_cos();
-        let (s3, c3) = q[2].sin_cos();
+        // libm's sincos shares one range reduction between sin and cos; std's sin_cos
+        // makes two calls. This is the hottest line of a run (3 calls per RK4 stage).
+        let (s1, c1) = libm::sincos(q[0]);
+        let (s2, c2) = libm::sincos(q[1]);
+        let (s3, c3) = libm::sincos(q[2]);
         Self {
             s1,
             c1,
@@ -187,6 +189,8 @@ pub struct ThreeLinkArm {
     fv: Vec3,
     fc: Vec3,
     eps: f64,
+    /// 1/ε, so the hot path multiplies instead of dividing.
+    inv_eps: f64,
 }
 
 impl ThreeLinkArm {
@@ -211,6 +215,7 @@ impl ThreeLinkArm {
             fv: Vec3::from(p.viscous_friction),
             fc: Vec3::from(p.coulomb_friction),
             eps: p.friction_smoothing,
+            inv_eps: 1.0 / p.friction_smoothing,
         }
     }
 
@@ -257,7 +262,7 @@ impl ThreeLinkArm {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     fn dynamics_from(&self, t: &Trig, qd: &Vec3) -> Dynamics {
         let (l2, m2, m3, a2, a3, i2, i3) = (
             self.l2, self.m2, self.m3, self.a2, self.a3, self.i2, self.i3,
@@ -295,7 +300,7 @@ impl ThreeLinkArm {
     #[inline]
     fn sign(&self, v: f64) -> f64 {
         if self.eps > 0.0 {
-            (v / self.eps).tanh()
+            smooth_sign(v * self.inv_eps)
         } else if v > 0.0 {
             1.0
         } else if v < 0.0 {
@@ -314,7 +319,7 @@ impl ThreeLinkArm {
 
     /// Joint accelerations with the wall's contact force evaluated at the same state:
     /// eq. (1) with τ_ext = Jᵀ[−f, 0, 0], f = `contact(x)`. Returns (q̈, f).
-    #[inline]
+    #[inline(always)]
     pub fn accelerate(
         &self,
         q: &Vec3,
@@ -334,17 +339,25 @@ impl ThreeLinkArm {
     }
 }
 
+/// tanh(x) as ±(1 − e^(−2|x|)) / (1 + e^(−2|x|)): one `exp`, never overflows, within
+/// 2.3e-16 of `f64::tanh` (tested) and about twice as fast. It runs 3 times per RK4 stage.
+#[inline(always)]
+fn smooth_sign(x: f64) -> f64 {
+    let e = (-2.0 * x.abs()).exp();
+    ((1.0 - e) / (1.0 + e)).copysign(x)
+}
+
 /// Solves D q̈ = rhs for this arm's block-diagonal D (yaw scalar ⊕ 2×2 pitch block).
 /// A singular D (arm straight up: no yaw inertia) gives non-finite q̈, which the
 /// simulation reports as divergence.
 #[inline]
 fn solve_block_inertia(d: &Mat3, rhs: &Vec3) -> Vec3 {
     let (a, b, c) = (d[(1, 1)], d[(1, 2)], d[(2, 2)]);
-    let det = a * c - b * b;
+    let inv_det = 1.0 / (a * c - b * b);
     Vec3::new(
         rhs[0] / d[(0, 0)],
-        (c * rhs[1] - b * rhs[2]) / det,
-        (a * rhs[2] - b * rhs[1]) / det,
+        (c * rhs[1] - b * rhs[2]) * inv_det,
+        (a * rhs[2] - b * rhs[1]) * inv_det,
     )
 }
 
@@ -487,6 +500,18 @@ mod tests {
         assert_eq!(f, 1000.0 * x);
         let reference = arm.forward_dynamics(&q, &qd, &tau, &Vec3::new(-f, 0.0, 0.0));
         assert!((qdd - reference).abs().max() < 1e-12);
+    }
+
+    #[test]
+    fn smooth_sign_is_tanh() {
+        let worst = (0..=600_000)
+            .map(|i| -30.0 + i as f64 * 1e-4)
+            .map(|x| (smooth_sign(x) - x.tanh()).abs())
+            .fold(0.0, f64::max);
+        assert!(worst <= 2.3e-16, "{worst}");
+        assert_eq!(smooth_sign(0.0), 0.0);
+        assert_eq!(smooth_sign(1e3), 1.0);
+        assert_eq!(smooth_sign(-1e3), -1.0);
     }
 
     #[test]
