@@ -200,39 +200,38 @@ class ComputedTorque(_Controller):
 
 
 @dataclass(frozen=True, kw_only=True)
-class ModelFree(_Controller):
-    """Model-free ("nonmodel") control: eq. (18) without the delay estimate, τ = D̄ K_t Jᵀ V."""
+class _ConstantInertiaLaw(_Controller):
+    """Fields shared by the laws built on a constant inertia D̄ (eqs. 17 and 18)."""
 
     ka: float = 5.0
+    """K_A of eq. (39)."""
     kd: float = 20.0
+    """K_D of eq. (39) [1/s]."""
     kp: float = 100.0
+    """K_P of eq. (39) [1/s²]."""
     scale_feedforward: bool = True
     """See :attr:`ComputedTorque.scale_feedforward`."""
     inertia: float = 0.1
     """Constant inertia D̄ = α I [kg·m²]."""
     torque_constant: float = 200.0
-    """Torque constant K_t."""
+    """Torque constant K_t (eq. 18)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModelFree(_ConstantInertiaLaw):
+    """Model-free ("nonmodel") control: eq. (18) without the delay estimate, τ = D̄ K_t Jᵀ V."""
 
     _kind: ClassVar[str] = "model_free"
 
 
 @dataclass(frozen=True, kw_only=True)
-class TimeDelayControl(_Controller):
+class TimeDelayControl(_ConstantInertiaLaw):
     """Time-delayed control: eq. (18) (default) or eq. (17).
 
     τ_k = D̄ K_t Jᵀ V_k + τ_{k−1} − D̄ q̈_{k−1}, with q̈_{k−1} = (q̇_k − q̇_{k−1})/T,
     τ_{−1} = Ĝ(q0) and q̈_{−1} = 0.
     """
 
-    ka: float = 5.0
-    kd: float = 20.0
-    kp: float = 100.0
-    scale_feedforward: bool = True
-    """See :attr:`ComputedTorque.scale_feedforward`."""
-    inertia: float = 0.1
-    """Constant inertia D̄ [kg·m²]."""
-    torque_constant: float = 200.0
-    """Torque constant K_t (eq. 18 only)."""
     law: Literal["jacobian_transpose", "inverse_jacobian"] = "jacobian_transpose"
     """``"jacobian_transpose"``: eq. (18); ``"inverse_jacobian"``: eq. (17)."""
     model: ModelError = field(default_factory=ModelError)
