@@ -476,7 +476,8 @@ def _replace_paths(obj: Any, changes: Mapping[str, Any]) -> Any:
 
 def _check_path(obj: Any, path: str) -> None:
     """Raises TypeError for a path that names no field, with the closest valid ones."""
-    node, walked = obj, []
+    node: Any = obj
+    walked: list[str] = []
     for part in path.split("."):
         if not isinstance(node, _Block):
             where = ".".join(walked)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import matplotlib
@@ -205,7 +206,10 @@ def sweep_heatmap(
     stable = _stable_mask(table)
     grid = np.full((len(ye) - 1, len(xe) - 1), np.nan)
     unstable = np.zeros_like(grid, dtype=int)
-    reducer = {"mean": np.mean, "max": np.max, "min": np.min, "median": np.median}[agg]
+    reducers: dict[str, Callable[[npt.NDArray[np.float64]], Any]] = {
+        "mean": np.mean, "max": np.max, "min": np.min, "median": np.median,
+    }  # fmt: skip
+    reducer = reducers[agg]
     for r in range(grid.shape[0]):
         for c in range(grid.shape[1]):
             cell = (yi == r) & (xi == c)
