@@ -198,3 +198,12 @@ def test_stiffness_labels():
     assert [s.label for s in ar.paper.scenarios("fig15")] == [
         "TDC, Scheme 2, k_e=10 000", "TDC, Scheme 2, k_e=50 000", "TDC, Scheme 2, k_e=100 000",
     ]  # fmt: skip
+
+
+def test_example_scenario_toml_runs(capsys):
+    from pathlib import Path
+
+    toml = Path(__file__).parent.parent / "examples" / "scenario.toml"
+    assert cli.main(["run", str(toml)]) == 0
+    out = capsys.readouterr().out
+    assert '"stable": true' in out and '"force_peak"' in out
