@@ -7,8 +7,8 @@ Scheme 1 / Scheme 2 admittance filters, an uncertain wall.
 Example:
     >>> import admit_rs as ar
     >>> r = ar.simulate(ar.paper.scenario("fig14"))
-    >>> round(r.metrics["force_ss_error"], 3) == round(r.metrics["force_ss_error"], 3)
-    True
+    >>> r.stable, r.trace.height, abs(r.metrics["force_ss_error"]) < 0.5
+    (True, 10001, True)
 """
 
 from admit_rs import paper, plot

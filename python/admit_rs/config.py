@@ -81,7 +81,8 @@ class Robot(_Block):
 
     Example:
         >>> import admit_rs as ar
-        >>> ar.Robot().dynamics([0, 0.785, -0.785])["gravity"].round(2)
+        >>> robot = ar.Robot()
+        >>> robot.dynamics(robot.q0)["gravity"].round(2)
         array([ 0.  , 50.39, 10.12])
     """
 

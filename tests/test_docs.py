@@ -1,0 +1,18 @@
+"""Every example in the package's docstrings runs and prints what it says."""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+
+import pytest
+
+MODULES = ["admit_rs", "admit_rs.config", "admit_rs.simulation", "admit_rs.sweep",
+           "admit_rs.paper", "admit_rs.reproduction"]  # fmt: skip
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_docstring_examples(name):
+    result = doctest.testmod(importlib.import_module(name), optionflags=doctest.ELLIPSIS)
+    assert result.attempted > 0, f"{name} has no examples"
+    assert result.failed == 0
