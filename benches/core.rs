@@ -10,7 +10,7 @@
 //! | `libm/*`               | one glibc `sin_cos` or `tanh` call (anchors the cost model)    |
 //! | `dynamics/evaluate`    | `ThreeLinkArm::evaluate`: tip position, J, J̇q̇, D, C, G         |
 //! | `dynamics/accelerate`  | `ThreeLinkArm::accelerate`: q̈ with the contact force          |
-//! | `plant/rk4_substep`    | one RK4 step of 0.1 ms (`Plant` with period 1e-4, 1 substep)   |
+//! | `plant/rk4_substep`    | one RK4 step of 0.1 ms (a 10-substep period ÷ 10)              |
 //! | `plant/control_period` | one 1-ms period: measure, references, filter, TDC, 10 substeps |
 //! | `run/fig14_10s`        | `Simulation::run` of fig. 14 (10 001 samples, trace, metrics)  |
 //! | `batch/fig14_64x10s`   | 64 fig. 14 runs (k_e 1e4 … 1e5), rayon `par_iter_mut`          |
@@ -18,7 +18,7 @@
 //! The batch uses rayon's global pool: `RAYON_NUM_THREADS=1 cargo bench -- batch` for one thread.
 
 use std::hint::black_box;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use rayon::prelude::*;
@@ -108,7 +108,6 @@ fn dynamics(c: &mut Criterion) {
 /// admittance filter, time-delayed control and the plant's 10 RK4 substeps. It walks through
 /// the fig. 14 run and starts over after 10 s, so the average covers the whole run.
 struct ControlLoop {
-    arm: ThreeLinkArm,
     plant: Plant,
     controller: Controller,
     filter: AdmittanceFilter,
@@ -133,8 +132,7 @@ impl ControlLoop {
             _ => AdmittanceFilter::new(AdmittanceParams::default(), cfg.period),
         };
         Self {
-            plant: Plant::new(arm.clone(), Some(wall), initial, cfg.period, cfg.substeps),
-            arm,
+            plant: Plant::new(arm, Some(wall), initial, cfg.period, cfg.substeps),
             controller: Controller::new(&cfg.controller, &cfg.robot, cfg.period),
             filter,
             force_reference: cfg.force_reference.clone(),
@@ -156,8 +154,8 @@ impl ControlLoop {
             self.filter.reset();
         }
         let t = self.k as f64 * self.period;
-        let PlantState { q, qd } = self.plant.state;
-        let kin = self.arm.kinematics(&q, &qd);
+        let PlantState { q, qd } = *self.plant.state();
+        let kin = self.plant.kinematics();
         let force = self.plant.force_at(kin.position[0]);
         let f_d = self.force_reference.at(t);
         let z = self.z_reference.at(t);
@@ -189,19 +187,39 @@ impl ControlLoop {
 
 fn plant(c: &mut Criterion) {
     let cfg = ScenarioConfig::default();
-    let mut replay = Replay::new(&cfg);
+    let replay = Replay::new(&cfg);
     let (arm, wall, _) = arm_and_wall(&cfg);
     let mut g = c.benchmark_group("plant");
-    // One substep of 0.1 ms: a plant whose control period is one substep, started from
-    // each recorded state of the run in turn.
-    let (start, _) = replay.states[0];
-    let mut one = Plant::new(arm, Some(wall), start, cfg.period / 10.0, 1);
+    // One 0.1-ms substep, as the run takes it: a plant with the run's period and 10 substeps
+    // replays the run's torques (so it retraces the run's states exactly, starting over
+    // after 10 s), and the time per period is divided by the substeps. This includes each
+    // period's share of its one fresh sin/cos evaluation, as in the run.
+    let taus: Vec<Vec3> = replay.states.iter().map(|(_, tau)| *tau).collect();
+    let mut whole = Plant::new(
+        arm,
+        Some(wall),
+        replay.states[0].0,
+        cfg.period,
+        cfg.substeps,
+    );
+    let mut k = 0;
+    let substeps = cfg.substeps as u64;
     g.bench_function("rk4_substep", |b| {
-        b.iter(|| {
-            let (s, tau) = replay.next();
-            one.state = black_box(*s);
-            one.advance(black_box(tau));
-            one.state
+        b.iter_custom(|iters| {
+            let periods = iters.div_ceil(substeps);
+            let start = Instant::now();
+            for _ in 0..periods {
+                if k + 1 == taus.len() {
+                    whole.reset();
+                    k = 0;
+                }
+                whole.advance(black_box(&taus[k]));
+                k += 1;
+            }
+            black_box(whole.state());
+            start
+                .elapsed()
+                .mul_f64(iters as f64 / (periods * substeps) as f64)
         })
     });
     let mut lp = ControlLoop::new(&cfg);

@@ -2,7 +2,7 @@
 //! control torque is held (zero-order hold, SPEC §6).
 
 use crate::environment::Wall;
-use crate::robot::{ThreeLinkArm, Vec3};
+use crate::robot::{Kinematics, ThreeLinkArm, Trig, Vec3};
 
 /// Joint positions and velocities.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -19,7 +19,10 @@ pub struct Plant {
     substeps: usize,
     substep: f64,
     initial: PlantState,
-    pub state: PlantState,
+    state: PlantState,
+    /// Sines and cosines of `state.q`, shared by the measurement and the next period's
+    /// first RK4 stage.
+    trig: Trig,
 }
 
 impl Plant {
@@ -37,11 +40,28 @@ impl Plant {
             substep: period / substeps as f64,
             initial,
             state: initial,
+            trig: Trig::new(&initial.q),
         }
     }
 
     pub fn reset(&mut self) {
-        self.state = self.initial;
+        self.set_state(self.initial);
+    }
+
+    #[inline]
+    pub fn state(&self) -> &PlantState {
+        &self.state
+    }
+
+    pub fn set_state(&mut self, state: PlantState) {
+        self.state = state;
+        self.trig = Trig::new(&state.q);
+    }
+
+    /// Tip position, Jacobian and J̇q̇ at the current state (what the robot's encoders give).
+    #[inline]
+    pub fn kinematics(&self) -> Kinematics {
+        self.arm.kinematics_at(&self.trig, &self.state.qd)
     }
 
     #[inline]
@@ -50,8 +70,8 @@ impl Plant {
     }
 
     #[inline(always)]
-    fn acceleration(&self, q: &Vec3, qd: &Vec3, tau: &Vec3) -> Vec3 {
-        self.arm.accelerate(q, qd, tau, |x| self.contact(x)).0
+    fn acceleration(&self, t: &Trig, qd: &Vec3, tau: &Vec3) -> Vec3 {
+        self.arm.accelerate_at(t, qd, tau, |x| self.contact(x)).0
     }
 
     /// The contact force the (ideal) sensor reads at tip x position `x`.
@@ -61,22 +81,26 @@ impl Plant {
     }
 
     /// One control period: `substeps` classical RK4 steps with τ held.
-    #[inline]
+    #[inline(always)]
     pub fn advance(&mut self, tau: &Vec3) {
         let h = self.substep;
         let PlantState { mut q, mut qd } = self.state;
+        let mut t1 = self.trig;
         for _ in 0..self.substeps {
-            let a1 = self.acceleration(&q, &qd, tau);
-            let (q2, qd2) = (q + qd * (h / 2.0), qd + a1 * (h / 2.0));
-            let a2 = self.acceleration(&q2, &qd2, tau);
-            let (q3, qd3) = (q + qd2 * (h / 2.0), qd + a2 * (h / 2.0));
-            let a3 = self.acceleration(&q3, &qd3, tau);
-            let (q4, qd4) = (q + qd3 * h, qd + a3 * h);
-            let a4 = self.acceleration(&q4, &qd4, tau);
-            q += (qd + (qd2 + qd3) * 2.0 + qd4) * (h / 6.0);
+            let a1 = self.acceleration(&t1, &qd, tau);
+            let (d2, qd2) = (qd * (h / 2.0), qd + a1 * (h / 2.0));
+            let a2 = self.acceleration(&t1.shifted(&d2, &(q + d2)), &qd2, tau);
+            let (d3, qd3) = (qd2 * (h / 2.0), qd + a2 * (h / 2.0));
+            let a3 = self.acceleration(&t1.shifted(&d3, &(q + d3)), &qd3, tau);
+            let (d4, qd4) = (qd3 * h, qd + a3 * h);
+            let a4 = self.acceleration(&t1.shifted(&d4, &(q + d4)), &qd4, tau);
+            let dq = (qd + (qd2 + qd3) * 2.0 + qd4) * (h / 6.0);
+            q += dq;
+            t1 = t1.shifted(&dq, &q);
             qd += (a1 + (a2 + a3) * 2.0 + a4) * (h / 6.0);
         }
-        self.state = PlantState { q, qd };
+        // A fresh evaluation, so angle-addition rounding never outlives a period.
+        self.set_state(PlantState { q, qd });
     }
 }
 
@@ -102,13 +126,62 @@ mod tests {
             for _ in 0..20 {
                 plant.advance(&Vec3::new(1.0, 40.0, 8.0));
             }
-            plant.state.q
+            plant.state().q
         };
         let reference = run(256);
         let e1 = (run(4) - reference).norm();
         let e2 = (run(8) - reference).norm();
         let ratio = e1 / e2;
         assert!(ratio > 13.0 && ratio < 19.0, "ratio {ratio}");
+    }
+
+    /// The plant's RK4 (stage trig by angle addition) against a textbook RK4 that evaluates
+    /// sin and cos afresh at every stage: one second of fig. 14-like motion, with contact.
+    #[test]
+    fn matches_textbook_rk4() {
+        let p = RobotParams::default();
+        let arm = ThreeLinkArm::new(&p);
+        let x0 = arm.forward_kinematics(&Vec3::from(p.q0))[0];
+        let wall = Wall::new(&crate::environment::WallParams::default(), x0 - 0.002);
+        let start = PlantState {
+            q: Vec3::from(p.q0),
+            qd: Vec3::new(0.0, 0.4, -0.6),
+        };
+        let tau = |k: usize| Vec3::new(0.0, 45.0 + 5.0 * (k as f64 * 0.01).sin(), 10.0);
+        let (h, substeps) = (1e-4, 10);
+        let mut plant = Plant::new(arm.clone(), Some(wall), start, h * 10.0, substeps);
+        let (mut q, mut qd) = (start.q, start.qd);
+        let mut contact_periods = 0;
+        let f = |q: &Vec3, qd: &Vec3, t: &Vec3| arm.accelerate(q, qd, t, |x| wall.force(x)).0;
+        for k in 0..1000 {
+            let t = tau(k);
+            plant.advance(&t);
+            if wall.force(arm.forward_kinematics(&q)[0]) > 0.0 {
+                contact_periods += 1;
+            }
+            for _ in 0..substeps {
+                let a1 = f(&q, &qd, &t);
+                let (q2, qd2) = (q + qd * (h / 2.0), qd + a1 * (h / 2.0));
+                let a2 = f(&q2, &qd2, &t);
+                let (q3, qd3) = (q + qd2 * (h / 2.0), qd + a2 * (h / 2.0));
+                let a3 = f(&q3, &qd3, &t);
+                let (q4, qd4) = (q + qd3 * h, qd + a3 * h);
+                let a4 = f(&q4, &qd4, &t);
+                q += (qd + (qd2 + qd3) * 2.0 + qd4) * (h / 6.0);
+                qd += (a1 + (a2 + a3) * 2.0 + a4) * (h / 6.0);
+            }
+        }
+        let s = plant.state();
+        assert!(
+            contact_periods > 100,
+            "in contact for {contact_periods} periods"
+        );
+        assert!((s.q - q).abs().max() < 1e-14, "{}", (s.q - q).abs().max());
+        assert!(
+            (s.qd - qd).abs().max() < 1e-14,
+            "{}",
+            (s.qd - qd).abs().max()
+        );
     }
 
     /// Holding exactly the gravity torque keeps the arm at rest (friction is zero at q̇ = 0).
@@ -126,6 +199,6 @@ mod tests {
         for _ in 0..1000 {
             plant.advance(&g);
         }
-        assert!((plant.state.q - q0).abs().max() < 1e-12);
+        assert!((plant.state().q - q0).abs().max() < 1e-12);
     }
 }

@@ -138,8 +138,8 @@ pub trait RobotModel: Send + Sync {
 }
 
 /// Sines and cosines of one configuration, computed once and shared by every term.
-#[derive(Debug, Clone, Copy)]
-struct Trig {
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Trig {
     s1: f64,
     c1: f64,
     s2: f64,
@@ -152,7 +152,7 @@ struct Trig {
 
 impl Trig {
     #[inline(always)]
-    fn new(q: &Vec3) -> Self {
+    pub fn new(q: &Vec3) -> Self {
         // libm's sincos shares one range reduction between sin and cos; std's sin_cos
         // makes two calls. This is the hottest line of a run (3 calls per RK4 stage).
         let (s1, c1) = libm::sincos(q[0]);
@@ -166,6 +166,44 @@ impl Trig {
             s3,
             c3,
             // cos/sin of q2+q3 from those of q2 and q3: no extra transcendental call.
+            s23: s2 * c3 + c2 * s3,
+            c23: c2 * c3 - s2 * s3,
+        }
+    }
+
+    /// The trig of `q + delta` from this one (the trig of `q`) by angle addition, with
+    /// sin δ and cos δ from their Taylor series while every |δ| ≤ 1/32 (truncation below
+    /// 1e-17 absolute); otherwise from scratch at `shifted` (= q + δ).
+    #[inline(always)]
+    pub fn shifted(&self, delta: &Vec3, shifted: &Vec3) -> Self {
+        if delta.iter().any(|d| d.abs() > 1.0 / 32.0) {
+            return Self::new(shifted);
+        }
+        let sc = |d: f64| {
+            let d2 = d * d;
+            let s = d
+                * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0))));
+            let c = 1.0
+                - d2 * 0.5
+                    * (1.0
+                        - d2 * (1.0 / 12.0)
+                            * (1.0 - d2 * (1.0 / 30.0) * (1.0 - d2 * (1.0 / 56.0))));
+            (s, c)
+        };
+        let rot = |s: f64, c: f64, d: f64| {
+            let (sd, cd) = sc(d);
+            (s * cd + c * sd, c * cd - s * sd)
+        };
+        let (s1, c1) = rot(self.s1, self.c1, delta[0]);
+        let (s2, c2) = rot(self.s2, self.c2, delta[1]);
+        let (s3, c3) = rot(self.s3, self.c3, delta[2]);
+        Self {
+            s1,
+            c1,
+            s2,
+            c2,
+            s3,
+            c3,
             s23: s2 * c3 + c2 * s3,
             c23: c2 * c3 - s2 * s3,
         }
@@ -191,6 +229,56 @@ pub struct ThreeLinkArm {
     eps: f64,
     /// 1/ε, so the hot path multiplies instead of dividing.
     inv_eps: f64,
+    inertia: InertiaConstants,
+}
+
+/// Parameter-only products of D, C and G, folded once instead of once per RK4 stage.
+#[derive(Debug, Clone, PartialEq, Default)]
+struct InertiaConstants {
+    /// m2 a2² + i2: D11's c2² coefficient.
+    k2: f64,
+    m3_l2: f64,
+    m3_a3: f64,
+    i3: f64,
+    /// m3 l2 a3: D23's c3 coefficient (and −h/s3).
+    m3_l2_a3: f64,
+    /// D22 = d22_0 + d22_c3 c3.
+    d22_0: f64,
+    d22_c3: f64,
+    /// D33 = m3 a3² + i3, also D23's constant part.
+    d33: f64,
+    g_m2_a2: f64,
+    g_m3_a3: f64,
+}
+
+impl InertiaConstants {
+    fn new(arm: &ThreeLinkArm) -> Self {
+        let ThreeLinkArm {
+            l2,
+            m2,
+            m3,
+            a2,
+            a3,
+            i2,
+            i3,
+            g,
+            ..
+        } = *arm;
+        let k2 = m2 * a2 * a2 + i2;
+        let d33 = m3 * a3 * a3 + i3;
+        Self {
+            k2,
+            m3_l2: m3 * l2,
+            m3_a3: m3 * a3,
+            i3,
+            m3_l2_a3: m3 * l2 * a3,
+            d22_0: k2 + m3 * l2 * l2 + d33,
+            d22_c3: 2.0 * m3 * l2 * a3,
+            d33,
+            g_m2_a2: g * m2 * a2,
+            g_m3_a3: g * m3 * a3,
+        }
+    }
 }
 
 impl ThreeLinkArm {
@@ -201,7 +289,7 @@ impl ThreeLinkArm {
             MassModel::Rod => (l2 / 2.0, l3 / 2.0, m2 * l2 * l2 / 12.0, m3 * l3 * l3 / 12.0),
             MassModel::Point => (l2, l3, 0.0, 0.0),
         };
-        Self {
+        let mut arm = Self {
             l1,
             l2,
             l3,
@@ -216,7 +304,10 @@ impl ThreeLinkArm {
             fc: Vec3::from(p.coulomb_friction),
             eps: p.friction_smoothing,
             inv_eps: 1.0 / p.friction_smoothing,
-        }
+            inertia: InertiaConstants::default(),
+        };
+        arm.inertia = InertiaConstants::new(&arm);
+        arm
     }
 
     /// |det J| / (l2 l3 (l2 + l3)) = |r sin q3| / (l2 + l3): zero exactly at the singular
@@ -264,32 +355,30 @@ impl ThreeLinkArm {
 
     #[inline(always)]
     fn dynamics_from(&self, t: &Trig, qd: &Vec3) -> Dynamics {
-        let (l2, m2, m3, a2, a3, i2, i3) = (
-            self.l2, self.m2, self.m3, self.a2, self.a3, self.i2, self.i3,
-        );
-        // Distances of the two centres of mass from the yaw axis.
-        let r2 = a2 * t.c2;
-        let r3 = l2 * t.c2 + a3 * t.c23;
-        let d11 = m2 * r2 * r2 + i2 * t.c2 * t.c2 + m3 * r3 * r3 + i3 * t.c23 * t.c23;
-        let d22 = m2 * a2 * a2 + i2 + m3 * (l2 * l2 + a3 * a3 + 2.0 * l2 * a3 * t.c3) + i3;
-        let d23 = m3 * (a3 * a3 + l2 * a3 * t.c3) + i3;
-        let d33 = m3 * a3 * a3 + i3;
+        let k = &self.inertia;
+        // m3 times the distance of link 3's centre of mass from the yaw axis.
+        let m3r3 = k.m3_l2 * t.c2 + k.m3_a3 * t.c23;
+        let r3 = self.l2 * t.c2 + self.a3 * t.c23;
+        let i3cs = k.i3 * t.c23 * t.s23;
+        let d11 = k.k2 * t.c2 * t.c2 + m3r3 * r3 + k.i3 * t.c23 * t.c23;
+        let d22 = k.d22_0 + k.d22_c3 * t.c3;
+        let d23 = k.d33 + k.m3_l2_a3 * t.c3;
         // The yaw inertia is decoupled from the pitch block: D12 = D13 = 0.
-        let inertia = Mat3::new(d11, 0.0, 0.0, 0.0, d22, d23, 0.0, d23, d33);
+        let inertia = Mat3::new(d11, 0.0, 0.0, 0.0, d22, d23, 0.0, d23, k.d33);
 
-        // ∂D11/∂q2, ∂D11/∂q3 and ∂D22/∂q3 = 2h, ∂D23/∂q3 = h give C by Christoffel symbols.
-        let dd11_dq2 = -2.0 * (m2 * a2 * a2 + i2) * t.c2 * t.s2
-            - 2.0 * m3 * r3 * (l2 * t.s2 + a3 * t.s23)
-            - 2.0 * i3 * t.c23 * t.s23;
-        let dd11_dq3 = -2.0 * m3 * r3 * a3 * t.s23 - 2.0 * i3 * t.c23 * t.s23;
-        let h = -m3 * l2 * a3 * t.s3;
+        // C by Christoffel symbols from ∂D11/∂q2 = −2 p2, ∂D11/∂q3 = −2 p3,
+        // ∂D22/∂q3 = 2h and ∂D23/∂q3 = h.
+        let p2 = k.k2 * t.c2 * t.s2 + m3r3 * (self.l2 * t.s2 + self.a3 * t.s23) + i3cs;
+        let p3 = m3r3 * self.a3 * t.s23 + i3cs;
+        let h = -k.m3_l2_a3 * t.s3;
         let (w1, w2, w3) = (qd[0], qd[1], qd[2]);
+        let w11 = w1 * w1;
         let coriolis = Vec3::new(
-            (dd11_dq2 * w2 + dd11_dq3 * w3) * w1,
-            2.0 * h * w2 * w3 + h * w3 * w3 - 0.5 * dd11_dq2 * w1 * w1,
-            -h * w2 * w2 - 0.5 * dd11_dq3 * w1 * w1,
+            -2.0 * (p2 * w2 + p3 * w3) * w1,
+            h * w3 * (2.0 * w2 + w3) + p2 * w11,
+            -h * w2 * w2 + p3 * w11,
         );
-        let gravity = Vec3::new(0.0, self.g * (m2 * r2 + m3 * r3), self.g * m3 * a3 * t.c23);
+        let gravity = Vec3::new(0.0, k.g_m2_a2 * t.c2 + self.g * m3r3, k.g_m3_a3 * t.c23);
         Dynamics {
             inertia,
             coriolis,
@@ -310,6 +399,12 @@ impl ThreeLinkArm {
         }
     }
 
+    /// Kinematics from an already evaluated `Trig` (the plant keeps its state's).
+    #[inline]
+    pub fn kinematics_at(&self, t: &Trig, qd: &Vec3) -> Kinematics {
+        self.kinematics_from(t, qd)
+    }
+
     /// Kinematics and dynamics together, sharing one trigonometric evaluation.
     #[inline]
     pub fn evaluate(&self, q: &Vec3, qd: &Vec3) -> (Kinematics, Dynamics) {
@@ -327,7 +422,18 @@ impl ThreeLinkArm {
         tau: &Vec3,
         contact: impl Fn(f64) -> f64,
     ) -> (Vec3, f64) {
-        let t = Trig::new(q);
+        self.accelerate_at(&Trig::new(q), qd, tau, contact)
+    }
+
+    #[inline(always)]
+    pub fn accelerate_at(
+        &self,
+        t: &Trig,
+        qd: &Vec3,
+        tau: &Vec3,
+        contact: impl Fn(f64) -> f64,
+    ) -> (Vec3, f64) {
+        let t = *t;
         let r = self.l2 * t.c2 + self.l3 * t.c23;
         let f = contact(t.c1 * r);
         // First row of J, times −f: the wall pushes the tip towards −x.
@@ -343,6 +449,10 @@ impl ThreeLinkArm {
 /// 2.3e-16 of `f64::tanh` (tested) and about twice as fast. It runs 3 times per RK4 stage.
 #[inline(always)]
 fn smooth_sign(x: f64) -> f64 {
+    // A joint at rest (the yaw joint in every planar task) skips the call.
+    if x == 0.0 {
+        return x;
+    }
     let e = (-2.0 * x.abs()).exp();
     ((1.0 - e) / (1.0 + e)).copysign(x)
 }
@@ -500,6 +610,38 @@ mod tests {
         assert_eq!(f, 1000.0 * x);
         let reference = arm.forward_dynamics(&q, &qd, &tau, &Vec3::new(-f, 0.0, 0.0));
         assert!((qdd - reference).abs().max() < 1e-12);
+    }
+
+    /// Angle addition agrees with a fresh evaluation to rounding, over the whole range
+    /// where it is used (|δ| ≤ 1/32), and hands over to a fresh evaluation beyond it.
+    #[test]
+    fn shifted_trig_is_trig_of_the_sum() {
+        let q = Vec3::new(0.3, std::f64::consts::FRAC_PI_4, -2.9);
+        let base = Trig::new(&q);
+        let worst = |a: &Trig, b: &Trig| {
+            [
+                a.s1 - b.s1,
+                a.c1 - b.c1,
+                a.s2 - b.s2,
+                a.c2 - b.c2,
+                a.s3 - b.s3,
+                a.c3 - b.c3,
+                a.s23 - b.s23,
+                a.c23 - b.c23,
+            ]
+            .iter()
+            .fold(0.0f64, |m, d| m.max(d.abs()))
+        };
+        for i in -100..=100 {
+            let d = i as f64 / 3200.0; // up to ±1/32
+            let delta = Vec3::new(d, -0.7 * d, 0.3 * d);
+            let shifted = base.shifted(&delta, &(q + delta));
+            let fresh = Trig::new(&(q + delta));
+            assert!(worst(&shifted, &fresh) < 4.5e-16, "δ = {d}");
+        }
+        // Beyond 1/32 it is a fresh evaluation, bit for bit.
+        let delta = Vec3::new(0.0, 0.05, 0.0);
+        assert_eq!(base.shifted(&delta, &(q + delta)), Trig::new(&(q + delta)));
     }
 
     #[test]
