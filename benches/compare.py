@@ -41,6 +41,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import admit_rs as ar  # noqa: E402
+import core_model  # noqa: E402
 import peers  # noqa: E402
 
 TOLERANCE = 1e-9
@@ -233,9 +234,10 @@ def round_robin(runs: dict[str, Callable[[], object]], repeats: int) -> dict[str
 
 
 class Counted:
-    """A float that counts the arithmetic done on it (one shared tally)."""
+    """A float that counts the arithmetic done on it, per part of the substep being run
+    (`core_model.SECTION`), in one shared tally."""
 
-    tally: dict[str, int] = {}
+    tally: dict[tuple[str, str], int] = {}
 
     __slots__ = ("v",)
 
@@ -244,11 +246,12 @@ class Counted:
 
     @classmethod
     def bump(cls, key: str) -> None:
-        cls.tally[key] = cls.tally.get(key, 0) + 1
+        k = (core_model.SECTION[0], key)
+        cls.tally[k] = cls.tally.get(k, 0) + 1
 
     @staticmethod
     def _v(x: object) -> float:
-        return x.v if isinstance(x, Counted) else float(x)
+        return x.v if isinstance(x, Counted) else float(x)  # type: ignore[arg-type]
 
     def _op(self, other: object, key: str, f: Callable[[float, float], float]) -> Counted:
         Counted.bump(key)
@@ -282,72 +285,103 @@ class Counted:
     def __rtruediv__(self, o: object) -> Counted:
         return self._rop(o, "div", lambda a, b: a / b)
 
+    # Sign operations and comparisons are bit operations, not flops; counted apart.
     def __neg__(self) -> Counted:
-        Counted.bump("neg (sign flip)")
+        Counted.bump("sign op")
         return Counted(-self.v)
+
+    def __abs__(self) -> Counted:
+        Counted.bump("sign op")
+        return Counted(abs(self.v))
 
     def __gt__(self, o: object) -> bool:
         Counted.bump("compare")
         return self.v > Counted._v(o)
 
+    def __eq__(self, o: object) -> bool:  # type: ignore[override]
+        Counted.bump("compare")
+        return self.v == Counted._v(o)
+
+    __hash__ = None  # type: ignore[assignment]
+
 
 class CountingMath:
-    """Stands in for the ``math`` module inside the counted function."""
+    """Stands in for the ``math`` module inside the counted transcription."""
+
+    @staticmethod
+    def _call(name: str, f: Callable[[float], float], x: Counted) -> Counted:
+        Counted.bump(name)
+        return Counted(f(x.v))
 
     @staticmethod
     def sin(x: Counted) -> Counted:
-        Counted.bump("sin")
-        return Counted(math.sin(x.v))
+        return CountingMath._call("sin", math.sin, x)
 
     @staticmethod
     def cos(x: Counted) -> Counted:
-        Counted.bump("cos")
-        return Counted(math.cos(x.v))
+        return CountingMath._call("cos", math.cos, x)
 
     @staticmethod
-    def tanh(x: Counted) -> Counted:
-        Counted.bump("tanh")
-        return Counted(math.tanh(x.v))
+    def exp(x: Counted) -> Counted:
+        return CountingMath._call("exp", math.exp, x)
+
+    @staticmethod
+    def copysign(x: Counted, y: Counted) -> Counted:
+        Counted.bump("sign op")
+        return Counted(math.copysign(x.v, y.v))
 
 
-# Hand count of `ThreeLinkArm::accelerate` (rust/src/robot.rs), operation by operation; see
-# docs/performance.md for the line-by-line table. Flops = add/sub + mul + div.
-HAND_ACCELERATE = {
-    "trig (s23, c23)": 6,
-    "r, contact x, penetration, k_e·pen": 3 + 3,
-    "h": 3,
-    "contact torque Jₓᵀ f": 7,
-    "r2, r3": 1 + 3,
-    "D11": 11,
-    "D22, D23, D33": 13 + 6 + 3,
-    "∂D11/∂q2, ∂D11/∂q3": 17 + 8,
-    "h_c = −m3 l2 a3 s3": 3,
-    "Coriolis": 4 + 10 + 6,
-    "gravity": 7,
-    "friction (q̇/ε, f_v q̇ + f_c tanh)": 12,
-    "rhs = τ + Jᵀf − C − G − τ_f": 12,
-    "block solve (det, 3 divisions)": 12,
+FLOPS = ("add/sub", "mul", "div")
+
+# Hand count of one RK4 substep of the core, part by part (flops = add/sub + mul + div), for a
+# state in contact with the wall with the yaw joint at rest (as all of fig. 14). The line-by-
+# line reasoning is in docs/performance.md §3; `cost_model` checks it against the count.
+HAND_SUBSTEP = {
+    # 4 stages × (contact 16 + D, C, G 51 + friction 8 + 8 + 4 + rhs 11 + solve 13)
+    "per stage (×4)": 4 * (16 + 51 + 20 + 11 + 13),
+    # 4 × Trig::shifted (stages 2–4 and the next substep's stage 1): 3 angles × 21 + 6
+    "stage trig by angle addition": 4 * (3 * 21 + 6),
+    # stage states 3 × (3 + 6), dq 15, q + dq 3, q̇ update 18
+    "RK4 combinations": 3 * 9 + 15 + 3 + 18,
 }
-# The RK4 combinations in `Plant::advance` per substep: q2, q̇2, q3, q̇3, q4, q̇4 (a 3-vector
-# multiply-add each: 6 × 6) and the two final updates (3 × 6 each). h/2, h/6 are hoisted.
-HAND_RK4_COMBINATIONS = 6 * 6 + 2 * 18
 
 
-def count_accelerate(state: np.ndarray) -> dict[str, int]:
-    """Executes the peers' transcription of `accelerate` on counting floats, at a trace row
-    in contact with the wall (so that the contact branch is taken)."""
-    counted = type(peers._accel)(
-        peers._accel.__code__, {**peers._accel.__globals__, "math": CountingMath}
-    )
+def count_substep(trace: np.ndarray, row: int, c: peers.Fig14) -> dict[tuple[str, str], int]:
+    """Runs the transcription of one substep on counting floats from trace row `row`."""
+    s = peers.setup(c)
+    arm = core_model.Arm.new(s.arm, c.stiffness, s.wall)
+    col = peers.COLUMNS.index
+    q = [Counted(trace[row, col(k)]) for k in ("q1", "q2", "q3")]
+    qd = [Counted(trace[row, col(k)]) for k in ("qd1", "qd2", "qd3")]
+    tau = [Counted(trace[row, col(k)]) for k in ("tau1", "tau2", "tau3")]
     Counted.tally = {}
-    s = peers.setup(peers.Fig14())
-    p = tuple(Counted(v) for v in (*s.arm, 30_000.0, s.wall))
-    cols = [peers.COLUMNS.index(k) for k in ("q1", "q2", "q3", "qd1", "qd2", "qd3")]
-    cols += [peers.COLUMNS.index(k) for k in ("tau1", "tau2", "tau3")]
-    if not state[peers.COLUMNS.index("f")] > 0.0:
-        raise ValueError("count at a state in contact with the wall")
-    counted(*(Counted(state[i]) for i in cols), p)
+    t1 = core_model.trig_new(q, CountingMath)
+    core_model.substep(q, qd, t1, tau, c.period / c.substeps, arm, CountingMath)
     return dict(Counted.tally)
+
+
+def check_transcription(trace: np.ndarray, c: peers.Fig14, rows: list[int]) -> float:
+    """Max |Δ| between the transcription's period from row k and admit_rs's row k + 1."""
+    s = peers.setup(c)
+    arm = core_model.Arm.new(s.arm, c.stiffness, s.wall)
+    col = peers.COLUMNS.index
+    worst = 0.0
+    for k in rows:
+        row = trace[k]
+        q, qd = core_model.period(
+            [float(row[col(n)]) for n in ("q1", "q2", "q3")],
+            [float(row[col(n)]) for n in ("qd1", "qd2", "qd3")],
+            [float(row[col(n)]) for n in ("tau1", "tau2", "tau3")],
+            c.period / c.substeps,
+            c.substeps,
+            arm,
+            math,
+        )
+        nxt = trace[k + 1]
+        got = np.array(q + qd)
+        want = np.array([nxt[col(n)] for n in ("q1", "q2", "q3", "qd1", "qd2", "qd3")])
+        worst = max(worst, float(np.max(np.abs(got - want))))
+    return worst
 
 
 def libm_costs(trace: np.ndarray, eps: float) -> dict[str, float]:
@@ -385,7 +419,9 @@ def libm_costs(trace: np.ndarray, eps: float) -> dict[str, float]:
         return acc
 
     angles = np.ascontiguousarray(trace[:, 1:4].ravel())
-    rates = np.ascontiguousarray(trace[:, 4:7].ravel() / eps)
+    rates = trace[:, 4:7].ravel() / eps
+    # The core skips the call for a joint at rest (the yaw joint here), so time the others.
+    rates = np.ascontiguousarray(rates[rates != 0.0])
     reps = 20
     out = {}
     for key, fn, xs in (("sin+cos", sincos_sum, angles), ("tanh", tanh_sum, rates)):
@@ -400,42 +436,68 @@ def libm_costs(trace: np.ndarray, eps: float) -> dict[str, float]:
 
 def cost_model(admit_seconds: float, trace: np.ndarray, c: peers.Fig14) -> None:
     """`admit_seconds`: admit_rs's median for the run `c` (same duration as `trace`)."""
+    print("\nCost model: one RK4 substep of the Rust core (integrator.rs `Plant::advance`,")
+    print("robot.rs `Trig`, `accelerate_at`), transcribed line by line in benches/core_model.py")
     f = trace[:, peers.COLUMNS.index("f")]
-    in_contact = np.flatnonzero(f > 0.0)
-    tally = count_accelerate(trace[in_contact[len(in_contact) // 2]])
-    flops_acc = tally.get("add/sub", 0) + tally.get("mul", 0) + tally.get("div", 0)
-    hand = sum(HAND_ACCELERATE.values())
-    per_substep = 4 * flops_acc + HAND_RK4_COMBINATIONS
-    print("\nCost model: one RK4 substep of the Rust core (rust/src/robot.rs `accelerate` ×4 +")
-    print("integrator.rs `advance`), counted by executing the same expressions on counting floats")
-    print(f"  accelerate: {tally}")
+    in_contact = np.flatnonzero(f[:-1] > 0.0)
+    rows = [int(in_contact[i]) for i in np.linspace(0, len(in_contact) - 1, 25).astype(int)]
+    worst = check_transcription(trace, c, rows)
     print(
-        f"  accelerate flops (add/sub + mul + div): counted {flops_acc}, hand count {hand}"
-        f" -> {'agree' if flops_acc == hand else 'DISAGREE'}"
+        f"  the transcription, run on floats from {len(rows)} states of admit_rs's trace,"
+        f" reproduces the next sample's q, q̇ to {worst:.1e}"
+        f" -> {'faithful' if worst < 1e-12 else 'DIFFERS FROM THE CORE'}"
     )
+    tally = count_substep(trace, rows[len(rows) // 2], c)
+    fresh = "fresh sin/cos (once per period)"
+    parts: dict[str, dict[str, int]] = {}
+    for (part, key), n in tally.items():
+        parts.setdefault(part, {})[key] = parts.setdefault(part, {}).get(key, 0) + n
+    per_stage = ("contact force and Jᵀf", "D, C, G (folded constants)",
+                 "friction f_v q̇ + f_c tanh(q̇/ε)", "rhs = τ + Jᵀf − C − G − τ_f",
+                 "block solve of D q̈ = rhs")  # fmt: skip
+
+    def flops(part: str) -> int:
+        return sum(parts.get(part, {}).get(k, 0) for k in FLOPS)
+
+    print(f"  {'part (per substep)':44s} {'flops':>6s}  {'of which div':>12s}  calls")
+    for part in (*per_stage, "stage trig by angle addition", "RK4 combinations", fresh):
+        d = parts.get(part, {})
+        calls = ", ".join(f"{d[k]} {k}" for k in ("exp", "sin", "cos") if d.get(k))
+        note = "  (per period, not per substep)" if part == fresh else ""
+        print(f"  {part:44s} {flops(part):6d}  {d.get('div', 0):12d}  {calls}{note}")
+    counted = {
+        "per stage (×4)": sum(flops(p) for p in per_stage),
+        "stage trig by angle addition": flops("stage trig by angle addition"),
+        "RK4 combinations": flops("RK4 combinations"),
+    }
+    agree = counted == HAND_SUBSTEP
+    per_substep = sum(counted.values())
+    print(f"  counted {counted} vs hand count {HAND_SUBSTEP} -> {'agree' if agree else 'DISAGREE'}")
+    exps = sum(d.get("exp", 0) for p, d in parts.items() if p != fresh)
+    divs = sum(d.get("div", 0) for p, d in parts.items() if p != fresh)
+    pairs_per_substep = parts.get(fresh, {}).get("sin", 0) / c.substeps
+    fresh_flops = flops(fresh) / c.substeps
     print(
-        f"  per substep: 4 × {flops_acc} + {HAND_RK4_COMBINATIONS} (RK4 combinations)"
-        f" = {per_substep} flops, of which {4 * tally.get('div', 0)} divisions;"
-        f" plus {4 * (tally.get('sin', 0) + tally.get('cos', 0))} sin/cos values"
-        f" ({4 * 3} sin+cos pairs) and {4 * tally.get('tanh', 0)} tanh"
+        f"  per substep: {per_substep} flops ({divs} divisions), {exps} exp; plus, once per"
+        f" period, {flops(fresh)} flops and {parts.get(fresh, {}).get('sin', 0)} sin+cos pairs"
+        f" (÷ {c.substeps} substeps)"
     )
     ghz = clock_ghz()
     flops_per_cycle = 4.0
-    arith_ns = per_substep / (flops_per_cycle * ghz)
+    arith_ns = (per_substep + fresh_flops) / (flops_per_cycle * ghz)
     print(
-        f"  arithmetic floor: {per_substep} flops / ({flops_per_cycle:.0f} flops/cycle × {ghz:.2f}"
-        f" GHz) = {arith_ns:.0f} ns  [assumes scalar SSE2 code, 2 FP add + 2 FP mul per cycle"
-        " (Zen 3), no FMA (the core is built without target-cpu), divisions pipelined]"
+        f"  arithmetic floor: {per_substep + fresh_flops:.1f} flops / ({flops_per_cycle:.0f}"
+        f" flops/cycle × {ghz:.2f} GHz) = {arith_ns:.0f} ns  [2 FP add + 2 FP mul per cycle"
+        " (Zen 3), scalar, no FMA (the AVX2 build enables FMA but Rust never fuses on its"
+        " own), divisions pipelined]"
     )
     costs = libm_costs(trace, c.eps)
-    pairs, tanhs = 4 * 3, 4 * tally.get("tanh", 0)
     if costs:
-        libm_ns = pairs * costs["sin+cos"] + tanhs * costs["tanh"]
+        libm_ns = exps * costs["tanh"] + pairs_per_substep * costs["sin+cos"]
         print(
-            f"  transcendentals (timed via Numba on the run's own arguments): sin+cos of one"
-            f" angle {costs['sin+cos']:.1f} ns, tanh as the core computes it (one exp)"
-            f" {costs['tanh']:.1f} ns -> {pairs} × {costs['sin+cos']:.1f}"
-            f" + {tanhs} × {costs['tanh']:.1f}"
+            f"  calls (timed via Numba on the run's own arguments): tanh as the core computes it"
+            f" (one exp) {costs['tanh']:.1f} ns, sin+cos of one angle {costs['sin+cos']:.1f} ns"
+            f" -> {exps} × {costs['tanh']:.1f} + {pairs_per_substep:g} × {costs['sin+cos']:.1f}"
             f" = {libm_ns:.0f} ns"
         )
     else:
