@@ -10,9 +10,10 @@ Not a test: prints tables (see docs/performance.md for a recorded run). In order
    would be meaningless);
 3. timing: median wall time over ``--repeats`` runs in this process, the implementations
    interleaved round-robin so that load from other jobs hits them alike; ratios to admit_rs;
-4. a cost model: floating-point operations of one RK4 substep (counted by executing the Rust
-   core's expressions on counting floats, checked against the hand count), libm call costs
-   measured here, the resulting floor on this core and admit_rs's measured time per substep;
+4. a cost model: floating-point operations of one RK4 substep, counted by running a
+   line-by-line transcription of the Rust core (``benches/core_model.py``, first checked to
+   reproduce the core's trace) on counting floats and checked against the hand count; libm
+   call costs measured here; the resulting floor on this core and admit_rs's time per substep;
 5. how admit_rs's time grows with the run's duration and the number of substeps.
 
 The peers live in ``benches/peers.py``. Numba is optional: without it (b) is skipped with a
@@ -22,7 +23,6 @@ message (``pip install numba``).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import os
 import platform
@@ -155,15 +155,6 @@ def check_preset(sc: ar.Scenario, c: peers.Fig14) -> None:
 # agreement
 # --------------------------------------------------------------------------------------------
 
-# The Rust core's own ZOH matrices for b = 800, k_a = 1, T = 1 ms, as nalgebra's
-# `Matrix3::exp` (Padé) produces them. SciPy's `expm` gives A_d[0,1] and A_d[1,1] one ulp
-# apart from these (it rounds e^{-0.8} correctly; nalgebra is 1 ulp low). Used only by the
-# diagnostic below, never by the agreement check or the timed runs.
-RUST_ZOH = {
-    "ad": (1.0, 0.000688338794853473, 0.0, 0.4493289641172215),
-    "bd": (3.895765064331588e-07, 0.000688338794853473),
-}
-
 
 def admit_trace(duration: float) -> np.ndarray:
     res = ar.simulate(ar.paper.scenario("fig14").replace(duration=duration))
@@ -189,24 +180,6 @@ def report_agreement(name: str, trace: np.ndarray, ref: np.ndarray) -> bool:
     for i in range(0, len(cells), 7):
         print("      " + "  ".join(cells[i : i + 7]))
     return ok
-
-
-def rust_zoh_diagnostic(c: peers.Fig14, ref: np.ndarray) -> None:
-    """With the Rust core's exact A_d, B_d, is the Numba kernel bit-identical to admit_rs?"""
-    if not peers.HAVE_NUMBA or (c.fb, c.fka, c.fk, c.fm, c.period) != (800.0, 1.0, 0.0, 1.0, 1e-3):
-        return
-    original = peers.setup
-    try:
-        peers.setup = lambda cfg: dataclasses.replace(original(cfg), **RUST_ZOH)
-        trace = peers.run_numba(c)
-    finally:
-        peers.setup = original
-    same = np.array_equal(trace, ref)
-    print(
-        "  diagnostic: with nalgebra's A_d, B_d in place of SciPy's (1 ulp apart in two entries),"
-        f" the Numba trace is {'bit-identical to' if same else 'NOT bit-identical to'} admit_rs's"
-        f" (max |Δ| {np.abs(trace - ref).max():.1e})."
-    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -563,7 +536,6 @@ def main() -> None:
         compile_s = timed(lambda: peers.run_numba(peers.Fig14(duration=0.002)))
         first["numba"] = compile_s
         ok &= report_agreement("Numba", peers.run_numba(c), ref)
-        rust_zoh_diagnostic(c, ref)
     numpy_duration = args.duration
     if not args.skip_numpy:
         start = time.perf_counter()

@@ -394,7 +394,7 @@ impl Simulation {
             ]);
             // 6. integrate the plant over [t_k, t_{k+1}] with τ_k held
             if k + 1 < n {
-                self.plant.advance(&tau);
+                self.plant.advance_inlined(&tau);
                 if let Some(cause) = self.check_state() {
                     return diverged((k + 1) as f64 * period, cause);
                 }
