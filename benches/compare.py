@@ -310,8 +310,8 @@ FLOPS = ("add/sub", "mul", "div")
 # state in contact with the wall with the yaw joint at rest (as all of fig. 14). The line-by-
 # line reasoning is in docs/performance.md §3; `cost_model` checks it against the count.
 HAND_SUBSTEP = {
-    # 4 stages × (contact 16 + D, C, G 51 + friction 8 + 8 + 4 + rhs 11 + solve 13)
-    "per stage (×4)": 4 * (16 + 51 + 20 + 11 + 13),
+    # 4 stages × (contact 16 + D, C, G 51 + rest 14 + D⁻¹ 8 + Coulomb 5 + 5 + 0 + q̈ 17)
+    "per stage (×4)": 4 * (16 + 51 + 14 + 8 + 10 + 17),
     # 4 × Trig::shifted (stages 2–4 and the next substep's stage 1): 3 angles × 21 + 6
     "stage trig by angle addition": 4 * (3 * 21 + 6),
     # stage states 3 × (3 + 6), dq 15, q + dq 3, q̇ update 18
@@ -426,8 +426,8 @@ def cost_model(admit_seconds: float, trace: np.ndarray, c: peers.Fig14) -> None:
     for (part, key), n in tally.items():
         parts.setdefault(part, {})[key] = parts.setdefault(part, {}).get(key, 0) + n
     per_stage = ("contact force and Jᵀf", "D, C, G (folded constants)",
-                 "friction f_v q̇ + f_c tanh(q̇/ε)", "rhs = τ + Jᵀf − C − G − τ_f",
-                 "block solve of D q̈ = rhs")  # fmt: skip
+                 "rest = τ + Jᵀf − C − G − f_v q̇", "D⁻¹ (yaw scalar ⊕ 2×2 block)",
+                 "Coulomb friction f_c tanh(q̇/ε)", "q̈ = D⁻¹ (rest − τ_c)")  # fmt: skip
 
     def flops(part: str) -> int:
         return sum(parts.get(part, {}).get(k, 0) for k in FLOPS)

@@ -7,9 +7,8 @@
 - on counting floats, to count the arithmetic of one RK4 substep, part by part.
 
 Each function names the Rust function it transcribes and keeps its order of operations:
-`rust/src/integrator.rs` `Plant::advance`, `rust/src/robot.rs` `Trig::new`, `Trig::shifted`,
-`ThreeLinkArm::accelerate_at`, `dynamics_from`, `friction`, `smooth_sign` and
-`solve_block_inertia`, `rust/src/environment.rs` `Wall::force`.
+`rust/src/integrator.rs` `Plant::advance`; `rust/src/robot.rs` `Trig::new`, `Trig::shifted`,
+`ThreeLinkArm::accelerate_at`, `dynamics_from` and `coulomb`; `environment.rs` `Wall::force`.
 """
 
 from __future__ import annotations
@@ -36,7 +35,7 @@ class Arm:
     g: float
     fv: float
     fc: float
-    inv_eps: float
+    neg_two_inv_eps: float
     k2: float
     m3_l2: float
     m3_a3: float
@@ -62,7 +61,7 @@ class Arm:
             g=g,
             fv=fv,
             fc=fc,
-            inv_eps=1.0 / eps,
+            neg_two_inv_eps=-2.0 / eps,
             k2=k2,
             m3_l2=m3 * l2,
             m3_a3=m3 * a3,
@@ -114,12 +113,13 @@ def trig_shifted(t: Trig, d: list[Any], q_shifted: Callable[[], list[Any]], m: A
     return (s1, c1, s2, c2, s3, c3, s2 * c3 + c2 * s3, c2 * c3 - s2 * s3)
 
 
-def smooth_sign(x: Any, m: Any) -> Any:
-    """`smooth_sign`: tanh(x) = ±(1 − e)/(1 + e), e = exp(−2|x|); 0 at rest, with no call."""
-    if x == 0.0:
-        return x
-    e = m.exp(-2.0 * abs(x))
-    return m.copysign((1.0 - e) / (1.0 + e), x)
+def coulomb(v: Any, a: Arm, m: Any) -> Any:
+    """`ThreeLinkArm::coulomb`: f_c tanh(q̇/ε) = f_c (1 − e)/(1 + e) with e = exp(−2|q̇|/ε) and
+    the sign of q̇; 0 for a joint at rest, with no call."""
+    if v == 0.0:
+        return 0.0
+    e = m.exp(abs(v) * a.neg_two_inv_eps)
+    return m.copysign((a.fc * (1.0 - e)) / (1.0 + e), v)
 
 
 def accelerate_at(t: Trig, qd: list[Any], tau: list[Any], a: Arm, m: Any) -> list[Any]:
@@ -149,21 +149,24 @@ def accelerate_at(t: Trig, qd: list[Any], tau: list[Any], a: Arm, m: Any) -> lis
         -hc * w2 * w2 + p3 * w11,
     ]
     grav = [0.0, a.g_m2_a2 * c2 + a.g * m3r3, a.g_m3_a3 * c23]
-    section("friction f_v q̇ + f_c tanh(q̇/ε)")
-    fr = [a.fv * w + a.fc * smooth_sign(w * a.inv_eps, m) for w in qd]
-    section("rhs = τ + Jᵀf − C − G − τ_f")
+    section("rest = τ + Jᵀf − C − G − f_v q̇")
     # The x − 0.0 of G1 is folded by the compiler (x − 0.0 = x for every x), so not counted.
-    rhs = [
-        tau[0] + ct[0] - cor[0] - fr[0],
-        tau[1] + ct[1] - cor[1] - grav[1] - fr[1],
-        tau[2] + ct[2] - cor[2] - grav[2] - fr[2],
+    rest = [
+        tau[0] + ct[0] - cor[0] - a.fv * w1,
+        tau[1] + ct[1] - cor[1] - grav[1] - a.fv * w2,
+        tau[2] + ct[2] - cor[2] - grav[2] - a.fv * w3,
     ]
-    section("block solve of D q̈ = rhs")
+    section("D⁻¹ (yaw scalar ⊕ 2×2 block)")
+    inv_d11 = 1.0 / d11
     inv_det = 1.0 / (d22 * a.d33 - d23 * d23)
+    k22, k23, k33 = a.d33 * inv_det, -d23 * inv_det, d22 * inv_det
+    section("Coulomb friction f_c tanh(q̇/ε)")
+    tc = [coulomb(w, a, m) for w in qd]
+    section("q̈ = D⁻¹ (rest − τ_c)")
     return [
-        rhs[0] / d11,
-        (a.d33 * rhs[1] - d23 * rhs[2]) * inv_det,
-        (d22 * rhs[2] - d23 * rhs[1]) * inv_det,
+        rest[0] * inv_d11 - tc[0] * inv_d11,
+        (k22 * rest[1] + k23 * rest[2]) - (k22 * tc[1] + k23 * tc[2]),
+        (k23 * rest[1] + k33 * rest[2]) - (k23 * tc[1] + k33 * tc[2]),
     ]
 
 
