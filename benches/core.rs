@@ -7,7 +7,7 @@
 //!
 //! | bench                  | one iteration                                                  |
 //! |------------------------|----------------------------------------------------------------|
-//! | `libm/*`               | one glibc `sin_cos` or `tanh` call (anchors the cost model)    |
+//! | `libm/*`               | std `sin_cos`, `tanh` (reference points; the core calls neither) |
 //! | `dynamics/evaluate`    | `ThreeLinkArm::evaluate`: tip position, J, J̇q̇, D, C, G         |
 //! | `dynamics/accelerate`  | `ThreeLinkArm::accelerate`: q̈ with the contact force          |
 //! | `plant/rk4_substep`    | one RK4 step of 0.1 ms (a 10-substep period ÷ 10)              |

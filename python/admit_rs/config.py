@@ -155,7 +155,6 @@ class Wall(_Block):
     _check: ClassVar[str] = "wall"
 
 
-
 @dataclass(frozen=True, kw_only=True)
 class ModelError(_Block):
     """How the controller's arm model differs from the plant (for sweeps)."""
@@ -166,7 +165,6 @@ class ModelError(_Block):
     """Factor on viscous and Coulomb friction in the controller's model."""
 
     _check: ClassVar[str] = "model"
-
 
 
 class _Controller(_Block):
@@ -269,7 +267,6 @@ class AdmittanceFilter(_Block):
     _kind: ClassVar[str] = "admittance"
     _check: ClassVar[str] = "admittance"
 
-
     @classmethod
     def scheme1(
         cls, *, b: float = 800.0, k: float = 400.0, ka: float = 0.1, m: float = 1.0
@@ -311,13 +308,11 @@ class ImpedanceReference(_Block):
     _check: ClassVar[str] = "admittance"
 
 
-
 ForceControl: TypeAlias = AdmittanceFilter | ImpedanceReference
 
 
 class _Signal(_Block):
     _check: ClassVar[str] = "signal"
-
 
 
 @dataclass(frozen=True, kw_only=True)
