@@ -616,18 +616,19 @@ def main() -> None:
         )
     if "numba" in first:
         print(f"  Numba compile time (first call, not in the table): {first['numba']:.2f} s")
-    print("\nTargets (from the issue; informational)")
-    if "numba" in med:
-        r = med["numba"] / med["admit_rs"]
-        print(
-            f"  admit_rs ≥ {TARGET_NUMBA}× faster than Numba: {r:.2f}× -> {met(r >= TARGET_NUMBA)}"
-        )
-    if "numpy" in med:
-        r = med["numpy"] / med["admit_rs"]
-        print(
-            f"  admit_rs ≥ {TARGET_NUMPY:g}× faster than NumPy: {r:.0f}×"
-            f" -> {met(r >= TARGET_NUMPY)}"
-        )
+    print("\nTargets (from the issue; informational; ratio of medians, and of fastest runs)")
+    fastest = {k: min(v) * scale[k] for k, v in times.items()}
+    for key, name, target, fmt in (
+        ("numba", "Numba", TARGET_NUMBA, ".2f"),
+        ("numpy", "NumPy", TARGET_NUMPY, ".0f"),
+    ):
+        if key in med:
+            r = med[key] / med["admit_rs"]
+            r_min = fastest[key] / fastest["admit_rs"]
+            print(
+                f"  admit_rs ≥ {target:g}× faster than {name}: {r:{fmt}}× (fastest runs:"
+                f" {r_min:{fmt}}×) -> {met(r >= target)}"
+            )
 
     cost_model(statistics.median(times["admit_rs"]), ref, c, scenario, args.repeats)
 
