@@ -494,8 +494,10 @@ def cost_model(
     floor = arith_ns + libm_ns
     n_sub = (c.samples - 1) * c.substeps
     measured = admit_seconds / n_sub * 1e9
+    which = "the floor"
     if math.isnan(floor):
         floor = arith_ns
+        which = "the arithmetic-only floor"
         print(f"  floor (arithmetic only, libm unknown) ≈ {floor:.0f} ns per substep")
     else:
         print(
@@ -504,14 +506,14 @@ def cost_model(
         )
     slope = substep_slope(scenario, repeats) * 1e9
     print(
-        f"  measured, one substep: {slope:.0f} ns = {slope / floor:.2f} × the floor (slope of"
+        f"  measured, one substep: {slope:.0f} ns = {slope / floor:.2f} × {which} (slope of"
         f" the run time from 5 to 20 substeps per period, fastest of {repeats} each; Criterion's"
         " plant/rk4_substep measures the same thing)"
     )
     print(
         f"  measured, whole run: admit_rs fig14 median {admit_seconds * 1e3:.1f} ms /"
         f" ({c.samples - 1} × {c.substeps}) = {measured:.0f} ns per substep (includes the"
-        f" per-period controller, filter, trace and metrics) = {measured / floor:.2f} × the floor"
+        f" per-period controller, filter, trace and metrics) = {measured / floor:.2f} × {which}"
     )
 
 
