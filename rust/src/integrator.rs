@@ -157,19 +157,27 @@ mod tests {
         assert!(ratio > 13.0 && ratio < 19.0, "ratio {ratio}");
     }
 
-    /// The plant's RK4 (stage trig by angle addition) against a textbook RK4 that evaluates
-    /// sin and cos afresh at every stage: one second of fig. 14-like motion, with contact.
-    #[test]
-    fn matches_textbook_rk4() {
+    /// The arm at q0 with the wall 2 mm inside the tip, starting at `qd`.
+    fn pressed_into_wall(qd: Vec3) -> (ThreeLinkArm, Wall, PlantState) {
         let p = RobotParams::default();
         let arm = ThreeLinkArm::new(&p);
         let x0 = arm.forward_kinematics(&Vec3::from(p.q0))[0];
         let wall = Wall::new(&crate::environment::WallParams::default(), x0 - 0.002);
-        let start = PlantState {
-            q: Vec3::from(p.q0),
-            qd: Vec3::new(0.0, 0.4, -0.6),
-        };
-        let tau = |k: usize| Vec3::new(0.0, 45.0 + 5.0 * (k as f64 * 0.01).sin(), 10.0);
+        let q = Vec3::from(p.q0);
+        (arm, wall, PlantState { q, qd })
+    }
+
+    /// A shoulder torque below gravity's, so the arm sags into the wall, with a slow wobble.
+    fn sagging_torque(period: usize, yaw: f64) -> Vec3 {
+        Vec3::new(yaw, 45.0 + 5.0 * (period as f64 * 0.01).sin(), 10.0)
+    }
+
+    /// The plant's RK4 (stage trig by angle addition) against a textbook RK4 that evaluates
+    /// sin and cos afresh at every stage: one second of fig. 14-like motion, with contact.
+    #[test]
+    fn matches_textbook_rk4() {
+        let (arm, wall, start) = pressed_into_wall(Vec3::new(0.0, 0.4, -0.6));
+        let tau = |k: usize| sagging_torque(k, 0.0);
         let (h, substeps) = (1e-4, 10);
         let mut plant = Plant::new(arm.clone(), Some(wall), start, h * 10.0, substeps);
         let (mut q, mut qd) = (start.q, start.qd);
@@ -210,18 +218,11 @@ mod tests {
     /// the baseline build give the same bits.
     #[test]
     fn instruction_sets_agree_bit_for_bit() {
-        let p = RobotParams::default();
-        let arm = ThreeLinkArm::new(&p);
-        let x0 = arm.forward_kinematics(&Vec3::from(p.q0))[0];
-        let wall = Wall::new(&crate::environment::WallParams::default(), x0 - 0.002);
-        let start = PlantState {
-            q: Vec3::from(p.q0),
-            qd: Vec3::new(0.1, 0.4, -0.6),
-        };
-        let mut dispatched = Plant::new(arm.clone(), Some(wall), start, 1e-3, 10);
+        let (arm, wall, start) = pressed_into_wall(Vec3::new(0.1, 0.4, -0.6));
+        let mut dispatched = Plant::new(arm, Some(wall), start, 1e-3, 10);
         let mut baseline = dispatched.clone();
         for k in 0..500 {
-            let tau = Vec3::new(0.5, 45.0 + 5.0 * (k as f64 * 0.01).sin(), 10.0);
+            let tau = sagging_torque(k, 0.5);
             dispatched.advance(&tau);
             baseline.advance_inlined(&tau);
             assert_eq!(dispatched.state(), baseline.state(), "period {k}");

@@ -154,10 +154,18 @@ impl Trig {
     #[inline(always)]
     pub fn new(q: &Vec3) -> Self {
         // libm's sincos shares one range reduction between sin and cos; std's sin_cos
-        // makes two calls. This is the hottest line of a run (3 calls per RK4 stage).
+        // makes two calls. A run calls this once per control period (`shifted` serves
+        // the RK4 stages).
         let (s1, c1) = libm::sincos(q[0]);
         let (s2, c2) = libm::sincos(q[1]);
         let (s3, c3) = libm::sincos(q[2]);
+        Self::from_joints((s1, c1), (s2, c2), (s3, c3))
+    }
+
+    /// Completes the joints' (sin, cos) pairs with those of q2 + q3, by angle addition:
+    /// no extra transcendental call.
+    #[inline(always)]
+    fn from_joints((s1, c1): (f64, f64), (s2, c2): (f64, f64), (s3, c3): (f64, f64)) -> Self {
         Self {
             s1,
             c1,
@@ -165,7 +173,6 @@ impl Trig {
             c2,
             s3,
             c3,
-            // cos/sin of q2+q3 from those of q2 and q3: no extra transcendental call.
             s23: s2 * c3 + c2 * s3,
             c23: c2 * c3 - s2 * s3,
         }
@@ -191,19 +198,11 @@ impl Trig {
             let (sd, cd) = sc(d);
             (s * cd + c * sd, c * cd - s * sd)
         };
-        let (s1, c1) = rot(self.s1, self.c1, delta[0]);
-        let (s2, c2) = rot(self.s2, self.c2, delta[1]);
-        let (s3, c3) = rot(self.s3, self.c3, delta[2]);
-        Self {
-            s1,
-            c1,
-            s2,
-            c2,
-            s3,
-            c3,
-            s23: s2 * c3 + c2 * s3,
-            c23: c2 * c3 - s2 * s3,
-        }
+        Self::from_joints(
+            rot(self.s1, self.c1, delta[0]),
+            rot(self.s2, self.c2, delta[1]),
+            rot(self.s3, self.c3, delta[2]),
+        )
     }
 }
 
