@@ -4,6 +4,14 @@
 use crate::environment::Wall;
 use crate::robot::{Kinematics, ThreeLinkArm, Trig, Vec3};
 
+/// Whether this CPU runs the AVX2 + FMA builds of the step loop (`Plant::advance`,
+/// `Simulation::run`). std caches the answer, so asking costs a load and a branch.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+pub(crate) fn has_avx2_fma() -> bool {
+    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+}
+
 /// Joint positions and velocities.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlantState {
@@ -87,8 +95,7 @@ impl Plant {
     #[inline]
     pub fn advance(&mut self, tau: &Vec3) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
+        if has_avx2_fma() {
             // SAFETY: the features `advance_avx2` is compiled for were detected just above.
             return unsafe { self.advance_avx2(tau) };
         }

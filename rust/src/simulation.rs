@@ -307,13 +307,12 @@ impl Simulation {
     }
 
     /// The step loop, compiled twice: for x86-64 with AVX2 and FMA when the CPU has them
-    /// (three-operand VEX code, about 10 % faster), and for the baseline ISA otherwise. The
+    /// (three-operand VEX code, about 8 % faster), and for the baseline ISA otherwise. The
     /// two give bit-identical results: Rust never fuses a multiply and an add on its own, so
     /// enabling FMA changes the encoding, not the arithmetic (tested).
     fn run_into(&mut self, trace: &mut Trace, n: usize) -> Outcome {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
+        if crate::integrator::has_avx2_fma() {
             // SAFETY: the features `run_into_avx2` is compiled for were detected just above.
             return unsafe { self.run_into_avx2(trace, n) };
         }
