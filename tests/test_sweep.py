@@ -215,6 +215,45 @@ def test_ctrl_c_stops_within_a_second_and_keeps_what_finished(tmp_path):
     assert len(list(ck.glob("chunk-*.parquet"))) * 8 <= finished
 
 
+def test_ctrl_c_during_a_checkpoint_write_is_one_interrupt(tmp_path, monkeypatch):
+    # Polars chains its own SIGINT handler in front of Python's, so one Ctrl-C during a
+    # Parquet write raises a KeyboardInterrupt inside polars and a second one from Python's
+    # handler at the next call: inside the sweep's clean-up. CI once caught that as a bare
+    # KeyboardInterrupt. Here a real SIGINT lands in a long polars write of chunk 2.
+    import os
+    import threading
+
+    module = sys.modules["admit_rs.sweep"]
+    real = module._atomic_parquet
+    big = pl.DataFrame({f"c{i}": np.arange(2_000_000, dtype=float) for i in range(4)})
+    calls = {"n": 0}
+
+    def slow_write(frame, path):
+        calls["n"] += 1
+        if calls["n"] == 2:  # chunk 2's checkpoint
+            kick = threading.Timer(0.02, os.kill, (os.getpid(), signal.SIGINT))
+            kick.start()
+            big.write_parquet(tmp_path / "big.parquet")  # ~0.1 s of polars work
+            for _ in range(500):  # in case the write beat the signal
+                time.sleep(0.01)
+        real(frame, path)
+
+    monkeypatch.setattr(module, "_atomic_parquet", slow_write)
+    try:
+        run(vary=VARY, samples=40, seed=5, chunk_size=8, threads=1, checkpoint=tmp_path / "ck")
+    except ar.SweepInterrupted as e:
+        table = e.table
+        time.sleep(0.01)  # a second, pending interrupt would fire here at the latest
+    except KeyboardInterrupt as e:  # would stop the whole pytest session: report instead
+        pytest.fail(f"a bare KeyboardInterrupt escaped the sweep: {e!r}")
+    else:
+        pytest.fail("the sweep was not interrupted")
+    # Chunk 1 was on disk, chunk 2 finished but its checkpoint was cut: both are kept.
+    assert table["run_id"].to_list() == list(range(16))
+    assert len(list((tmp_path / "ck").glob("chunk-*.parquet"))) == 1
+    assert table.equals(run(vary=VARY, samples=16, seed=5))
+
+
 def test_dask_local_cluster_equals_local():
     from dask import distributed
 

@@ -457,21 +457,49 @@ def sweep(
         spill(index, *done[index])
     bar = tqdm(total=n, unit="run", desc="sweep", disable=not progress, smoothing=0.1)
     bar.update(sum(t.height for t, _ in done.values()))
-    partial: list[tuple[pl.DataFrame, pl.DataFrame | None]] = []
+    # Sub-batches of the chunk each index is computing; a chunk counts once it is in `done`,
+    # so an interrupt between the two bookkeeping steps can neither lose nor double it.
+    partial: dict[int, list[tuple[pl.DataFrame, pl.DataFrame | None]]] = {}
     try:
         if client is not None:
             _run_on_dask(client, plan, todo, keep_traces, finish, bar)
         else:
             _run_local(plan, todo, threads, keep_traces, finish, partial, bar)
     except KeyboardInterrupt:
-        bar.close()
-        finished = [done[i] for i in sorted(done)] + partial
-        raise SweepInterrupted(_assemble(finished, plan)[0]) from None
+        # One Ctrl-C can arrive as two KeyboardInterrupts: polars chains its own SIGINT
+        # handler in front of Python's, so a press during a Parquet write raises inside
+        # polars and again from Python's handler at the next function call, which is the
+        # one below. Retry the gathering (milliseconds) rather than let that echo replace
+        # SweepInterrupted with a bare interrupt. The loop is here, not in the callee,
+        # because the echo fires on entering the callee, before any try inside it.
+        attempts = 5
+        while True:
+            try:
+                table = _finished_runs(done, partial, plan, bar)
+                break
+            except KeyboardInterrupt:
+                attempts -= 1
+                if attempts == 0:
+                    raise  # Ctrl-C held down: give up on the table and stop.
+        raise SweepInterrupted(table) from None
     bar.close()
     table, long = _assemble([done[i] for i in sorted(done)], plan)
     if traces is True:
         return table, long if long is not None else pl.DataFrame()
     return table
+
+
+def _finished_runs(
+    done: Mapping[int, tuple[pl.DataFrame, pl.DataFrame | None]],
+    partial: Mapping[int, list[tuple[pl.DataFrame, pl.DataFrame | None]]],
+    plan: _Plan,
+    bar: Any,
+) -> pl.DataFrame:
+    """The table of every run that finished, gathered after Ctrl-C."""
+    bar.close()
+    pieces = [done[i] for i in sorted(done)]
+    pieces += [p for i in sorted(partial) if i not in done for p in partial[i]]
+    return _assemble(pieces, plan)[0]
 
 
 def _run_local(
@@ -480,23 +508,20 @@ def _run_local(
     threads: int | None,
     traces: bool,
     finish: Callable[[int, tuple[pl.DataFrame, pl.DataFrame | None]], None],
-    partial: list[tuple[pl.DataFrame, pl.DataFrame | None]],
+    partial: dict[int, list[tuple[pl.DataFrame, pl.DataFrame | None]]],
     bar: Any,
 ) -> None:
     # Small Rust calls so that Ctrl-C (seen between calls) stops within about a second.
     step = 4 * (threads or os.cpu_count() or 1)
     for index, ids in todo:
-        pieces = []
+        pieces = partial.setdefault(index, [])
         for start in range(ids.start, ids.stop, step):
             sub = range(start, min(start + step, ids.stop))
-            piece = _run_chunk(
-                plan.base, plan.rows[sub.start : sub.stop], list(sub), plan.seed, threads, traces
-            )
-            pieces.append(piece)
-            partial.append(piece)
+            rows = plan.rows[sub.start : sub.stop]
+            pieces.append(_run_chunk(plan.base, rows, list(sub), plan.seed, threads, traces))
             bar.update(len(sub))
         finish(index, _concat(pieces))
-        partial.clear()
+        del partial[index]
 
 
 def _run_on_dask(

@@ -580,6 +580,11 @@ fn filter_response<'py>(
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
+    // rust-numpy loads NumPy's C API on first use and panics if the Python code that runs
+    // then raises, as a Ctrl-C pending at that moment does. Load it at import instead of in
+    // the first simulation, after raising any pending interrupt as an ordinary exception.
+    py.check_signals()?;
+    PyArray1::<f64>::zeros(py, 0, false);
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("ParameterError", py.get_type::<ParameterError>())?;
     m.add("AdmitError", py.get_type::<AdmitError>())?;
