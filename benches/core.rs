@@ -11,7 +11,7 @@
 //! | `dynamics/evaluate`    | `ThreeLinkArm::evaluate`: tip position, J, J̇q̇, D, C, G         |
 //! | `dynamics/accelerate`  | `ThreeLinkArm::accelerate`: q̈ with the contact force          |
 //! | `plant/rk4_substep`    | one RK4 step of 0.1 ms (a 10-substep period ÷ 10)              |
-//! | `plant/control_period` | one 1-ms period: measure, references, filter, TDC, 10 substeps |
+//! | `plant/control_period` | `Simulation::step` once: every stage of one 1-ms period, 10 substeps |
 //! | `run/fig14_10s`        | `Simulation::run` of fig. 14 (10 001 samples, trace, metrics)  |
 //! | `batch/fig14_64x10s`   | 64 fig. 14 runs (k_e 1e4 … 1e5), rayon `par_iter_mut`          |
 //!
@@ -23,53 +23,51 @@ use std::time::{Duration, Instant};
 use criterion::{criterion_group, criterion_main, Criterion};
 use rayon::prelude::*;
 
-use admit_rs::controller::{Controller, Desired, Measurement};
-use admit_rs::environment::{Wall, WallParams};
-use admit_rs::filter::{AdmittanceFilter, AdmittanceParams, ForceControlParams};
-use admit_rs::integrator::{Plant, PlantState};
-use admit_rs::reference::Signal;
-use admit_rs::robot::{RobotModel, ThreeLinkArm, Vec3};
-use admit_rs::simulation::col;
+use admit_rs::robot::three_link::{Trig, Vec3};
+use admit_rs::robot::{RobotModel, ThreeLinkArm};
+use admit_rs::sim::plant::{Plant, PlantState};
+use admit_rs::sim::simulation::ThreeLinkSimulation;
+use admit_rs::world::environment::{Wall, WallParams};
 use admit_rs::{simulate, ScenarioConfig, Simulation};
 
 /// Every sample (q, q̇, τ_k) of the fig. 14 run, replayed in a cycle so that a per-call
 /// benchmark averages over the states the run goes through. The cost depends on the state:
 /// glibc's tanh(q̇/ε) takes a fast path once |q̇/ε| > 22, i.e. |q̇| > 0.22 rad/s.
 struct Replay {
-    states: Vec<(PlantState, Vec3)>,
+    states: Vec<(PlantState<3>, Vec3)>,
     next: usize,
 }
 
 impl Replay {
     fn new(cfg: &ScenarioConfig) -> Self {
         let r = simulate(cfg).expect("fig14 config is valid");
-        let c = &r.trace.columns;
-        let v = |i: usize, k: usize| Vec3::new(c[i][k], c[i + 1][k], c[i + 2][k]);
-        let states = (0..r.trace.len())
+        let tr = &r.trace;
+        let v = |c: &[Vec<f64>], k: usize| Vec3::new(c[0][k], c[1][k], c[2][k]);
+        let states = (0..tr.len())
             .map(|k| {
                 let s = PlantState {
-                    q: v(col::Q, k),
-                    qd: v(col::QD, k),
+                    q: v(&tr.q, k),
+                    qd: v(&tr.qd, k),
                 };
-                (s, v(col::TAU, k))
+                (s, v(&tr.tau, k))
             })
             .collect();
         Self { states, next: 0 }
     }
 
     #[inline]
-    fn next(&mut self) -> &(PlantState, Vec3) {
+    fn next(&mut self) -> &(PlantState<3>, Vec3) {
         let i = self.next;
         self.next = if i + 1 == self.states.len() { 0 } else { i + 1 };
         &self.states[i]
     }
 }
 
-fn arm_and_wall(cfg: &ScenarioConfig) -> (ThreeLinkArm, Wall, Vec3) {
+fn arm_and_wall(cfg: &ScenarioConfig) -> (ThreeLinkArm, Wall) {
     let arm = ThreeLinkArm::new(&cfg.robot);
-    let x0 = arm.forward_kinematics(&Vec3::from(cfg.robot.q0));
-    let wall = Wall::new(cfg.wall.as_ref().expect("fig14 has a wall"), x0[0]);
-    (arm, wall, x0)
+    let x0 = arm.forward_kinematics(&arm.initial_position());
+    let wall = Wall::new(cfg.wall.as_ref().expect("fig14 has a wall"), &x0).expect("valid");
+    (arm, wall)
 }
 
 fn libm(c: &mut Criterion) {
@@ -85,7 +83,7 @@ fn libm(c: &mut Criterion) {
 fn dynamics(c: &mut Criterion) {
     let cfg = ScenarioConfig::default();
     let mut replay = Replay::new(&cfg);
-    let (arm, wall, _) = arm_and_wall(&cfg);
+    let (arm, wall) = arm_and_wall(&cfg);
     let mut g = c.benchmark_group("dynamics");
     g.bench_function("evaluate", |b| {
         b.iter(|| {
@@ -93,102 +91,27 @@ fn dynamics(c: &mut Criterion) {
             arm.evaluate(black_box(&s.q), black_box(&s.qd))
         })
     });
+    let contact = |p: &Vec3, v: &Vec3| wall.force(p, v);
     g.bench_function("accelerate", |b| {
         b.iter(|| {
             let (s, tau) = replay.next();
-            arm.accelerate(black_box(&s.q), black_box(&s.qd), black_box(tau), |x| {
-                wall.force(x)
-            })
+            arm.accelerate(
+                &Trig::new(black_box(&s.q)),
+                black_box(&s.qd),
+                black_box(tau),
+                &contact,
+                &wall.normal,
+                wall.needs_velocity(),
+            )
         })
     });
     g.finish();
 }
 
-/// One control period of `Simulation::run` without the trace: measure, references, the
-/// admittance filter, time-delayed control and the plant's 10 RK4 substeps. It walks through
-/// the fig. 14 run and starts over after 10 s, so the average covers the whole run.
-struct ControlLoop {
-    plant: Plant,
-    controller: Controller,
-    filter: AdmittanceFilter,
-    force_reference: Signal,
-    z_reference: Signal,
-    x0: Vec3,
-    wall_estimate: f64,
-    period: f64,
-    k: usize,
-    periods: usize,
-}
-
-impl ControlLoop {
-    fn new(cfg: &ScenarioConfig) -> Self {
-        let (arm, wall, x0) = arm_and_wall(cfg);
-        let initial = PlantState {
-            q: Vec3::from(cfg.robot.q0),
-            qd: Vec3::zeros(),
-        };
-        let filter = match cfg.admittance {
-            Some(ForceControlParams::Admittance(p)) => AdmittanceFilter::new(p, cfg.period),
-            _ => AdmittanceFilter::new(AdmittanceParams::default(), cfg.period),
-        };
-        Self {
-            plant: Plant::new(arm, Some(wall), initial, cfg.period, cfg.substeps),
-            controller: Controller::new(&cfg.controller, &cfg.robot, cfg.period),
-            filter,
-            force_reference: cfg.force_reference.clone(),
-            z_reference: cfg.z_reference.clone(),
-            x0,
-            wall_estimate: wall.estimated_position(),
-            period: cfg.period,
-            k: 0,
-            periods: cfg.samples() - 1,
-        }
-    }
-
-    #[inline]
-    fn step(&mut self) -> Vec3 {
-        if self.k == self.periods {
-            self.k = 0;
-            self.plant.reset();
-            self.controller.reset();
-            self.filter.reset();
-        }
-        let t = self.k as f64 * self.period;
-        let PlantState { q, qd } = *self.plant.state();
-        let kin = self.plant.kinematics();
-        let force = self.plant.force_at(kin.position[0]);
-        let f_d = self.force_reference.at(t);
-        let z = self.z_reference.at(t);
-        let x_a = self.filter.step(f_d.value - force);
-        let desired = Desired {
-            position: Vec3::new(
-                self.wall_estimate + x_a.value,
-                self.x0[1],
-                self.x0[2] + z.value,
-            ),
-            velocity: Vec3::new(x_a.rate, 0.0, z.rate),
-            acceleration: Vec3::new(x_a.accel, 0.0, z.accel),
-        };
-        let m = Measurement {
-            q: &q,
-            qd: &qd,
-            kinematics: &kin,
-            force,
-        };
-        let tau = self
-            .controller
-            .step(&m, &desired)
-            .expect("fig14 stays regular");
-        self.plant.advance(&tau);
-        self.k += 1;
-        tau
-    }
-}
-
 fn plant(c: &mut Criterion) {
     let cfg = ScenarioConfig::default();
     let replay = Replay::new(&cfg);
-    let (arm, wall, _) = arm_and_wall(&cfg);
+    let (arm, wall) = arm_and_wall(&cfg);
     let mut g = c.benchmark_group("plant");
     // One 0.1-ms substep, as the run takes it: a plant with the run's period and 10 substeps
     // replays the run's torques (so it retraces the run's states exactly, starting over
@@ -222,8 +145,17 @@ fn plant(c: &mut Criterion) {
                 .mul_f64(iters as f64 / (periods * substeps) as f64)
         })
     });
-    let mut lp = ControlLoop::new(&cfg);
-    g.bench_function("control_period", |b| b.iter(|| lp.step()));
+    // One period of the stage pipeline, the code `run()` and sweeps call: the simulation
+    // walks through the fig. 14 run and starts over at its end (the reset, its share of
+    // one period in 10 000, is inside the timing).
+    let mut sim = Simulation::new(&cfg).expect("fig14 config is valid");
+    g.bench_function("control_period", |b| {
+        b.iter(|| {
+            if sim.step(1).is_some() {
+                sim.reset();
+            }
+        })
+    });
     g.finish();
 }
 
@@ -246,7 +178,7 @@ fn batch(c: &mut Criterion) {
             ..ScenarioConfig::default()
         })
         .collect();
-    let mut sims: Vec<Simulation> = black_box(&configs)
+    let mut sims: Vec<ThreeLinkSimulation> = black_box(&configs)
         .iter()
         .map(|c| Simulation::new(c).expect("valid"))
         .collect();

@@ -4,11 +4,10 @@ loop became stages (tests/data/paper_force_traces.parquet, written by commit a11
 
 from pathlib import Path
 
+import admit_rs as ar
 import numpy as np
 import polars as pl
 import pytest
-
-import admit_rs as ar
 
 STORED = pl.read_parquet(Path(__file__).parent / "data" / "paper_force_traces.parquet")
 

@@ -14,8 +14,10 @@ Example:
 from admit_rs import paper, plot
 from admit_rs._core import METRIC_NAMES, TRACE_COLUMNS, __version__
 from admit_rs.config import (
+    Actuator,
     AdmittanceFilter,
     ComputedTorque,
+    ForceSensor,
     ImpedanceReference,
     ModelError,
     ModelFree,
@@ -29,7 +31,7 @@ from admit_rs.config import (
     parameter_paths,
 )
 from admit_rs.errors import AdmitError, ParameterError
-from admit_rs.simulation import Result, simulate
+from admit_rs.simulation import Result, Simulation, simulate
 from admit_rs.sweep import (
     CheckpointMismatchError,
     Choice,
@@ -44,6 +46,7 @@ from admit_rs.sweep import (
 __all__ = [
     "METRIC_NAMES",
     "TRACE_COLUMNS",
+    "Actuator",
     "AdmitError",
     "AdmittanceFilter",
     "CheckpointMismatchError",
@@ -54,6 +57,7 @@ __all__ = [
     "SweepInterrupted",
     "Uniform",
     "ComputedTorque",
+    "ForceSensor",
     "ImpedanceReference",
     "ModelError",
     "ModelFree",
@@ -62,6 +66,7 @@ __all__ = [
     "Robot",
     "Sampled",
     "Scenario",
+    "Simulation",
     "Sine",
     "Step",
     "TimeDelayControl",

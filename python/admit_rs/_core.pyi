@@ -11,8 +11,8 @@ import numpy.typing as npt
 
 __version__: Final[str]
 TRACE_COLUMNS: Final[list[str]]
-"""Trace column names in order: t, q1..q3, qd1..qd3, x, y, z, x_ref, y_ref, z_ref, f, f_d,
-x_a, tau1..tau3, xa_dot."""
+"""Trace column names in order: t, q1..q3, qd1..qd3, x, y, z, x_ref, y_ref, z_ref, f,
+f_measured, f_d, penetration, x_a, xa_dot, tau1..tau3, tau_cmd1..tau_cmd3."""
 METRIC_NAMES: Final[list[str]]
 """Float metric names (SPEC §7 plus step_info-convention extras); ``stable`` comes besides."""
 
@@ -30,7 +30,8 @@ class ParameterError(ValueError):
     """The allowed range, in words."""
 
 def check_block(kind: str, params: dict[str, Any]) -> None:
-    """Validate one block (kind: robot, wall, controller, admittance, signal, model)."""
+    """Validate one block (kind: robot, wall, controller, admittance, signal, model, sensor,
+    actuator)."""
 
 def validate(scenario: dict[str, Any]) -> None:
     """Validate a whole scenario dict, cross-field checks included."""
@@ -76,3 +77,23 @@ def simulate_batch(
     (NaN when stable), "divergence_cause": list[str | None], "traces": list[dict] | None}``.
     An invalid scenario raises ``ParameterError`` (with ``index``) before anything runs.
     """
+
+class Stepper:
+    """The loop of one scenario, stepped (``admit_rs.Simulation`` wraps it)."""
+
+    def __init__(self, scenario: dict[str, Any]) -> None: ...
+    def reset(self) -> None: ...
+    def step(self, n: int) -> int:
+        """Take up to ``n`` samples with the GIL released; returns how many were taken."""
+    def sample(self) -> int:
+        """Index of the next sample."""
+    def samples(self) -> int:
+        """Samples in the whole run."""
+    def state(self) -> npt.NDArray[np.float64]: ...
+    def state_labels(self) -> list[str]: ...
+    def set_state(self, values: list[float]) -> None: ...
+    def trace(self) -> dict[str, npt.NDArray[np.float64]]:
+        """The samples so far, as columns (copies)."""
+    def outcome(self) -> dict[str, Any] | None:
+        """``None`` while the run goes on; then ``metrics``, ``diverged_at``,
+        ``divergence_cause`` as from :func:`simulate`."""

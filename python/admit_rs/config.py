@@ -35,6 +35,17 @@ def _vec3(name: str, value: Any) -> Vector3:
     return items  # type: ignore[return-value]
 
 
+def _check_integer(name: str, value: Any, high: int) -> None:
+    """Integers are ints (or integral floats) from 0 to ``high``; anything else is a
+    ParameterError naming the field."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise TypeError(f"{name} must be an int, got {type(value).__name__}")
+    if not (math.isfinite(value) and value == int(value) and 0 <= value <= high):
+        err = ParameterError(f"{name} = {value} is invalid: must be an integer from 0 to {high}")
+        err.field, err.value, err.allowed = name, str(value), f"an integer from 0 to {high}"
+        raise err
+
+
 def _core_value(value: Any) -> Any:
     if isinstance(value, _Block):
         return value._to_core()
@@ -143,16 +154,102 @@ class Robot(_Block):
 
 @dataclass(frozen=True, kw_only=True)
 class Wall(_Block):
-    """A unilateral spring wall normal to x (SPEC §2): f = k_e (x − x_e) while x > x_e."""
+    """A unilateral wall {X : n·X = x_e}; the tip feels −f n while it penetrates.
+
+    Penetration δ = n·X − x_e, rate δ̇ = n·Ẋ. Kelvin–Voigt: f = max(0, k δ + c δ̇);
+    Hunt–Crossley: f = max(0, k δ^p + c δ^p δ̇). The default is the paper's wall: normal to
+    x, no damping, touching the tip at q0 (SPEC §2).
+
+    Example:
+        >>> import admit_rs as ar
+        >>> ar.Wall(stiffness=5e4, damping=50.0, normal=(1, 0, -1)).normal
+        (1.0, 0.0, -1.0)
+    """
 
     stiffness: float = 30_000.0
-    """Environment stiffness k_e [N/m]; unknown to the controller."""
+    """Environment stiffness k_e [N/m] (Hunt–Crossley: [N/m^p]); unknown to the controller."""
+    damping: float = 0.0
+    """Contact damping c [N·s/m]."""
+    model: Literal["kelvin_voigt", "hunt_crossley"] = "kelvin_voigt"
+    """Contact law: ``"kelvin_voigt"`` (spring and damper) or ``"hunt_crossley"``."""
+    exponent: float = 1.0
+    """Hunt–Crossley exponent p, from 1 to 10 (ignored by Kelvin–Voigt)."""
+    normal: Vector3 = (1.0, 0.0, 0.0)
+    """Normal n pointing into the wall (any length; normalised). Force is controlled along n,
+    motion along t̂ = normalise(e_z − (e_z·n) n)."""
     position: float | None = None
-    """Wall position x_e [m]; ``None`` puts it at the tip's x at q0 (touching, zero force)."""
+    """Wall position x_e along n [m]; ``None`` puts the plane through the tip at q0
+    (touching, zero force)."""
     position_error: float = 0.0
-    """Error of the controller's estimate x̂_e = x_e + position_error [m]."""
+    """Error of the controller's estimate x̂_e = x_e + position_error [m], along n."""
 
     _check: ClassVar[str] = "wall"
+
+    def __post_init__(self) -> None:
+        self._set("normal", _vec3("normal", self.normal))
+        self._validate()
+
+
+@dataclass(frozen=True, kw_only=True)
+class ForceSensor(_Block):
+    """The force sensor (SPEC §10): bias, noise, resolution, low-pass, latency, in that order.
+
+    u_k = f_k + bias + noise, rounded to a multiple of ``resolution``; y_k = y_{k−1} +
+    α (u_k − y_{k−1}) with α = 1 − exp(−2π f_c T) and y_0 = u_0; the output is y delayed by
+    ``latency`` samples (holding y_0 before). The default reads the force exactly. Noise is
+    drawn from (``Scenario.seed``, sample index), so runs are reproducible.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> ar.ForceSensor(noise_std=0.5, cutoff=30.0, latency=2)
+        ForceSensor(bias=0.0, noise_std=0.5, resolution=0.0, cutoff=30.0, latency=2)
+    """
+
+    bias: float = 0.0
+    """Constant offset added to the reading [N]."""
+    noise_std: float = 0.0
+    """Standard deviation of white Gaussian noise [N]."""
+    resolution: float = 0.0
+    """Quantisation step [N]; 0: none."""
+    cutoff: float | None = None
+    """First-order low-pass cut-off f_c [Hz]; ``None``: no filter."""
+    latency: int = 0
+    """Delay of the output in whole controller periods (0 to 100 000)."""
+
+    _check: ClassVar[str] = "sensor"
+
+
+@dataclass(frozen=True, kw_only=True)
+class Actuator(_Block):
+    """The motors (SPEC §10): the command is delayed, rate-limited, then clamped per joint.
+
+    TDC's τ_{k−1} is the torque applied in the previous period, so limits cause no wind-up.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> ar.Actuator(torque_limit=(60, 40, 20)).torque_limit
+        (60.0, 40.0, 20.0)
+    """
+
+    torque_limit: float | tuple[float, ...] | None = None
+    """|τ_j| limit [N·m]: one number for every joint or one per joint; ``None``: unlimited."""
+    rate_limit: float | None = None
+    """Largest |dτ/dt| [N·m/s]: the torque moves at most ``rate_limit``·T per period."""
+    delay: int = 0
+    """Delay of the command in whole controller periods (0 to 100 000)."""
+
+    _check: ClassVar[str] = "actuator"
+
+    def __post_init__(self) -> None:
+        limit = self.torque_limit
+        if limit is not None and not isinstance(limit, int | float):
+            try:
+                self._set("torque_limit", tuple(float(v) for v in limit))
+            except TypeError as e:
+                raise TypeError(
+                    f"torque_limit must be a number, a sequence of numbers or None, got {limit!r}"
+                ) from e
+        self._validate()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -380,6 +477,8 @@ _UNIONS: dict[str, tuple[type, ...]] = {
     "admittance": (AdmittanceFilter, ImpedanceReference, type(None)),
     "force_reference": (Step, Sine, Sampled),
     "z_reference": (Step, Sine, Sampled),
+    "sensor": (ForceSensor,),
+    "actuator": (Actuator,),
 }
 
 
@@ -405,7 +504,13 @@ class Scenario(_Block):
     force_reference: Signal = field(default_factory=lambda: Step(value=10.0))
     """Desired contact force f_d(t) [N]."""
     z_reference: Signal = field(default_factory=lambda: Sine(amplitude=0.05))
-    """Desired z relative to the start: z_d = z0 + signal(t) [m]."""
+    """Desired motion s(t) along t̂ from the start [m]; z_d = z0 + s(t) for the paper's wall."""
+    sensor: ForceSensor = field(default_factory=ForceSensor)
+    """The force sensor; the default reads the force exactly."""
+    actuator: Actuator = field(default_factory=Actuator)
+    """The motors; the default applies the command exactly."""
+    seed: int = 0
+    """Seed of the sensor noise (0 to 2^53). Sweeps derive each run's from (seed, run_id)."""
     period: float = 1e-3
     """Controller period T [s]."""
     substeps: int = 10
@@ -425,6 +530,7 @@ class Scenario(_Block):
                 raise TypeError(f"{name} must be {names}, got {type(value).__name__}")
         if not isinstance(self.label, str):
             raise TypeError(f"label must be a str, got {type(self.label).__name__}")
+        _check_integer("seed", self.seed, 2**53)
         _core.validate(self._to_core())
 
     def replace(self, **changes: Any) -> Scenario:
@@ -516,7 +622,13 @@ _KINDS: dict[str, type[_Block]] = {
     "sine": Sine,
     "sampled": Sampled,
 }
-_FIXED: dict[str, type[_Block]] = {"robot": Robot, "wall": Wall, "model": ModelError}
+_FIXED: dict[str, type[_Block]] = {
+    "robot": Robot,
+    "wall": Wall,
+    "model": ModelError,
+    "sensor": ForceSensor,
+    "actuator": Actuator,
+}
 
 
 def _from_dict(cls: type[Any], data: Mapping[str, Any], path: str) -> Any:

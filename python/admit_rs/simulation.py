@@ -1,14 +1,20 @@
-"""Running a scenario: :func:`simulate` and its :class:`Result`."""
+"""Running a scenario: :func:`simulate` and its :class:`Result`, or :class:`Simulation` to
+step the same loop one period at a time."""
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
+import numpy as np
+import numpy.typing as npt
 import polars as pl
 
 from admit_rs import _core
 from admit_rs.config import Scenario
+from admit_rs.errors import AdmitError
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -18,8 +24,10 @@ if TYPE_CHECKING:
 class Result:
     """One run: the trace, the SPEC §7 metrics and how it ended.
 
-    ``trace`` columns: t, q1..q3, qd1..qd3, x, y, z, x_ref, y_ref, z_ref, f, f_d, x_a,
-    tau1..tau3, xa_dot (SI units: s, rad, rad/s, m, N, N·m, m/s).
+    ``trace`` columns: t, q1..q3, qd1..qd3, x, y, z, x_ref, y_ref, z_ref, f (true force
+    along the wall normal), f_measured (what the sensor reported), f_d, penetration
+    (n·X − x_e; NaN without a wall), x_a, xa_dot, tau1..tau3 (applied torque),
+    tau_cmd1..tau_cmd3 (commanded torque). SI units: s, rad, rad/s, m, N, N·m, m/s.
     """
 
     scenario: Scenario
@@ -61,6 +69,16 @@ class Result:
         return f"<Result{label}: {self.trace.height} samples, {status}>"
 
 
+def _result(scenario: Scenario, columns: dict[str, Any], raw: Mapping[str, Any]) -> Result:
+    return Result(
+        scenario=scenario,
+        trace=pl.DataFrame(columns),
+        metrics=raw["metrics"],
+        diverged_at=raw["diverged_at"],
+        divergence_cause=raw["divergence_cause"],
+    )
+
+
 def simulate(scenario: Scenario) -> Result:
     """Runs one scenario in the Rust core (GIL released) and returns its :class:`Result`.
 
@@ -73,10 +91,125 @@ def simulate(scenario: Scenario) -> Result:
     if not isinstance(scenario, Scenario):
         raise TypeError(f"simulate() takes an admit_rs.Scenario, got {type(scenario).__name__}")
     raw = _core.simulate(scenario._to_core())
-    return Result(
-        scenario=scenario,
-        trace=pl.DataFrame(raw["columns"]),
-        metrics=raw["metrics"],
-        diverged_at=raw["diverged_at"],
-        divergence_cause=raw["divergence_cause"],
-    )
+    return _result(scenario, raw["columns"], raw)
+
+
+class Simulation:
+    """The loop of one scenario, one controller period at a time.
+
+    The same code :func:`simulate` runs (SPEC §10 order: plant → wall → sensor → references
+    → force control → control law → actuator → record → plant integration), so stepping to
+    the end gives :func:`simulate`'s trace bit for bit. Between steps the whole state can be
+    read and changed: pause, inspect, perturb, resume.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> sim = ar.Simulation(ar.paper.scenario("fig14").replace(duration=1.0))
+        >>> sim.step(500)
+        500
+        >>> round(sim.state["plant.q2"], 4)
+        0.7818
+        >>> sim.set_state({"plant.qd2": 0.05})      # a kick to the shoulder
+        >>> sim.step(10_000)                        # runs to the end (sample 1000)
+        501
+        >>> sim.done, sim.trace.height
+        (True, 1001)
+    """
+
+    def __init__(self, scenario: Scenario) -> None:
+        if not isinstance(scenario, Scenario):
+            raise TypeError(
+                f"Simulation() takes an admit_rs.Scenario, got {type(scenario).__name__}"
+            )
+        self.scenario = scenario
+        self._core = _core.Stepper(scenario._to_core())
+        self._labels: list[str] = self._core.state_labels()
+
+    def reset(self) -> None:
+        """Back to t = 0 with every stage at its initial state and an empty trace."""
+        self._core.reset()
+
+    def step(self, n: int = 1) -> int:
+        """Takes up to ``n`` samples (fewer when the run ends or diverges); returns how many.
+
+        Each sample records the state at t_k, then integrates the plant to t_{k+1} (the last
+        sample of the run is recorded without integrating further)."""
+        if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+            raise TypeError(f"step(n): n must be an int >= 0, got {n!r}")
+        return int(self._core.step(n))
+
+    @property
+    def sample(self) -> int:
+        """Index k of the next sample (its time is k·period)."""
+        return int(self._core.sample())
+
+    @property
+    def time(self) -> float:
+        """Time of the next sample [s]."""
+        return self.sample * self.scenario.period
+
+    @property
+    def done(self) -> bool:
+        """Whether the run is over (all samples taken, or diverged)."""
+        return self._core.outcome() is not None
+
+    @property
+    def state_labels(self) -> list[str]:
+        """Names of the state entries, in order: ``sample``, ``plant.q1..``, ``plant.qd1..``,
+        the filter (``filter.x_a``, ``filter.xa_dot``), the controller's memory (TDC:
+        ``controller.tau_prev*``, ``controller.qd_prev*``), the sensor and the actuator."""
+        return list(self._labels)
+
+    @property
+    def state(self) -> dict[str, float]:
+        """The whole state as a flat labelled vector (a dict in :attr:`state_labels` order)."""
+        return dict(zip(self._labels, self._core.state().tolist(), strict=True))
+
+    def state_vector(self) -> npt.NDArray[np.float64]:
+        """The state as an array in :attr:`state_labels` order."""
+        return self._core.state()
+
+    def set_state(
+        self, state: Mapping[str, float] | Sequence[float] | npt.NDArray[np.float64]
+    ) -> None:
+        """Sets the state: a mapping of some labels (the others keep their values) or a full
+        vector in :attr:`state_labels` order. The trace keeps the samples before ``sample``.
+
+        Unknown labels raise ``KeyError`` naming the closest valid ones."""
+        if isinstance(state, Mapping):
+            values = self._core.state().tolist()
+            index = {name: i for i, name in enumerate(self._labels)}
+            for name, value in state.items():
+                if name not in index:
+                    close = difflib.get_close_matches(str(name), self._labels, n=3)
+                    hint = f"; did you mean {', '.join(close)}?" if close else ""
+                    raise KeyError(f"{name!r}: no such state entry{hint}")
+                values[index[name]] = float(value)
+        else:
+            values = [float(v) for v in np.ravel(np.asarray(state, dtype=float))]
+        self._core.set_state(values)
+
+    @property
+    def trace(self) -> pl.DataFrame:
+        """The samples recorded so far (columns as :attr:`Result.trace`)."""
+        return pl.DataFrame(self._core.trace())
+
+    def result(self) -> Result:
+        """The finished run as a :class:`Result` (trace, metrics, outcome).
+
+        Raises ``AdmitError`` while the run goes on: metrics of part of a run would not
+        mean what their names say."""
+        raw = self._core.outcome()
+        if raw is None:
+            raise AdmitError(
+                f"the run is not over (next sample {self.sample} of {self._core.samples()}); "
+                "step() to the end first"
+            )
+        return _result(self.scenario, self._core.trace(), raw)
+
+    def __repr__(self) -> str:
+        label = f" {self.scenario.label!r}" if self.scenario.label else ""
+        return (
+            f"<Simulation{label}: sample {self.sample} of {self._core.samples()}"
+            f"{', done' if self.done else ''}>"
+        )

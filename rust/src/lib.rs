@@ -1,21 +1,19 @@
 //! admit_rs: admittance force tracking control of robot manipulators (Jung & Jeong).
 //!
-//! One module per concept. The numerics know nothing of Python; the pyo3 layer lives in
-//! `python` behind the `python` feature, which maturin switches on.
+//! One module per concept, dependencies pointing down only:
+//! `robot` (arm models) and `world` (wall, sensor, actuator) at the bottom; `control`
+//! (references, filters, task directions, control laws) uses `robot`; `sim` (plant, the
+//! stage pipeline, metrics, sweeps) uses all three. The numerics know nothing of Python;
+//! the pyo3 layer lives in `python` behind the `python` feature, which maturin switches on.
 
-pub mod controller;
-pub mod environment;
+pub mod control;
 pub mod error;
-pub mod filter;
-pub mod integrator;
-pub mod metrics;
-pub mod reference;
 pub mod robot;
-pub mod simulation;
-pub mod sweep;
+pub mod sim;
+pub mod world;
 
 #[cfg(feature = "python")]
 mod python;
 
 pub use error::{Error, Result};
-pub use simulation::{simulate, RunResult, ScenarioConfig, Simulation};
+pub use sim::simulation::{simulate, RunResult, ScenarioConfig, Simulation};

@@ -8,17 +8,25 @@ use pyo3::exceptions::{PyException, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::controller::{
+use crate::control::controller::{
     ComputedTorqueParams, ControllerParams, ModelError, ModelFreeParams, PositionGains, TdcLaw,
     TimeDelayParams,
 };
-use crate::environment::WallParams;
+use crate::control::filter::{
+    AdmittanceFilter, AdmittanceParams, ForceControlParams, ImpedanceParams,
+};
+use crate::control::reference::Signal;
 use crate::error::Error;
-use crate::filter::{AdmittanceFilter, AdmittanceParams, ForceControlParams, ImpedanceParams};
-use crate::metrics::METRIC_NAMES;
-use crate::reference::Signal;
-use crate::robot::{MassModel, RobotModel, RobotParams, ThreeLinkArm, Vec3};
-use crate::simulation::{Outcome, RunResult, ScenarioConfig, MAX_SUBSTEPS, TRACE_COLUMNS};
+use crate::robot::three_link::{Mat3, Vec3};
+use crate::robot::{MassModel, RobotModel, RobotParams, ThreeLinkArm};
+use crate::sim::metrics::{Metrics, METRIC_NAMES};
+use crate::sim::simulation::{
+    Outcome, RunResult, ScenarioConfig, ThreeLinkSimulation, MAX_SUBSTEPS,
+};
+use crate::sim::trace::{trace_columns, Trace};
+use crate::world::actuator::ActuatorParams;
+use crate::world::environment::{ContactModel, WallParams};
+use crate::world::sensor::SensorParams;
 
 create_exception!(
     _core,
@@ -119,6 +127,22 @@ impl<'py> Block<'py> {
         self.typed(key, "a sequence of numbers")
     }
 
+    /// A whole number from 0 to `max`, given as an int or an integral float; anything else
+    /// is a `ParameterError` naming the field.
+    fn count(&self, key: &str, max: usize) -> PyResult<usize> {
+        let v = self.f64(key)?;
+        if v.fract() == 0.0 && v >= 0.0 && v <= max as f64 {
+            Ok(v as usize)
+        } else {
+            Err(parameter_error(
+                self.dict.py(),
+                &self.field_path(key),
+                &v.to_string(),
+                &format!("an integer from 0 to {max}"),
+            ))
+        }
+    }
+
     fn string(&self, key: &str) -> PyResult<String> {
         self.typed(key, "a str")
     }
@@ -189,8 +213,44 @@ fn robot_from(b: &Block) -> PyResult<RobotParams> {
 fn wall_from(b: &Block) -> PyResult<WallParams> {
     Ok(WallParams {
         stiffness: b.f64("stiffness")?,
+        damping: b.f64("damping")?,
+        model: match b
+            .choice("model", &["kelvin_voigt", "hunt_crossley"])?
+            .as_str()
+        {
+            "kelvin_voigt" => ContactModel::KelvinVoigt,
+            _ => ContactModel::HuntCrossley,
+        },
+        exponent: b.f64("exponent")?,
+        normal: b.vec3("normal")?,
         position: b.opt_f64("position")?,
         position_error: b.f64("position_error")?,
+    })
+}
+
+fn sensor_from(b: &Block) -> PyResult<SensorParams> {
+    Ok(SensorParams {
+        bias: b.f64("bias")?,
+        noise_std: b.f64("noise_std")?,
+        resolution: b.f64("resolution")?,
+        cutoff: b.opt_f64("cutoff")?,
+        latency: b.count("latency", crate::world::sensor::MAX_LATENCY)?,
+    })
+}
+
+fn actuator_from(b: &Block) -> PyResult<ActuatorParams> {
+    let limit = b.item("torque_limit")?;
+    let torque_limit = if limit.is_none() {
+        None
+    } else if let Ok(v) = limit.extract::<f64>() {
+        Some(vec![v])
+    } else {
+        Some(b.vec("torque_limit")?)
+    };
+    Ok(ActuatorParams {
+        torque_limit,
+        rate_limit: b.opt_f64("rate_limit")?,
+        delay: b.count("delay", crate::world::actuator::MAX_DELAY)?,
     })
 }
 
@@ -293,6 +353,16 @@ fn scenario_from(obj: &Bound<'_, PyAny>) -> PyResult<ScenarioConfig> {
             &format!("an integer from 1 to {MAX_SUBSTEPS}"),
         ));
     }
+    let seed = b.f64("seed")?;
+    // Seeds are integers below 2^53 (exact in a float; Python checks the int first).
+    if !(seed.fract() == 0.0 && (0.0..=9_007_199_254_740_992.0).contains(&seed)) {
+        return Err(parameter_error(
+            obj.py(),
+            "seed",
+            &seed.to_string(),
+            "an integer from 0 to 2^53",
+        ));
+    }
     let config = ScenarioConfig {
         robot: robot_from(&b.sub("robot")?)?,
         wall: b.optional_sub("wall")?.map(|w| wall_from(&w)).transpose()?,
@@ -303,6 +373,9 @@ fn scenario_from(obj: &Bound<'_, PyAny>) -> PyResult<ScenarioConfig> {
             .transpose()?,
         force_reference: signal_from(&b.sub("force_reference")?)?,
         z_reference: signal_from(&b.sub("z_reference")?)?,
+        sensor: sensor_from(&b.sub("sensor")?)?,
+        actuator: actuator_from(&b.sub("actuator")?)?,
+        seed: seed as u64,
         period: b.f64("period")?,
         substeps: substeps as usize,
         duration: b.f64("duration")?,
@@ -321,7 +394,13 @@ fn check_block(kind: &str, params: &Bound<'_, PyAny>) -> PyResult<()> {
         "robot" => robot_from(&b)?.validate(),
         "wall" => wall_from(&b)?.validate(),
         "controller" => controller_from(&b)?.validate(),
-        "admittance" => force_control_from(&b)?.validate(),
+        // The discretisation is checked with the scenario's period, in `validate`.
+        "admittance" => match force_control_from(&b)? {
+            ForceControlParams::Admittance(p) => p.validate(),
+            ForceControlParams::Impedance(p) => p.validate(),
+        },
+        "sensor" => sensor_from(&b)?.validate(),
+        "actuator" => actuator_from(&b)?.validate(3),
         "signal" => signal_from(&b)?.validate(),
         "model" => model_from(&b)?.validate(),
         other => {
@@ -342,13 +421,24 @@ fn validate(scenario: &Bound<'_, PyAny>) -> PyResult<()> {
 fn run_to_dict<'py>(py: Python<'py>, run: RunResult) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
     out.set_item("columns", trace_dict(py, run.trace)?)?;
+    outcome_into(py, &out, run.metrics, run.outcome)?;
+    Ok(out)
+}
+
+/// Puts a run's metrics, `diverged_at` and `divergence_cause` into `out`.
+fn outcome_into(
+    py: Python<'_>,
+    out: &Bound<'_, PyDict>,
+    run_metrics: Metrics,
+    outcome: Outcome,
+) -> PyResult<()> {
     let metrics = PyDict::new(py);
-    for (name, v) in METRIC_NAMES.iter().zip(run.metrics.values()) {
+    for (name, v) in METRIC_NAMES.iter().zip(run_metrics.values()) {
         metrics.set_item(name, v)?;
     }
-    metrics.set_item("stable", run.metrics.stable)?;
+    metrics.set_item("stable", run_metrics.stable)?;
     out.set_item("metrics", metrics)?;
-    match run.outcome {
+    match outcome {
         Outcome::Completed => {
             out.set_item("diverged_at", py.None())?;
             out.set_item("divergence_cause", py.None())?;
@@ -358,7 +448,82 @@ fn run_to_dict<'py>(py: Python<'py>, run: RunResult) -> PyResult<Bound<'py, PyDi
             out.set_item("divergence_cause", cause.to_string())?;
         }
     }
-    Ok(out)
+    Ok(())
+}
+
+/// Samples stepped between checks for Ctrl-C (about 20 ms of the paper's run).
+const STEP_CHUNK: usize = 1000;
+
+/// The loop of one scenario, stepped from Python (`admit_rs.Simulation`).
+#[pyclass(module = "admit_rs._core", name = "Stepper")]
+struct Stepper {
+    sim: ThreeLinkSimulation,
+}
+
+#[pymethods]
+impl Stepper {
+    #[new]
+    fn new(scenario: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let config = scenario_from(scenario)?;
+        let sim = ThreeLinkSimulation::new(&config).map_err(|e| to_py_err(scenario.py(), e))?;
+        Ok(Self { sim })
+    }
+
+    fn reset(&mut self) {
+        self.sim.reset();
+    }
+
+    /// Takes up to `n` samples with the GIL released, checking for Ctrl-C between chunks.
+    /// Returns the number taken.
+    fn step(&mut self, py: Python<'_>, n: usize) -> PyResult<usize> {
+        let start = self.sim.sample();
+        let mut left = n;
+        while left > 0 && self.sim.outcome().is_none() {
+            let chunk = left.min(STEP_CHUNK);
+            let sim = &mut self.sim;
+            py.detach(move || sim.step(chunk));
+            left -= chunk;
+            py.check_signals()?;
+        }
+        Ok(self.sim.sample() - start)
+    }
+
+    fn sample(&self) -> usize {
+        self.sim.sample()
+    }
+
+    fn samples(&self) -> usize {
+        self.sim.samples()
+    }
+
+    fn state<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_vec(py, self.sim.state())
+    }
+
+    fn state_labels(&self) -> Vec<String> {
+        self.sim.state_labels()
+    }
+
+    fn set_state(&mut self, py: Python<'_>, values: Vec<f64>) -> PyResult<()> {
+        self.sim.set_state(&values).map_err(|e| to_py_err(py, e))
+    }
+
+    /// The trace so far as a dict of columns (copies).
+    fn trace<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        trace_dict(py, self.sim.trace().clone())
+    }
+
+    /// `None` while the run goes on; once it is over, the metrics and how it ended.
+    fn outcome<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(outcome) = self.sim.outcome() else {
+            return Ok(None);
+        };
+        let sim = &self.sim;
+        let metrics = Metrics::compute(sim.trace(), sim.config(), &outcome, sim.frame());
+        let out = PyDict::new(py);
+        outcome_into(py, &out, metrics, outcome)?;
+        Ok(Some(out))
+    }
 }
 
 /// Runs one scenario; the whole run happens in Rust with the GIL released.
@@ -366,16 +531,13 @@ fn run_to_dict<'py>(py: Python<'py>, run: RunResult) -> PyResult<Bound<'py, PyDi
 fn simulate<'py>(scenario: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyDict>> {
     let py = scenario.py();
     let config = scenario_from(scenario)?;
-    let run = py.detach(move || crate::simulation::simulate(&config));
+    let run = py.detach(move || crate::sim::simulation::simulate(&config));
     run_to_dict(py, run.map_err(|e| to_py_err(py, e))?)
 }
 
-fn trace_dict<'py>(
-    py: Python<'py>,
-    trace: crate::simulation::Trace,
-) -> PyResult<Bound<'py, PyDict>> {
+fn trace_dict<'py>(py: Python<'py>, trace: Trace) -> PyResult<Bound<'py, PyDict>> {
     let columns = PyDict::new(py);
-    for (name, col) in TRACE_COLUMNS.iter().zip(trace.columns) {
+    for (name, col) in trace.into_named_columns() {
         columns.set_item(name, PyArray1::from_vec(py, col))?;
     }
     Ok(columns)
@@ -415,7 +577,7 @@ fn simulate_batch<'py>(
         })
         .collect::<PyResult<Vec<_>>>()?;
     let runs = py
-        .detach(move || crate::sweep::run_batch(&configs, threads, traces))
+        .detach(move || crate::sim::sweep::run_batch(&configs, threads, traces))
         .map_err(|e| to_py_err(py, e.error))?;
     let out = PyDict::new(py);
     let n = runs.len();
@@ -462,7 +624,7 @@ fn simulate_batch<'py>(
     Ok(out)
 }
 
-fn matrix<'py>(py: Python<'py>, m: &crate::robot::Mat3) -> PyResult<Bound<'py, PyArray2<f64>>> {
+fn matrix<'py>(py: Python<'py>, m: &Mat3) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let rows: Vec<Vec<f64>> = (0..3)
         .map(|i| (0..3).map(|j| m[(i, j)]).collect())
         .collect();
@@ -520,7 +682,7 @@ fn forward_dynamics<'py>(
     tip_force: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let arm = checked_robot(robot)?;
-    let qdd = arm.forward_dynamics(
+    let qdd = arm.forward_dynamics_at(
         &state3(q, "q")?,
         &state3(qd, "qd")?,
         &state3(tau, "tau")?,
@@ -588,8 +750,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("ParameterError", py.get_type::<ParameterError>())?;
     m.add("AdmitError", py.get_type::<AdmitError>())?;
-    m.add("TRACE_COLUMNS", PyList::new(py, TRACE_COLUMNS)?)?;
+    m.add("TRACE_COLUMNS", PyList::new(py, trace_columns(3))?)?;
     m.add("METRIC_NAMES", PyList::new(py, METRIC_NAMES)?)?;
+    m.add_class::<Stepper>()?;
     m.add_function(wrap_pyfunction!(check_block, m)?)?;
     m.add_function(wrap_pyfunction!(validate, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;

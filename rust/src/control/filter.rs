@@ -4,8 +4,11 @@
 
 use nalgebra::{Matrix2, Matrix3, Vector2};
 
-use crate::error::{check, Result};
-use crate::reference::Sample;
+use crate::error::{check, Error, Result};
+
+/// Largest b·T/m, k·T²/m or k_a·T/m accepted (see `AdmittanceParams::validate_for_period`).
+pub const MAX_DISCRETE_RATE: f64 = 1e6;
+use crate::control::reference::Sample;
 
 /// `m ẍ_a + b ẋ_a + k x_a = k_a e_f`, e_f = f_d − f.
 /// Scheme 1 (eq. 30) has k > 0; Scheme 2 (eq. 38) has k = 0.
@@ -48,6 +51,41 @@ impl AdmittanceParams {
         check::non_negative("b", self.b)?;
         check::non_negative("k", self.k)?;
         check::non_negative("ka", self.ka)
+    }
+
+    /// Checks that the filter can be discretised at `period`: the rates b/m, k/m and k_a/m
+    /// times T (and T²) must stay within `MAX_DISCRETE_RATE`, beyond which the matrix
+    /// exponential of the zero-order hold overflows (a pole at −b/m = −1e100 rad/s is not a
+    /// filter a controller can run at any sample rate).
+    pub fn validate_for_period(&self, period: f64) -> Result<()> {
+        self.validate()?;
+        let rates = [
+            ("b", self.b, self.b / self.m * period),
+            ("k", self.k, self.k / self.m * period * period),
+            ("ka", self.ka, self.ka / self.m * period),
+        ];
+        for (field, value, rate) in rates {
+            if !(rate.is_finite() && rate <= MAX_DISCRETE_RATE) {
+                return Err(Error::parameter(
+                    field,
+                    value,
+                    &format!(
+                        "such that b·T/m, k·T²/m and ka·T/m are at most {MAX_DISCRETE_RATE:e} \
+                         (T = {period} s; m = {})",
+                        self.m
+                    ),
+                ));
+            }
+        }
+        let (ad, bd) = self.discretize(period);
+        if !(ad.iter().chain(bd.iter()).all(|v| v.is_finite())) {
+            return Err(Error::parameter(
+                "b",
+                self.b,
+                "values whose zero-order-hold discretisation is finite",
+            ));
+        }
+        Ok(())
     }
 
     /// Exact zero-order-hold discretisation: expm([[A, B], [0, 0]] T) = [[Ad, Bd], [0, 1]]
@@ -137,9 +175,10 @@ pub enum ForceControlParams {
 }
 
 impl ForceControlParams {
-    pub fn validate(&self) -> Result<()> {
+    /// Checks the fields, and that an admittance filter can be discretised at `period`.
+    pub fn validate(&self, period: f64) -> Result<()> {
         match self {
-            ForceControlParams::Admittance(p) => p.validate(),
+            ForceControlParams::Admittance(p) => p.validate_for_period(period),
             ForceControlParams::Impedance(p) => p.validate(),
         }
     }
@@ -167,6 +206,31 @@ impl ForceControl {
     pub fn reset(&mut self) {
         if let ForceControl::Admittance(f) = self {
             f.reset();
+        }
+    }
+
+    /// Labels of the filter state (x_a, ẋ_a of an admittance filter; none for eq. 20).
+    pub fn state_labels(&self) -> &'static [&'static str] {
+        match self {
+            ForceControl::Admittance(_) => &["x_a", "xa_dot"],
+            ForceControl::Impedance { .. } => &[],
+        }
+    }
+
+    pub fn state(&self, out: &mut Vec<f64>) {
+        if let ForceControl::Admittance(f) = self {
+            out.extend_from_slice(f.state.as_slice());
+        }
+    }
+
+    /// Reads the state written by `state`; returns the number of values used.
+    pub fn set_state(&mut self, values: &[f64]) -> usize {
+        match self {
+            ForceControl::Admittance(f) => {
+                f.state = Vector2::new(values[0], values[1]);
+                2
+            }
+            ForceControl::Impedance { .. } => 0,
         }
     }
 

@@ -4,8 +4,9 @@
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::metrics::Metrics;
-use crate::simulation::{Outcome, ScenarioConfig, Simulation, Trace};
+use crate::sim::metrics::Metrics;
+use crate::sim::simulation::{Outcome, ScenarioConfig, Simulation};
+use crate::sim::trace::Trace;
 
 /// What a batch keeps of one run.
 #[derive(Debug, Clone, PartialEq)]
@@ -74,7 +75,7 @@ fn thread_pool(threads: usize) -> Result<rayon::ThreadPool> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::environment::WallParams;
+    use crate::world::environment::WallParams;
 
     fn configs() -> Vec<ScenarioConfig> {
         [1e4, 3e4, 1e5, 2e5]
@@ -94,7 +95,10 @@ mod tests {
     fn bits(runs: &[RunSummary]) -> Vec<u64> {
         runs.iter()
             .flat_map(|r| {
-                let trace = r.trace.iter().flat_map(|t| t.columns.iter().flatten());
+                let trace = r
+                    .trace
+                    .iter()
+                    .flat_map(|t| t.columns().into_iter().flatten());
                 r.metrics
                     .values()
                     .into_iter()
@@ -120,7 +124,7 @@ mod tests {
         let tail = run_batch(&c[2..], Some(2), true).unwrap();
         assert!(bits(&one[2..]) == bits(&tail), "chunking changed results");
         for (cfg, s) in c.iter().zip(&one) {
-            let alone = crate::simulation::simulate(cfg).unwrap();
+            let alone = crate::sim::simulation::simulate(cfg).unwrap();
             assert!(s.trace.as_ref() == Some(&alone.trace));
         }
     }

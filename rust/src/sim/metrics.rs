@@ -1,8 +1,11 @@
 //! Per-run metrics (SPEC §7). Step metrics also come in python-control's `step_info`
 //! convention (`rise_time_10_90`, `peak_time`; `settling_time` is its 2 % `SettlingTime`).
 
-use crate::reference::Signal;
-use crate::simulation::{col, Outcome, ScenarioConfig, Trace};
+use crate::control::reference::Signal;
+use crate::control::task::TaskFrame;
+use crate::robot::TaskVector;
+use crate::sim::simulation::{Outcome, ScenarioConfig};
+use crate::sim::trace::Trace;
 
 /// The steady-state window: the last 2 s.
 pub const STEADY_STATE_WINDOW: f64 = 2.0;
@@ -38,11 +41,13 @@ pub struct Metrics {
     pub x_rms_error: f64,
     /// Fraction of samples with f = 0 for t ≥ 1 s.
     pub contact_loss: f64,
+    /// Fraction of samples with any joint's applied torque at its limit (0 without limits).
+    pub torque_saturation: f64,
     pub stable: bool,
 }
 
 /// Metric names in the order of `Metrics::values`.
-pub const METRIC_NAMES: [&str; 11] = [
+pub const METRIC_NAMES: [&str; 12] = [
     "force_ss_error",
     "force_rms_error",
     "force_peak",
@@ -54,6 +59,7 @@ pub const METRIC_NAMES: [&str; 11] = [
     "z_rms_error",
     "x_rms_error",
     "contact_loss",
+    "torque_saturation",
 ];
 
 impl Metrics {
@@ -70,13 +76,20 @@ impl Metrics {
             self.z_rms_error,
             self.x_rms_error,
             self.contact_loss,
+            self.torque_saturation,
         ]
     }
 
-    pub fn compute(trace: &Trace, config: &ScenarioConfig, outcome: &Outcome) -> Self {
-        let c = &trace.columns;
-        let (t, f, f_d) = (&c[col::T], &c[col::F], &c[col::F_D]);
-        let stable = outcome.is_stable();
+    /// The metrics of a run from its trace; `frame` gives the directions x (along n) and z
+    /// (along t̂) are measured in.
+    pub fn compute(
+        trace: &Trace,
+        config: &ScenarioConfig,
+        outcome: &Outcome,
+        frame: &TaskFrame,
+    ) -> Self {
+        let (t, f, f_d) = (&trace.t, &trace.f, &trace.f_d);
+        let stable = !outcome.is_diverged();
         let force_control = config.admittance.is_some();
         let nan = f64::NAN;
         let mut m = Metrics {
@@ -91,13 +104,20 @@ impl Metrics {
             z_rms_error: nan,
             x_rms_error: nan,
             contact_loss: nan,
+            torque_saturation: torque_saturation(trace, config),
             stable,
         };
         if !stable || trace.is_empty() {
             return m;
         }
-        m.z_rms_error = rms_difference(&c[col::Z_REF], &c[col::Z]);
-        m.x_rms_error = rms_difference(&c[col::X_REF], &c[col::X]);
+        // Tracking errors along t̂ (z for the paper's wall) and along n (x).
+        let error = |i: usize| {
+            TaskVector::new(trace.x_ref[i], trace.y_ref[i], trace.z_ref[i])
+                - TaskVector::new(trace.x[i], trace.y[i], trace.z[i])
+        };
+        let n = trace.len();
+        m.z_rms_error = rms((0..n).map(|i| frame.along_tangent(&error(i))), n);
+        m.x_rms_error = rms((0..n).map(|i| frame.along_normal(&error(i))), n);
         if !force_control {
             return m;
         }
@@ -143,6 +163,31 @@ fn max(v: &[f64]) -> f64 {
 
 fn mean_difference(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x - y).sum::<f64>() / a.len() as f64
+}
+
+fn rms(v: impl Iterator<Item = f64>, n: usize) -> f64 {
+    (v.map(|x| x * x).sum::<f64>() / n as f64).sqrt()
+}
+
+/// Fraction of samples where some joint's applied torque sits at its limit.
+fn torque_saturation(trace: &Trace, config: &ScenarioConfig) -> f64 {
+    let Some(limits) = &config.actuator.torque_limit else {
+        return 0.0;
+    };
+    if trace.is_empty() {
+        return f64::NAN;
+    }
+    let limit = |j: usize| {
+        if limits.len() == 1 {
+            limits[0]
+        } else {
+            limits[j]
+        }
+    };
+    let saturated = (0..trace.len())
+        .filter(|&i| (0..trace.joints()).any(|j| trace.tau[j][i].abs() >= limit(j)))
+        .count();
+    saturated as f64 / trace.len() as f64
 }
 
 fn rms_difference(a: &[f64], b: &[f64]) -> f64 {

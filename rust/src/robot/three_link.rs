@@ -1,4 +1,4 @@
-//! Robot dynamics: the three-link arm of Table 1 (SPEC §1).
+//! The three-link arm of Table 1 (SPEC §1), in closed form.
 //!
 //! q1 is a yaw about +z at the origin; q2 and q3 are pitches (positive raises the link).
 //! Link 1 lies on the yaw axis, so it adds nothing to D, C or G. The closed forms below come
@@ -6,10 +6,14 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+use super::{JointVector, RobotModel, TaskVector};
 use crate::error::{check, Error, Result};
 
 pub type Vec3 = Vector3<f64>;
 pub type Mat3 = Matrix3<f64>;
+/// The arm's kinematics and dynamics: the generic structs at three joints.
+pub type Kinematics = super::Kinematics<3>;
+pub type Dynamics = super::Dynamics<3>;
 
 /// How link mass is distributed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -107,36 +111,6 @@ impl RobotParams {
 /// Below this `jacobian_conditioning` the Jacobian is treated as singular.
 pub const SINGULARITY_TOLERANCE: f64 = 1e-6;
 
-/// Tip position, Jacobian and the velocity-product acceleration J̇q̇ at one state.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Kinematics {
-    pub position: Vec3,
-    pub jacobian: Mat3,
-    pub jdot_qd: Vec3,
-}
-
-/// D(q), C(q, q̇) and G(q) of eq. (1).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Dynamics {
-    pub inertia: Mat3,
-    pub coriolis: Vec3,
-    pub gravity: Vec3,
-}
-
-/// What controllers and the plant integrator need from an arm. A general serial chain
-/// (SPEC §10) will implement the same interface.
-pub trait RobotModel: Send + Sync {
-    fn kinematics(&self, q: &Vec3, qd: &Vec3) -> Kinematics;
-    fn dynamics(&self, q: &Vec3, qd: &Vec3) -> Dynamics;
-    /// Joint friction τ_f(q̇).
-    fn friction(&self, qd: &Vec3) -> Vec3;
-    /// Tip position only (cheaper than `kinematics`).
-    fn forward_kinematics(&self, q: &Vec3) -> Vec3;
-    /// Joint accelerations of eq. (1): D q̈ = τ + Jᵀ F_tip − C − G − τ_f,
-    /// with `tip_force` the Cartesian force the environment applies to the tip.
-    fn forward_dynamics(&self, q: &Vec3, qd: &Vec3, tau: &Vec3, tip_force: &Vec3) -> Vec3;
-}
-
 /// Sines and cosines of one configuration, computed once and shared by every term.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Trig {
@@ -210,6 +184,8 @@ impl Trig {
 /// transverse inertias i2, i3 depend on the mass model).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ThreeLinkArm {
+    /// The parameters it was built from (model-error copies start from them).
+    params: RobotParams,
     l1: f64,
     l2: f64,
     l3: f64,
@@ -287,6 +263,7 @@ impl ThreeLinkArm {
             MassModel::Point => (l2, l3, 0.0, 0.0),
         };
         let mut arm = Self {
+            params: p.clone(),
             l1,
             l2,
             l3,
@@ -397,12 +374,6 @@ impl ThreeLinkArm {
         }
     }
 
-    /// Kinematics from an already evaluated `Trig` (the plant keeps its state's).
-    #[inline]
-    pub fn kinematics_at(&self, t: &Trig, qd: &Vec3) -> Kinematics {
-        self.kinematics_from(t, qd)
-    }
-
     /// Kinematics and dynamics together, sharing one trigonometric evaluation.
     #[inline]
     pub fn evaluate(&self, q: &Vec3, qd: &Vec3) -> (Kinematics, Dynamics) {
@@ -410,33 +381,38 @@ impl ThreeLinkArm {
         (self.kinematics_from(&t, qd), self.dynamics_from(&t, qd))
     }
 
-    /// Joint accelerations with the wall's contact force evaluated at the same state:
-    /// eq. (1) with τ_ext = Jᵀ[−f, 0, 0], f = `contact(x)`. Returns (q̈, f).
+    /// Joint accelerations with the environment's force evaluated at the same state:
+    /// eq. (1) with τ_ext = Jᵀ(−f n), f = `contact(X, Ẋ)`. Returns (q̈, f).
     #[inline(always)]
-    pub fn accelerate(
-        &self,
-        q: &Vec3,
-        qd: &Vec3,
-        tau: &Vec3,
-        contact: impl Fn(f64) -> f64,
-    ) -> (Vec3, f64) {
-        self.accelerate_at(&Trig::new(q), qd, tau, contact)
-    }
-
-    #[inline(always)]
-    pub fn accelerate_at(
+    fn accelerate_at(
         &self,
         t: &Trig,
         qd: &Vec3,
         tau: &Vec3,
-        contact: impl Fn(f64) -> f64,
+        contact: &impl Fn(&TaskVector, &TaskVector) -> f64,
+        normal: &TaskVector,
+        needs_velocity: bool,
     ) -> (Vec3, f64) {
         let t = *t;
         let r = self.l2 * t.c2 + self.l3 * t.c23;
-        let f = contact(t.c1 * r);
-        // First row of J, times −f: the wall pushes the tip towards −x.
         let h = self.l2 * t.s2 + self.l3 * t.s23;
-        let contact_torque = Vec3::new(t.s1 * r, t.c1 * h, t.c1 * self.l3 * t.s23) * f;
+        let position = Vec3::new(t.c1 * r, t.s1 * r, self.l1 + h);
+        let l3s23 = self.l3 * t.s23;
+        // Jᵀ n, from J's entries (see `kinematics_from`); J's third row has a 0 in column 1.
+        let (n0, n1, n2) = (normal[0], normal[1], normal[2]);
+        let jt_n = Vec3::new(
+            -t.s1 * r * n0 + t.c1 * r * n1,
+            -t.c1 * h * n0 - t.s1 * h * n1 + r * n2,
+            -t.c1 * l3s23 * n0 - t.s1 * l3s23 * n1 + self.l3 * t.c23 * n2,
+        );
+        let velocity = if needs_velocity {
+            self.kinematics_from(&t, qd).jacobian * qd
+        } else {
+            Vec3::zeros()
+        };
+        let f = contact(&position, &velocity);
+        // The wall pushes the tip along −n.
+        let contact_torque = jt_n * -f;
         let d = self.dynamics_from(&t, qd);
         // q̈ = D⁻¹ (rest − τ_c), with τ_c the Coulomb friction and rest everything else. The
         // longest dependency chain of an RK4 stage runs q̇ → exp → τ_c → q̈ → next stage's q̇,
@@ -504,13 +480,37 @@ fn solve_block_inertia(d: &Mat3, rhs: &Vec3) -> Vec3 {
     )
 }
 
-impl RobotModel for ThreeLinkArm {
-    fn kinematics(&self, q: &Vec3, qd: &Vec3) -> Kinematics {
-        self.kinematics_from(&Trig::new(q), qd)
+impl RobotModel<3> for ThreeLinkArm {
+    type Config = Trig;
+
+    #[inline(always)]
+    fn configure(&self, q: &Vec3) -> Trig {
+        Trig::new(q)
     }
 
-    fn dynamics(&self, q: &Vec3, qd: &Vec3) -> Dynamics {
-        self.dynamics_from(&Trig::new(q), qd)
+    #[inline(always)]
+    fn configure_shifted(&self, at_q: &Trig, delta: &Vec3, shifted: &Vec3) -> Trig {
+        at_q.shifted(delta, shifted)
+    }
+
+    #[inline]
+    fn tip_position(&self, t: &Trig) -> Vec3 {
+        let r = self.l2 * t.c2 + self.l3 * t.c23;
+        Vec3::new(
+            t.c1 * r,
+            t.s1 * r,
+            self.l1 + self.l2 * t.s2 + self.l3 * t.s23,
+        )
+    }
+
+    #[inline]
+    fn kinematics(&self, t: &Trig, qd: &Vec3) -> Kinematics {
+        self.kinematics_from(t, qd)
+    }
+
+    #[inline]
+    fn dynamics(&self, t: &Trig, qd: &Vec3) -> Dynamics {
+        self.dynamics_from(t, qd)
     }
 
     fn friction(&self, qd: &Vec3) -> Vec3 {
@@ -521,21 +521,49 @@ impl RobotModel for ThreeLinkArm {
         )
     }
 
-    fn forward_kinematics(&self, q: &Vec3) -> Vec3 {
-        let t = Trig::new(q);
-        let r = self.l2 * t.c2 + self.l3 * t.c23;
-        Vec3::new(
-            t.c1 * r,
-            t.s1 * r,
-            self.l1 + self.l2 * t.s2 + self.l3 * t.s23,
-        )
-    }
-
-    fn forward_dynamics(&self, q: &Vec3, qd: &Vec3, tau: &Vec3, tip_force: &Vec3) -> Vec3 {
-        let (k, d) = self.evaluate(q, qd);
+    fn forward_dynamics(&self, t: &Trig, qd: &Vec3, tau: &Vec3, tip_force: &Vec3) -> Vec3 {
+        let (k, d) = (self.kinematics_from(t, qd), self.dynamics_from(t, qd));
         let rhs =
             tau + k.jacobian.transpose() * tip_force - d.coriolis - d.gravity - self.friction(qd);
         solve_block_inertia(&d.inertia, &rhs)
+    }
+
+    #[inline(always)]
+    fn accelerate(
+        &self,
+        t: &Trig,
+        qd: &JointVector<3>,
+        tau: &JointVector<3>,
+        contact: &impl Fn(&TaskVector, &TaskVector) -> f64,
+        normal: &TaskVector,
+        needs_velocity: bool,
+    ) -> (JointVector<3>, f64) {
+        self.accelerate_at(t, qd, tau, contact, normal, needs_velocity)
+    }
+
+    fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {
+        ThreeLinkArm::new(&self.params.with_model_error(mass_scale, friction_scale))
+    }
+
+    fn initial_position(&self) -> Vec3 {
+        Vec3::from(self.params.q0)
+    }
+}
+
+/// Conveniences that evaluate the trigonometry themselves (tests, the Python layer).
+impl ThreeLinkArm {
+    pub fn params(&self) -> &RobotParams {
+        &self.params
+    }
+
+    /// Tip position at q.
+    pub fn forward_kinematics(&self, q: &Vec3) -> Vec3 {
+        self.tip_position(&Trig::new(q))
+    }
+
+    /// q̈ of eq. (1) at (q, q̇) with a Cartesian tip force.
+    pub fn forward_dynamics_at(&self, q: &Vec3, qd: &Vec3, tau: &Vec3, tip_force: &Vec3) -> Vec3 {
+        self.forward_dynamics(&Trig::new(q), qd, tau, tip_force)
     }
 }
 
@@ -556,14 +584,14 @@ mod tests {
     #[test]
     fn spec_check_values_at_q0() {
         let (_, arm) = arm();
-        let k = arm.kinematics(&q0(), &Vec3::zeros());
+        let k = arm.kinematics(&Trig::new(&q0()), &Vec3::zeros());
         assert!(
             (k.position - Vec3::new(0.734056, 0.0, 0.964056))
                 .abs()
                 .max()
                 < 5e-7
         );
-        let d = arm.dynamics(&q0(), &Vec3::zeros());
+        let d = arm.dynamics(&Trig::new(&q0()), &Vec3::zeros());
         let expected = Mat3::new(1.903, 0.0, 0.0, 0.0, 2.883, 0.610, 0.0, 0.610, 0.296);
         assert!((d.inertia - expected).abs().max() < 5e-4, "{}", d.inertia);
         assert!((d.gravity - Vec3::new(0.0, 50.39, 10.12)).abs().max() < 5e-3);
@@ -574,7 +602,7 @@ mod tests {
         let (_, arm) = arm();
         let q = Vec3::new(0.3, 0.7, -1.1);
         let qd = Vec3::new(0.4, -0.9, 1.3);
-        let k = arm.kinematics(&q, &qd);
+        let k = arm.kinematics(&Trig::new(&q), &qd);
         let h = 1e-6;
         for j in 0..3 {
             let mut dq = Vec3::zeros();
@@ -584,7 +612,7 @@ mod tests {
             assert!((col - k.jacobian.column(j)).abs().max() < 1e-8);
         }
         // J̇q̇ = d/dt (J q̇) along q(t) = q + q̇ t with q̇ constant.
-        let jqd = |t: f64| arm.kinematics(&(q + qd * t), &qd).jacobian * qd;
+        let jqd = |t: f64| arm.kinematics(&Trig::new(&(q + qd * t)), &qd).jacobian * qd;
         let fd = (jqd(h) - jqd(-h)) / (2.0 * h);
         assert!((fd - k.jdot_qd).abs().max() < 1e-7);
     }
@@ -593,7 +621,7 @@ mod tests {
     fn jacobian_determinant_closed_form() {
         let (p, arm) = arm();
         let q = Vec3::new(0.2, 0.5, -0.8);
-        let k = arm.kinematics(&q, &Vec3::zeros());
+        let k = arm.kinematics(&Trig::new(&q), &Vec3::zeros());
         let r = p.lengths[1] * q[1].cos() + p.lengths[2] * (q[1] + q[2]).cos();
         let det = -r * p.lengths[1] * p.lengths[2] * q[2].sin();
         assert!((k.jacobian.determinant() - det).abs() < 1e-12);
@@ -613,9 +641,9 @@ mod tests {
             let arm = ThreeLinkArm::new(&p);
             let q = Vec3::new(0.3, 0.6, -0.9);
             let qd = Vec3::new(1.1, -0.7, 0.5);
-            let qdd = arm.forward_dynamics(&q, &qd, &Vec3::zeros(), &Vec3::zeros());
+            let qdd = arm.forward_dynamics_at(&q, &qd, &Vec3::zeros(), &Vec3::zeros());
             let energy = |q: &Vec3, qd: &Vec3| {
-                let d = arm.dynamics(q, qd);
+                let d = arm.dynamics(&Trig::new(q), qd);
                 let (a2, a3) = match model {
                     MassModel::Rod => (p.lengths[1] / 2.0, p.lengths[2] / 2.0),
                     MassModel::Point => (p.lengths[1], p.lengths[2]),
@@ -638,11 +666,16 @@ mod tests {
         let q = Vec3::new(0.1, 0.7, -0.6);
         let qd = Vec3::new(0.2, 0.3, -0.4);
         let tau = Vec3::new(1.0, 40.0, 9.0);
-        let (qdd, f) = arm.accelerate(&q, &qd, &tau, |x| 1000.0 * x);
-        let x = arm.forward_kinematics(&q)[0];
-        assert_eq!(f, 1000.0 * x);
-        let reference = arm.forward_dynamics(&q, &qd, &tau, &Vec3::new(-f, 0.0, 0.0));
+        let n = Vec3::new(0.6, 0.0, 0.8);
+        let contact = |p: &Vec3, v: &Vec3| 1000.0 * n.dot(p) + 20.0 * n.dot(v);
+        let (qdd, f) = arm.accelerate(&Trig::new(&q), &qd, &tau, &contact, &n, true);
+        let k = arm.kinematics(&Trig::new(&q), &qd);
+        assert_eq!(f, contact(&k.position, &(k.jacobian * qd)));
+        let reference = arm.forward_dynamics_at(&q, &qd, &tau, &(n * -f));
         assert!((qdd - reference).abs().max() < 1e-12);
+        // Without the velocity the contact sees Ẋ = 0.
+        let (_, f0) = arm.accelerate(&Trig::new(&q), &qd, &tau, &contact, &n, false);
+        assert_eq!(f0, 1000.0 * n.dot(&k.position));
     }
 
     /// Angle addition agrees with a fresh evaluation to rounding, over the whole range
@@ -723,10 +756,11 @@ mod tests {
     #[test]
     fn model_error_scales_inertia_and_friction() {
         let (p, arm) = arm();
-        let wrong = ThreeLinkArm::new(&p.with_model_error(1.2, 0.5));
+        let wrong = arm.with_model_error(1.2, 0.5);
+        assert_eq!(wrong, ThreeLinkArm::new(&p.with_model_error(1.2, 0.5)));
         let (d, dw) = (
-            arm.dynamics(&q0(), &Vec3::zeros()),
-            wrong.dynamics(&q0(), &Vec3::zeros()),
+            arm.dynamics(&Trig::new(&q0()), &Vec3::zeros()),
+            wrong.dynamics(&Trig::new(&q0()), &Vec3::zeros()),
         );
         assert!((dw.inertia - d.inertia * 1.2).abs().max() < 1e-12);
         let qd = Vec3::new(1.0, -1.0, 0.5);

@@ -2,8 +2,11 @@
 //! delay estimate) and time-delayed control (eqs. 17 and 18), all driven by the Cartesian
 //! command V of eq. (39). Each is a state machine with `reset()` and `step()`.
 
+use nalgebra::{Matrix3, Vector3};
+
+use crate::control::task::Desired;
 use crate::error::{check, Result};
-use crate::robot::{Kinematics, Mat3, RobotModel, RobotParams, ThreeLinkArm, Vec3};
+use crate::robot::{Jacobian, JointVector, Kinematics, RobotModel, TaskVector};
 
 /// Gains of eq. (39): V = K_A⁻¹ (Ẍ_d + K_D (Ẋ_d − Ẋ) + K_P (X_d − X)), each a scalar times I.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -37,7 +40,12 @@ impl PositionGains {
 
     /// eq. (39)
     #[inline]
-    pub fn command(&self, desired: &Desired, position: &Vec3, velocity: &Vec3) -> Vec3 {
+    pub fn command(
+        &self,
+        desired: &Desired,
+        position: &TaskVector,
+        velocity: &TaskVector,
+    ) -> TaskVector {
         let feedback =
             (desired.velocity - velocity) * self.kd + (desired.position - position) * self.kp;
         if self.scale_feedforward {
@@ -72,8 +80,9 @@ impl ModelError {
         check::non_negative("friction_scale", self.friction_scale)
     }
 
-    fn arm(&self, robot: &RobotParams) -> ThreeLinkArm {
-        ThreeLinkArm::new(&robot.with_model_error(self.mass_scale, self.friction_scale))
+    /// The controller's copy of the plant's arm.
+    fn arm<R: RobotModel<N>, const N: usize>(&self, robot: &R) -> R {
+        robot.with_model_error(self.mass_scale, self.friction_scale)
     }
 }
 
@@ -184,23 +193,17 @@ impl ControllerParams {
     }
 }
 
-/// Desired tip position, velocity and acceleration at one sample.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Desired {
-    pub position: Vec3,
-    pub velocity: Vec3,
-    pub acceleration: Vec3,
-}
-
 /// What the controller measures at t_k. The kinematics are evaluated once by the
 /// simulation: the controller's model shares the plant's geometry.
 #[derive(Debug, Clone, Copy)]
-pub struct Measurement<'a> {
-    pub q: &'a Vec3,
-    pub qd: &'a Vec3,
-    pub kinematics: &'a Kinematics,
-    /// Contact force along x [N].
+pub struct Measurement<'a, const N: usize> {
+    pub q: &'a JointVector<N>,
+    pub qd: &'a JointVector<N>,
+    pub kinematics: &'a Kinematics<N>,
+    /// Contact force along the wall normal, as the sensor reads it [N].
     pub force: f64,
+    /// The wall normal n (the force direction).
+    pub normal: &'a TaskVector,
 }
 
 /// Why a control law could not produce a torque.
@@ -213,37 +216,52 @@ pub enum ControlFailure {
 /// Jacobian counts as singular: J⁻¹ would amplify rounding beyond any use.
 const SINGULAR_RATIO: f64 = 1e-9;
 
+/// Joint accelerations for a task acceleration: J⁻¹ rhs (eqs. 7 and 17). Defined for a
+/// square Jacobian (three joints, position task); a chain of another size needs the damped
+/// pseudo-inverse of SPEC §11, which arrives with those arms.
 #[inline]
-fn solve_jacobian(j: &Mat3, rhs: &Vec3) -> std::result::Result<Vec3, ControlFailure> {
+fn solve_jacobian<const N: usize>(
+    j: &Jacobian<N>,
+    rhs: &TaskVector,
+) -> std::result::Result<JointVector<N>, ControlFailure> {
+    if N != 3 {
+        return Err(ControlFailure::SingularJacobian);
+    }
+    let j: Matrix3<f64> = j.fixed_view::<3, 3>(0, 0).into_owned();
     let bound = j.column(0).norm() * j.column(1).norm() * j.column(2).norm();
     let det = j.determinant().abs();
     if det.is_nan() || det <= SINGULAR_RATIO * bound {
         return Err(ControlFailure::SingularJacobian);
     }
-    j.try_inverse()
+    let x: Vector3<f64> = j
+        .try_inverse()
         .map(|inv| inv * rhs)
-        .ok_or(ControlFailure::SingularJacobian)
+        .ok_or(ControlFailure::SingularJacobian)?;
+    Ok(JointVector::<N>::from_fn(|i, _| x[i]))
 }
 
-/// A position controller as a state machine.
+/// A position controller as a state machine over an arm model `R` of `N` joints.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Controller {
+pub enum Controller<R, const N: usize> {
     ComputedTorque {
         params: ComputedTorqueParams,
-        model: ThreeLinkArm,
+        model: R,
     },
     ModelFree(ModelFreeParams),
     TimeDelay {
         params: TimeDelayParams,
         period: f64,
-        initial_torque: Vec3,
-        tau_prev: Vec3,
-        qd_prev: Option<Vec3>,
+        initial_torque: JointVector<N>,
+        /// τ_{k−1}: the torque *applied* in the previous period (anti-windup, SPEC §10).
+        tau_prev: JointVector<N>,
+        /// q̇_{k−1}; `None` before the first sample.
+        qd_prev: Option<JointVector<N>>,
     },
 }
 
-impl Controller {
-    pub fn new(params: &ControllerParams, robot: &RobotParams, period: f64) -> Self {
+impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
+    /// The controller for the plant's arm `robot`.
+    pub fn new(params: &ControllerParams, robot: &R, period: f64) -> Self {
         match params {
             ControllerParams::ComputedTorque(p) => Controller::ComputedTorque {
                 params: *p,
@@ -251,8 +269,11 @@ impl Controller {
             },
             ControllerParams::ModelFree(p) => Controller::ModelFree(*p),
             ControllerParams::TimeDelay(p) => {
-                let q0 = Vec3::from(robot.q0);
-                let g0 = p.model.arm(robot).dynamics(&q0, &Vec3::zeros()).gravity;
+                let model = p.model.arm(robot);
+                let q0 = model.initial_position();
+                let g0 = model
+                    .dynamics(&model.configure(&q0), &JointVector::zeros())
+                    .gravity;
                 Controller::TimeDelay {
                     params: *p,
                     period,
@@ -285,13 +306,13 @@ impl Controller {
         }
     }
 
-    /// The joint torque τ_k for the measurement at t_k.
+    /// The commanded joint torque τ_k for the measurement at t_k.
     #[inline]
     pub fn step(
         &mut self,
-        m: &Measurement,
+        m: &Measurement<N>,
         desired: &Desired,
-    ) -> std::result::Result<Vec3, ControlFailure> {
+    ) -> std::result::Result<JointVector<N>, ControlFailure> {
         let k = m.kinematics;
         let velocity = k.jacobian * m.qd;
         let v = self.gains().command(desired, &k.position, &velocity);
@@ -299,11 +320,11 @@ impl Controller {
             Controller::ComputedTorque { params, model } => {
                 // eq. (7) mapped to joint space with eq. (4).
                 let qdd = solve_jacobian(&k.jacobian, &(v - k.jdot_qd))?;
-                let d = model.dynamics(m.q, m.qd);
+                let d = model.dynamics(&model.configure(m.q), m.qd);
                 let mut tau = d.inertia * qdd + d.coriolis + d.gravity + model.friction(m.qd);
                 if params.contact_compensation {
-                    // The plant feels Jᵀ[−f, 0, 0]; add it back.
-                    tau += k.jacobian.row(0).transpose() * m.force;
+                    // The plant feels Jᵀ(−f n); add it back.
+                    tau += k.jacobian.transpose() * m.normal * m.force;
                 }
                 Ok(tau)
             }
@@ -318,7 +339,7 @@ impl Controller {
                 ..
             } => {
                 // eq. (14): ĥ ≈ τ_{k−1} − D̄ q̈_{k−1}, with q̈_{k−1} = (q̇_k − q̇_{k−1})/T, q̈_{−1} = 0.
-                let qdd_prev = qd_prev.map_or_else(Vec3::zeros, |p| (m.qd - p) / *period);
+                let qdd_prev = qd_prev.map_or_else(JointVector::zeros, |p| (m.qd - p) / *period);
                 let h_hat = *tau_prev - qdd_prev * params.inertia;
                 let u = match params.law {
                     TdcLaw::JacobianTranspose => {
@@ -335,18 +356,77 @@ impl Controller {
             }
         }
     }
+
+    /// Tells the controller the torque the actuator applied for its last command: TDC's
+    /// τ_{k−1} is the applied torque (identical to the command when nothing limits it).
+    #[inline]
+    pub fn applied(&mut self, tau: &JointVector<N>) {
+        if let Controller::TimeDelay { tau_prev, .. } = self {
+            *tau_prev = *tau;
+        }
+    }
+
+    /// Labels of the controller's memory, in the order of `state`.
+    pub fn state_labels(&self) -> Vec<String> {
+        match self {
+            Controller::TimeDelay { .. } => (1..=N)
+                .map(|j| format!("controller.tau_prev{j}"))
+                .chain((1..=N).map(|j| format!("controller.qd_prev{j}")))
+                .collect(),
+            _ => Vec::new(),
+        }
+    }
+
+    pub fn state(&self, out: &mut Vec<f64>) {
+        if let Controller::TimeDelay {
+            tau_prev, qd_prev, ..
+        } = self
+        {
+            out.extend_from_slice(tau_prev.as_slice());
+            out.extend_from_slice(qd_prev.unwrap_or_else(JointVector::zeros).as_slice());
+        }
+    }
+
+    /// Reads the memory written by `state`. `started`: whether a sample has been taken (so
+    /// q̇_{k−1} exists). Returns the number of values used.
+    pub fn set_state(&mut self, values: &[f64], started: bool) -> usize {
+        if let Controller::TimeDelay {
+            tau_prev, qd_prev, ..
+        } = self
+        {
+            *tau_prev = JointVector::<N>::from_column_slice(&values[..N]);
+            let qd = JointVector::<N>::from_column_slice(&values[N..2 * N]);
+            *qd_prev = started.then_some(qd);
+        }
+        self.state_len()
+    }
+
+    pub fn state_len(&self) -> usize {
+        match self {
+            Controller::TimeDelay { .. } => 2 * N,
+            _ => 0,
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::robot::RobotModel;
+    use crate::robot::three_link::{Kinematics, Vec3};
+    use crate::robot::{RobotParams, ThreeLinkArm};
 
-    fn at_q0() -> (RobotParams, Vec3, Kinematics) {
-        let r = RobotParams::default();
-        let q = Vec3::from(r.q0);
-        let k = ThreeLinkArm::new(&r).kinematics(&q, &Vec3::zeros());
-        (r, q, k)
+    type Ctl = Controller<ThreeLinkArm, 3>;
+    const X: TaskVector = TaskVector::new(1.0, 0.0, 0.0);
+
+    fn at_q0() -> (ThreeLinkArm, Vec3, Kinematics) {
+        let arm = ThreeLinkArm::new(&RobotParams::default());
+        let q = arm.initial_position();
+        let k = arm.kinematics(&arm.configure(&q), &Vec3::zeros());
+        (arm, q, k)
+    }
+
+    fn gravity(arm: &ThreeLinkArm, q: &Vec3) -> Vec3 {
+        arm.dynamics(&arm.configure(q), &Vec3::zeros()).gravity
     }
 
     #[test]
@@ -370,7 +450,7 @@ mod tests {
     #[test]
     fn computed_torque_holds_still_with_gravity_compensation() {
         let (r, q, k) = at_q0();
-        let mut c = Controller::new(
+        let mut c = Ctl::new(
             &ControllerParams::ComputedTorque(ComputedTorqueParams::default()),
             &r,
             1e-3,
@@ -380,20 +460,20 @@ mod tests {
             qd: &Vec3::zeros(),
             kinematics: &k,
             force: 0.0,
+            normal: &X,
         };
         let d = Desired {
             position: k.position,
             ..Desired::default()
         };
         let tau = c.step(&m, &d).unwrap();
-        let g = ThreeLinkArm::new(&r).dynamics(&q, &Vec3::zeros()).gravity;
-        assert!((tau - g).abs().max() < 1e-12);
+        assert!((tau - gravity(&r, &q)).abs().max() < 1e-12);
     }
 
     #[test]
     fn tdc_first_step_is_gravity_plus_transpose_term() {
         let (r, q, k) = at_q0();
-        let mut c = Controller::new(
+        let mut c = Ctl::new(
             &ControllerParams::TimeDelay(TimeDelayParams::default()),
             &r,
             1e-3,
@@ -408,9 +488,10 @@ mod tests {
             qd: &qd,
             kinematics: &k,
             force: 0.0,
+            normal: &X,
         };
         let tau0 = c.step(&m, &d).unwrap();
-        let g = ThreeLinkArm::new(&r).dynamics(&q, &qd).gravity;
+        let g = gravity(&r, &q);
         // V = 100·0.01/5 = 0.2 along x; D̄ K_t = 20.
         let expected = g + k.jacobian.transpose() * Vec3::new(0.2, 0.0, 0.0) * 20.0;
         assert!((tau0 - expected).abs().max() < 1e-12);
@@ -427,10 +508,10 @@ mod tests {
 
     #[test]
     fn singular_jacobian_is_reported() {
-        let r = RobotParams::default();
+        let r = ThreeLinkArm::new(&RobotParams::default());
         let q = Vec3::new(0.0, 0.3, 0.0);
-        let k = ThreeLinkArm::new(&r).kinematics(&q, &Vec3::zeros());
-        let mut c = Controller::new(
+        let k = r.kinematics(&r.configure(&q), &Vec3::zeros());
+        let mut c = Ctl::new(
             &ControllerParams::ComputedTorque(ComputedTorqueParams::default()),
             &r,
             1e-3,
@@ -440,10 +521,46 @@ mod tests {
             qd: &Vec3::zeros(),
             kinematics: &k,
             force: 0.0,
+            normal: &X,
         };
         assert_eq!(
             c.step(&m, &Desired::default()),
             Err(ControlFailure::SingularJacobian)
         );
+    }
+
+    /// TDC's τ_{k−1} is the torque the actuator applied, not the one commanded.
+    #[test]
+    fn tdc_remembers_the_applied_torque() {
+        let (r, q, k) = at_q0();
+        let mut c = Ctl::new(
+            &ControllerParams::TimeDelay(TimeDelayParams::default()),
+            &r,
+            1e-3,
+        );
+        let d = Desired {
+            position: k.position + Vec3::new(0.01, 0.0, 0.0),
+            ..Desired::default()
+        };
+        let m = Measurement {
+            q: &q,
+            qd: &Vec3::zeros(),
+            kinematics: &k,
+            force: 0.0,
+            normal: &X,
+        };
+        let tau0 = c.step(&m, &d).unwrap();
+        let applied = tau0.map(|t| t.clamp(-20.0, 20.0));
+        c.applied(&applied);
+        let mut state = Vec::new();
+        c.state(&mut state);
+        assert_eq!(&state[..3], applied.as_slice());
+        // Same measurement again: u is unchanged, ĥ = τ_{k−1} − 0 is the applied torque.
+        let tau1 = c.step(&m, &d).unwrap();
+        assert!((tau1 - (tau0 - g_of(&r, &q) + applied)).abs().max() < 1e-12);
+    }
+
+    fn g_of(arm: &ThreeLinkArm, q: &Vec3) -> Vec3 {
+        gravity(arm, q)
     }
 }

@@ -1,8 +1,9 @@
-//! The plant: the arm against the wall, integrated by fixed-step RK4 with substeps while the
-//! control torque is held (zero-order hold, SPEC §6).
+//! The plant: the true arm against the environment, integrated by fixed-step RK4 with
+//! substeps while the applied torque is held (zero-order hold, SPEC §6). The environment's
+//! force is evaluated inside every RK4 stage from that stage's state.
 
-use crate::environment::Wall;
-use crate::robot::{Kinematics, ThreeLinkArm, Trig, Vec3};
+use crate::robot::{JointVector, RobotModel, TaskVector};
+use crate::world::environment::Wall;
 
 /// Whether this CPU runs the AVX2 + FMA builds of the step loop (`Plant::advance`,
 /// `Simulation::run`). std caches the answer, so asking costs a load and a branch.
@@ -14,33 +15,34 @@ pub(crate) fn has_avx2_fma() -> bool {
 
 /// Joint positions and velocities.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PlantState {
-    pub q: Vec3,
-    pub qd: Vec3,
+pub struct PlantState<const N: usize> {
+    pub q: JointVector<N>,
+    pub qd: JointVector<N>,
 }
 
 /// The true arm and environment. Owns the state; `advance` moves it one control period.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Plant {
-    arm: ThreeLinkArm,
+pub struct Plant<R: RobotModel<N>, const N: usize> {
+    arm: R,
     wall: Option<Wall>,
     substeps: usize,
     substep: f64,
-    initial: PlantState,
-    state: PlantState,
-    /// Sines and cosines of `state.q`, shared by the measurement and the next period's
-    /// first RK4 stage.
-    trig: Trig,
+    initial: PlantState<N>,
+    state: PlantState<N>,
+    /// The arm's per-configuration values at `state.q`, shared by the measurement and the
+    /// next period's first RK4 stage.
+    config: R::Config,
 }
 
-impl Plant {
+impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
     pub fn new(
-        arm: ThreeLinkArm,
+        arm: R,
         wall: Option<Wall>,
-        initial: PlantState,
+        initial: PlantState<N>,
         period: f64,
         substeps: usize,
     ) -> Self {
+        let config = arm.configure(&initial.q);
         Self {
             arm,
             wall,
@@ -48,7 +50,7 @@ impl Plant {
             substep: period / substeps as f64,
             initial,
             state: initial,
-            trig: Trig::new(&initial.q),
+            config,
         }
     }
 
@@ -56,36 +58,59 @@ impl Plant {
         self.set_state(self.initial);
     }
 
+    pub fn arm(&self) -> &R {
+        &self.arm
+    }
+
+    pub fn wall(&self) -> Option<&Wall> {
+        self.wall.as_ref()
+    }
+
     #[inline]
-    pub fn state(&self) -> &PlantState {
+    pub fn state(&self) -> &PlantState<N> {
         &self.state
     }
 
-    pub fn set_state(&mut self, state: PlantState) {
+    pub fn set_state(&mut self, state: PlantState<N>) {
         self.state = state;
-        self.trig = Trig::new(&state.q);
+        self.config = self.arm.configure(&state.q);
     }
 
     /// Tip position, Jacobian and J̇q̇ at the current state (what the robot's encoders give).
     #[inline]
-    pub fn kinematics(&self) -> Kinematics {
-        self.arm.kinematics_at(&self.trig, &self.state.qd)
+    pub fn kinematics(&self) -> crate::robot::Kinematics<N> {
+        self.arm.kinematics(&self.config, &self.state.qd)
     }
 
+    /// The true contact force along n at tip position `position` and velocity `velocity`.
     #[inline]
-    fn contact(&self, x: f64) -> f64 {
-        self.wall.as_ref().map_or(0.0, |w| w.force(x))
+    pub fn contact_force(&self, position: &TaskVector, velocity: &TaskVector) -> f64 {
+        self.wall
+            .as_ref()
+            .map_or(0.0, |w| w.force(position, velocity))
     }
 
     #[inline(always)]
-    fn acceleration(&self, t: &Trig, qd: &Vec3, tau: &Vec3) -> Vec3 {
-        self.arm.accelerate_at(t, qd, tau, |x| self.contact(x)).0
-    }
-
-    /// The contact force the (ideal) sensor reads at tip x position `x`.
-    #[inline]
-    pub fn force_at(&self, x: f64) -> f64 {
-        self.contact(x)
+    fn acceleration(
+        &self,
+        c: &R::Config,
+        qd: &JointVector<N>,
+        tau: &JointVector<N>,
+    ) -> JointVector<N> {
+        match &self.wall {
+            Some(w) => {
+                let contact = |p: &TaskVector, v: &TaskVector| w.force(p, v);
+                self.arm
+                    .accelerate(c, qd, tau, &contact, &w.normal, w.needs_velocity())
+                    .0
+            }
+            None => {
+                let free = |_: &TaskVector, _: &TaskVector| 0.0;
+                self.arm
+                    .accelerate(c, qd, tau, &free, &TaskVector::x(), false)
+                    .0
+            }
+        }
     }
 
     /// One control period: `substeps` classical RK4 steps with τ held.
@@ -93,7 +118,7 @@ impl Plant {
     /// Dispatched like `Simulation::run` (AVX2 + FMA code when the CPU has them, baseline
     /// x86-64 otherwise; the same bits either way), for callers that step a plant alone.
     #[inline]
-    pub fn advance(&mut self, tau: &Vec3) {
+    pub fn advance(&mut self, tau: &JointVector<N>) {
         #[cfg(target_arch = "x86_64")]
         if has_avx2_fma() {
             // SAFETY: the features `advance_avx2` is compiled for were detected just above.
@@ -104,28 +129,29 @@ impl Plant {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn advance_avx2(&mut self, tau: &Vec3) {
+    unsafe fn advance_avx2(&mut self, tau: &JointVector<N>) {
         self.advance_inlined(tau)
     }
 
-    /// `advance` without the dispatch, for `Simulation::run`, which dispatches its whole
-    /// step loop once and inlines this into it.
+    /// `advance` without the dispatch, for `Simulation`, which dispatches its whole step
+    /// loop once and inlines this into it.
     #[inline(always)]
-    pub(crate) fn advance_inlined(&mut self, tau: &Vec3) {
+    pub(crate) fn advance_inlined(&mut self, tau: &JointVector<N>) {
         let h = self.substep;
         let PlantState { mut q, mut qd } = self.state;
-        let mut t1 = self.trig;
+        let arm = &self.arm;
+        let mut c1 = self.config;
         for _ in 0..self.substeps {
-            let a1 = self.acceleration(&t1, &qd, tau);
+            let a1 = self.acceleration(&c1, &qd, tau);
             let (d2, qd2) = (qd * (h / 2.0), qd + a1 * (h / 2.0));
-            let a2 = self.acceleration(&t1.shifted(&d2, &(q + d2)), &qd2, tau);
+            let a2 = self.acceleration(&arm.configure_shifted(&c1, &d2, &(q + d2)), &qd2, tau);
             let (d3, qd3) = (qd2 * (h / 2.0), qd + a2 * (h / 2.0));
-            let a3 = self.acceleration(&t1.shifted(&d3, &(q + d3)), &qd3, tau);
+            let a3 = self.acceleration(&arm.configure_shifted(&c1, &d3, &(q + d3)), &qd3, tau);
             let (d4, qd4) = (qd3 * h, qd + a3 * h);
-            let a4 = self.acceleration(&t1.shifted(&d4, &(q + d4)), &qd4, tau);
+            let a4 = self.acceleration(&arm.configure_shifted(&c1, &d4, &(q + d4)), &qd4, tau);
             let dq = (qd + (qd2 + qd3) * 2.0 + qd4) * (h / 6.0);
             q += dq;
-            t1 = t1.shifted(&dq, &q);
+            c1 = arm.configure_shifted(&c1, &dq, &q);
             qd += (a1 + (a2 + a3) * 2.0 + a4) * (h / 6.0);
         }
         // A fresh evaluation, so angle-addition rounding never outlives a period.
@@ -136,7 +162,9 @@ impl Plant {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::robot::{RobotModel, RobotParams};
+    use crate::robot::three_link::{Trig, Vec3};
+    use crate::robot::{RobotParams, ThreeLinkArm};
+    use crate::world::environment::{ContactModel, WallParams};
 
     /// RK4 is fourth order: halving the step cuts the error ~16×.
     #[test]
@@ -165,12 +193,15 @@ mod tests {
     }
 
     /// The arm at q0 with the wall 2 mm inside the tip, starting at `qd`.
-    fn pressed_into_wall(qd: Vec3) -> (ThreeLinkArm, Wall, PlantState) {
-        let p = RobotParams::default();
-        let arm = ThreeLinkArm::new(&p);
-        let x0 = arm.forward_kinematics(&Vec3::from(p.q0))[0];
-        let wall = Wall::new(&crate::environment::WallParams::default(), x0 - 0.002);
-        let q = Vec3::from(p.q0);
+    fn pressed_into_wall(qd: Vec3) -> (ThreeLinkArm, Wall, PlantState<3>) {
+        pressed_into(&WallParams::default(), qd)
+    }
+
+    fn pressed_into(p: &WallParams, qd: Vec3) -> (ThreeLinkArm, Wall, PlantState<3>) {
+        let arm = ThreeLinkArm::new(&RobotParams::default());
+        let q = arm.initial_position();
+        let mut wall = Wall::new(p, &arm.forward_kinematics(&q)).unwrap();
+        wall.position -= 0.002;
         (arm, wall, PlantState { q, qd })
     }
 
@@ -189,11 +220,15 @@ mod tests {
         let mut plant = Plant::new(arm.clone(), Some(wall), start, h * 10.0, substeps);
         let (mut q, mut qd) = (start.q, start.qd);
         let mut contact_periods = 0;
-        let f = |q: &Vec3, qd: &Vec3, t: &Vec3| arm.accelerate(q, qd, t, |x| wall.force(x)).0;
+        let contact = |p: &Vec3, v: &Vec3| wall.force(p, v);
+        let f = |q: &Vec3, qd: &Vec3, t: &Vec3| {
+            arm.accelerate(&Trig::new(q), qd, t, &contact, &wall.normal, false)
+                .0
+        };
         for k in 0..1000 {
             let t = tau(k);
             plant.advance(&t);
-            if wall.force(arm.forward_kinematics(&q)[0]) > 0.0 {
+            if wall.force(&arm.forward_kinematics(&q), &Vec3::zeros()) > 0.0 {
                 contact_periods += 1;
             }
             for _ in 0..substeps {
@@ -221,6 +256,57 @@ mod tests {
         );
     }
 
+    /// The closed-form stage (contact through Jᵀ n, Coulomb friction last) against the
+    /// generic path: J q̇ for the wall's rate, F = −f n, and eq. (1) solved from D, C, G.
+    /// A damped wall tilted 30° about y, one second with contact.
+    #[test]
+    fn closed_form_stage_matches_the_generic_one_on_a_damped_tilted_wall() {
+        let a = 30f64.to_radians();
+        let p = WallParams {
+            normal: [a.cos(), 0.0, -a.sin()],
+            damping: 50.0,
+            model: ContactModel::KelvinVoigt,
+            ..WallParams::default()
+        };
+        let (arm, wall, start) = pressed_into(&p, Vec3::new(0.0, 0.4, -0.6));
+        let (h, substeps) = (1e-4, 10);
+        let mut plant = Plant::new(arm.clone(), Some(wall), start, h * 10.0, substeps);
+        let f = |q: &Vec3, qd: &Vec3, t: &Vec3| {
+            let c = Trig::new(q);
+            let k = arm.kinematics(&c, qd);
+            let force = wall.force(&k.position, &(k.jacobian * qd));
+            arm.forward_dynamics(&c, qd, t, &(wall.normal * -force))
+        };
+        let (mut q, mut qd) = (start.q, start.qd);
+        let mut contact_periods = 0;
+        for k in 0..1000 {
+            let t = sagging_torque(k, 0.0);
+            plant.advance(&t);
+            if wall.penetration(&arm.forward_kinematics(&q)) > 0.0 {
+                contact_periods += 1;
+            }
+            for _ in 0..substeps {
+                let a1 = f(&q, &qd, &t);
+                let (q2, qd2) = (q + qd * (h / 2.0), qd + a1 * (h / 2.0));
+                let a2 = f(&q2, &qd2, &t);
+                let (q3, qd3) = (q + qd2 * (h / 2.0), qd + a2 * (h / 2.0));
+                let a3 = f(&q3, &qd3, &t);
+                let (q4, qd4) = (q + qd3 * h, qd + a3 * h);
+                let a4 = f(&q4, &qd4, &t);
+                q += (qd + (qd2 + qd3) * 2.0 + qd4) * (h / 6.0);
+                qd += (a1 + (a2 + a3) * 2.0 + a4) * (h / 6.0);
+            }
+        }
+        assert!(contact_periods > 100, "{contact_periods}");
+        let s = plant.state();
+        assert!((s.q - q).abs().max() < 1e-11, "{}", (s.q - q).abs().max());
+        assert!(
+            (s.qd - qd).abs().max() < 1e-9,
+            "{}",
+            (s.qd - qd).abs().max()
+        );
+    }
+
     /// The AVX2 + FMA build of `advance` (taken on this machine when the CPU has them) and
     /// the baseline build give the same bits.
     #[test]
@@ -239,10 +325,9 @@ mod tests {
     /// Holding exactly the gravity torque keeps the arm at rest (friction is zero at q̇ = 0).
     #[test]
     fn gravity_torque_holds_still() {
-        let p = RobotParams::default();
-        let arm = ThreeLinkArm::new(&p);
-        let q0 = Vec3::from(p.q0);
-        let g = arm.dynamics(&q0, &Vec3::zeros()).gravity;
+        let arm = ThreeLinkArm::new(&RobotParams::default());
+        let q0 = arm.initial_position();
+        let g = arm.dynamics(&Trig::new(&q0), &Vec3::zeros()).gravity;
         let start = PlantState {
             q: q0,
             qd: Vec3::zeros(),

@@ -1,0 +1,129 @@
+//! Task directions (SPEC §10): force is controlled along the wall normal n, motion follows
+//! the in-plane direction t̂ = normalise(e_z − (e_z·n) n) (e_x if n ∥ e_z).
+//!
+//! X_d = X0 + (x̂_e + x_a − n·X0) n + s(t) t̂; for n = e_x this is exactly SPEC §3,
+//! X_d = [x̂_e + x_a, y0, z0 + s].
+
+use crate::control::reference::Sample;
+use crate::robot::TaskVector;
+
+/// Desired tip position, velocity and acceleration at one sample.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Desired {
+    pub position: TaskVector,
+    pub velocity: TaskVector,
+    pub acceleration: TaskVector,
+}
+
+/// The directions of one task and the fixed part of its reference.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TaskFrame {
+    /// Unit normal n: the force direction.
+    pub normal: TaskVector,
+    /// Unit tangent t̂: the motion direction.
+    pub tangent: TaskVector,
+    /// The start X0.
+    pub start: TaskVector,
+    /// X0 − (n·X0) n: the start's part in the plane through the origin, so that
+    /// X_d = in_plane + (x̂_e + x_a) n + s t̂ is exact for n = e_x.
+    in_plane: TaskVector,
+    /// The controller's estimate x̂_e of the wall along n.
+    pub wall_estimate: f64,
+}
+
+impl TaskFrame {
+    /// `normal` must be a unit vector.
+    pub fn new(normal: TaskVector, start: TaskVector, wall_estimate: f64) -> Self {
+        let ez = TaskVector::z();
+        let t = ez - normal * ez.dot(&normal);
+        let tangent = if t.norm() < 1e-9 {
+            TaskVector::x()
+        } else {
+            t / t.norm()
+        };
+        Self {
+            normal,
+            tangent,
+            start,
+            in_plane: start - normal * normal.dot(&start),
+            wall_estimate,
+        }
+    }
+
+    /// Force control: the reference from the filter output x_a and the motion s(t).
+    #[inline]
+    pub fn force_reference(&self, x_a: &Sample, s: &Sample) -> Desired {
+        let (n, t) = (&self.normal, &self.tangent);
+        Desired {
+            position: self.in_plane + n * (self.wall_estimate + x_a.value) + t * s.value,
+            velocity: n * x_a.rate + t * s.rate,
+            acceleration: n * x_a.accel + t * s.accel,
+        }
+    }
+
+    /// Position-only control: X_d = X0 + s(t) t̂.
+    #[inline]
+    pub fn motion_reference(&self, s: &Sample) -> Desired {
+        let t = &self.tangent;
+        Desired {
+            position: self.start + t * s.value,
+            velocity: t * s.rate,
+            acceleration: t * s.accel,
+        }
+    }
+
+    /// The component of `v` along n.
+    #[inline]
+    pub fn along_normal(&self, v: &TaskVector) -> f64 {
+        self.normal.dot(v)
+    }
+
+    /// The component of `v` along t̂.
+    #[inline]
+    pub fn along_tangent(&self, v: &TaskVector) -> f64 {
+        self.tangent.dot(v)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(value: f64, rate: f64, accel: f64) -> Sample {
+        Sample { value, rate, accel }
+    }
+
+    /// With n = e_x the reference is SPEC §3's, bit for bit.
+    #[test]
+    fn paper_wall_gives_the_paper_reference() {
+        let x0 = TaskVector::new(0.734056, 0.0, 0.964056);
+        let f = TaskFrame::new(TaskVector::x(), x0, 0.744056);
+        assert_eq!(f.tangent, TaskVector::z());
+        let d = f.force_reference(&sample(0.0012, 0.3, -2.0), &sample(0.04, 0.05, -0.04));
+        assert_eq!(
+            d.position,
+            TaskVector::new(0.744056 + 0.0012, 0.0, 0.964056 + 0.04)
+        );
+        assert_eq!(d.velocity, TaskVector::new(0.3, 0.0, 0.05));
+        assert_eq!(d.acceleration, TaskVector::new(-2.0, 0.0, -0.04));
+        let m = f.motion_reference(&sample(0.04, 0.05, -0.04));
+        assert_eq!(m.position, TaskVector::new(0.734056, 0.0, 0.964056 + 0.04));
+    }
+
+    #[test]
+    fn tilted_wall_moves_in_its_plane() {
+        let a = 30f64.to_radians();
+        let n = TaskVector::new(a.cos(), 0.0, -a.sin());
+        let x0 = TaskVector::new(0.7, 0.1, 0.9);
+        let f = TaskFrame::new(n, x0, n.dot(&x0) + 0.01);
+        assert!(f.tangent.dot(&n).abs() < 1e-15);
+        assert!((f.tangent.norm() - 1.0).abs() < 1e-15);
+        assert!(f.tangent[2] > 0.0);
+        let d = f.force_reference(&sample(0.002, 0.0, 0.0), &sample(0.05, 0.0, 0.0));
+        assert!((f.along_normal(&(d.position - x0)) - 0.012).abs() < 1e-15);
+        assert!((f.along_tangent(&(d.position - x0)) - 0.05).abs() < 1e-15);
+        // n ∥ e_z: motion along e_x.
+        let top = TaskFrame::new(TaskVector::z(), x0, 0.9);
+        assert_eq!(top.tangent, TaskVector::x());
+    }
+}

@@ -1,0 +1,129 @@
+//! Robot models behind one interface, generic in the joint count.
+//!
+//! Joint space has `N` dimensions (`JointVector<N>`); the task space is the tip position in
+//! the world frame (`TaskVector`, 3-D), so the Jacobian is 3×N. Controllers, the plant and
+//! the simulation are written against [`RobotModel`], never against a concrete arm: the
+//! closed-form three-link arm of SPEC §1 is one implementation, and a general serial chain
+//! plugs in beside it.
+
+use nalgebra::{DMatrix, DVector, SMatrix, SVector, Vector3};
+
+pub mod three_link;
+
+pub use three_link::{MassModel, RobotParams, ThreeLinkArm};
+
+/// A joint-space vector (q, q̇, q̈, τ) of an `N`-joint arm.
+pub type JointVector<const N: usize> = SVector<f64, N>;
+/// An `N`×`N` joint-space matrix (the inertia D).
+pub type JointMatrix<const N: usize> = SMatrix<f64, N, N>;
+/// A task-space vector: tip position, velocity, force [world frame].
+pub type TaskVector = Vector3<f64>;
+/// The tip's translational Jacobian, 3×N.
+pub type Jacobian<const N: usize> = SMatrix<f64, 3, N>;
+
+/// Tip position, Jacobian and the velocity-product acceleration J̇q̇ at one state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Kinematics<const N: usize> {
+    pub position: TaskVector,
+    pub jacobian: Jacobian<N>,
+    pub jdot_qd: TaskVector,
+}
+
+/// D(q), C(q, q̇) q̇ and G(q) of eq. (1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Dynamics<const N: usize> {
+    pub inertia: JointMatrix<N>,
+    /// The Coriolis and centrifugal torque C(q, q̇) (already multiplied by q̇).
+    pub coriolis: JointVector<N>,
+    pub gravity: JointVector<N>,
+}
+
+/// What controllers and the plant need from an arm.
+///
+/// `Config` holds whatever the arm computes once per configuration and shares between
+/// terms (the three-link arm's sines and cosines); the plant keeps one per RK4 stage.
+pub trait RobotModel<const N: usize>: Clone + Send + Sync {
+    type Config: Copy + Send + Sync + std::fmt::Debug;
+
+    /// Per-configuration values of `q`.
+    fn configure(&self, q: &JointVector<N>) -> Self::Config;
+
+    /// The values at `shifted` = q + `delta`, given those at q. Arms that can update
+    /// cheaply for a small step (angle addition) override this.
+    #[inline(always)]
+    fn configure_shifted(
+        &self,
+        _at_q: &Self::Config,
+        _delta: &JointVector<N>,
+        shifted: &JointVector<N>,
+    ) -> Self::Config {
+        self.configure(shifted)
+    }
+
+    /// Tip position (forward kinematics).
+    fn tip_position(&self, c: &Self::Config) -> TaskVector;
+
+    /// Tip position, Jacobian and J̇q̇.
+    fn kinematics(&self, c: &Self::Config, qd: &JointVector<N>) -> Kinematics<N>;
+
+    /// D, C q̇ and G.
+    fn dynamics(&self, c: &Self::Config, qd: &JointVector<N>) -> Dynamics<N>;
+
+    /// Joint friction τ_f(q̇).
+    fn friction(&self, qd: &JointVector<N>) -> JointVector<N>;
+
+    /// q̈ of eq. (1) with a Cartesian force on the tip:
+    /// D q̈ = τ + Jᵀ F_tip − C q̇ − G − τ_f.
+    fn forward_dynamics(
+        &self,
+        c: &Self::Config,
+        qd: &JointVector<N>,
+        tau: &JointVector<N>,
+        tip_force: &TaskVector,
+    ) -> JointVector<N> {
+        let k = self.kinematics(c, qd);
+        let d = self.dynamics(c, qd);
+        let rhs =
+            tau + k.jacobian.transpose() * tip_force - d.coriolis - d.gravity - self.friction(qd);
+        // Arms with a structured D override this; the general path solves by LU.
+        let lu = DMatrix::from_column_slice(N, N, d.inertia.as_slice()).lu();
+        match lu.solve(&DVector::from_column_slice(rhs.as_slice())) {
+            Some(qdd) => JointVector::<N>::from_column_slice(qdd.as_slice()),
+            // A singular inertia has no acceleration; NaN makes the plant report divergence.
+            None => JointVector::<N>::repeat(f64::NAN),
+        }
+    }
+
+    /// q̈ with the tip force given by `contact` from the tip's position and velocity at
+    /// this same state: one RK4 stage of the plant. `contact` returns the force along the
+    /// wall normal `normal`; the arm feels −f n through Jᵀ. Returns (q̈, f).
+    ///
+    /// `needs_velocity` says whether `contact` reads the velocity (a damped wall), so an
+    /// undamped wall skips J q̇.
+    #[inline(always)]
+    fn accelerate(
+        &self,
+        c: &Self::Config,
+        qd: &JointVector<N>,
+        tau: &JointVector<N>,
+        contact: &impl Fn(&TaskVector, &TaskVector) -> f64,
+        normal: &TaskVector,
+        needs_velocity: bool,
+    ) -> (JointVector<N>, f64) {
+        let k = self.kinematics(c, qd);
+        let velocity = if needs_velocity {
+            k.jacobian * qd
+        } else {
+            TaskVector::zeros()
+        };
+        let f = contact(&k.position, &velocity);
+        (self.forward_dynamics(c, qd, tau, &(normal * -f)), f)
+    }
+
+    /// The model a controller believes in: masses (and inertias) scaled by `mass_scale`,
+    /// friction by `friction_scale`; geometry shared with the plant.
+    fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self;
+
+    /// The initial joint positions q0.
+    fn initial_position(&self) -> JointVector<N>;
+}

@@ -1,0 +1,6 @@
+//! The world around the controller: the environment the tip touches, the force sensor that
+//! reports it and the actuators that turn commands into torque (SPEC §10).
+
+pub mod actuator;
+pub mod environment;
+pub mod sensor;
