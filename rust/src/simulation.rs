@@ -539,7 +539,7 @@ mod tests {
             }
             Outcome::Completed => panic!("expected divergence"),
         }
-        assert!(!r.metrics.stable);
+        assert!(!r.metrics.stable && r.metrics.diverged);
     }
 
     #[test]
