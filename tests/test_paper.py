@@ -123,7 +123,10 @@ def test_peak_force_grows_with_stiffness(table):
 def test_verdicts_report_the_known_differences(table):
     judged = reproduction.verdicts(table)
     assert set(judged) == set(FIGURES)
-    assert {name for name, v in judged.items() if not v.agrees} == {"fig9", "fig10", "fig20"}
+    # fig8, 10-14, 16: a z RMS number that cannot be reproduced; fig9, 10, 20: differ.
+    assert {name for name, v in judged.items() if not v.agrees} == {
+        "fig8", "fig9", "fig10", "fig11", "fig12", "fig13", "fig14", "fig16", "fig20",
+    }  # fmt: skip
 
 
 def png_size(path) -> tuple[int, int]:

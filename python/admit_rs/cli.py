@@ -21,17 +21,24 @@ from admit_rs.errors import ParameterError
 
 
 def _paper(args: argparse.Namespace) -> int:
-    from admit_rs.reproduction import reproduce, verdicts
+    from admit_rs.reproduction import AGREES, judge_claims, reproduce
 
     start = time.perf_counter()
     table = reproduce(args.out, args.figure, progress=not args.no_progress)
     elapsed = time.perf_counter() - start
-    judged = verdicts(table)
-    differs = [name for name, v in judged.items() if not v.agrees]
     print(f"wrote {table.height} curves of {len(set(table['figure']))} figures to {args.out}"
           f" in {elapsed:.1f} s")  # fmt: skip
-    if differs:
-        print(f"differ from the paper (see {args.out}/README.md): {', '.join(differs)}")
+    by_verdict: dict[str, list[str]] = {}
+    for claim, _, printed in judge_claims(table):
+        if printed != AGREES:
+            by_verdict.setdefault(printed, []).append(f"{claim.figure} ({claim.paper})")
+    for printed, claims in by_verdict.items():
+        print(f"{printed} (see {args.out}/README.md): {'; '.join(claims)}")
+    if args.update_doc is not None:
+        from admit_rs.reproduction import update_doc
+
+        changed = update_doc(args.update_doc, table)
+        print(f"{args.update_doc}: claims table {'updated' if changed else 'unchanged'}")
     return 0
 
 
@@ -127,6 +134,9 @@ def _parser() -> argparse.ArgumentParser:
         help="only figure N (5-20); repeat for several",
     )  # fmt: skip
     paper.add_argument("--no-progress", action="store_true", help="no progress bar")
+    paper.add_argument("--update-doc", type=Path, metavar="MD",
+                       help="rewrite the claims table in this Markdown file"
+                            " (docs/reproduction.md)")  # fmt: skip
     paper.set_defaults(func=_paper)
     run = sub.add_parser("run", help="run one scenario from a TOML file, print its metrics")
     run.add_argument("scenario", type=Path, help="TOML file (Scenario.to_dict layout)")
