@@ -160,7 +160,7 @@ def _pos(fig: str) -> Measure:
 
 
 def _z_rms(fig: str, paper: float) -> Measure:
-    """The paper's z RMS numbers: no unit and RMS definition fits all four (SPEC §9)."""
+    """The paper's z RMS numbers: no unit and RMS definition fits all four."""
 
     def check(t: pl.DataFrame) -> tuple[str, bool]:
         z = _curves(t, fig)["z_rms_error"].to_list()
