@@ -85,3 +85,30 @@ def test_parameter_units_come_from_the_blocks():
     assert ar.plot.parameter_unit("admittance.m") == "kg"
     assert ar.plot.parameter_unit("duration") == "s"
     assert ar.plot.parameter_unit("no.such") == ""
+
+
+def test_paper_panels_have_no_offset_label():
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    fig = ar.paper.figure(5)
+    FigureCanvasAgg(fig).draw()
+    for ax in fig.axes:
+        assert ax.yaxis.get_offset_text().get_text() == "", ax.get_title()
+    assert fig.axes[2].get_title() == "(c) x position [m]"
+
+
+def test_many_curves_share_one_legend_outside_the_panels():
+    fig = ar.paper.figure(20)
+    assert all(ax.get_legend() is None for ax in fig.axes[:5])
+    assert len(fig.legends) == 1
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert len(labels) == 6 and labels[-2:] == ["f_d", "reference (dashed, in the curve's colour)"]
+
+
+def test_torque_spike_is_clipped_and_said():
+    fig = ar.paper.figure(10)
+    ax = fig.axes[5]
+    lo, hi = ax.get_ylim()
+    assert -20 < lo < 0 and 50 < hi < 80  # the −541 N·m spike at t = 0 is off scale
+    assert "clipped: spike to -541 N·m at t = 0 s off scale" in ax.get_title()
+    assert "clipped" not in ar.paper.figure(20).axes[5].get_title()

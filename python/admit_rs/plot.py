@@ -127,17 +127,54 @@ def plot_paper_figure(
                  "(d) z position [m]", ""]  # fmt: skip
         axes[4].set_visible(False)
     tau_title = "joint torques [N·m]" + (f" ({results[0].scenario.label})" if many else "")
-    names.append(("(f) " if force_control else "(e) ") + tau_title)
+    clip_note = _clip_torques(axes[5], results[0].trace)
+    names.append(("(f) " if force_control else "(e) ") + tau_title + clip_note)
     for ax, name in zip(axes, names, strict=True):
         ax.set_title(name, fontsize=10)
         ax.grid(True, alpha=0.3)
         ax.tick_params(labelsize=9)
-        if ax.get_legend_handles_labels()[0]:
+        # Plain tick labels: no "1e-5+7.34e-1" offset text on nearly constant traces.
+        ax.ticklabel_format(axis="y", useOffset=False, style="plain")
+        if ax.get_legend_handles_labels()[0] and (not many or ax is axes[5]):
             ax.legend(fontsize=7, loc="best")
+    if many:
+        # One legend for every panel, below them: curve colours, f_d, dashed references.
+        from matplotlib.lines import Line2D
+
+        handles = [Line2D([], [], color=f"C{i}", label=r.scenario.label or f"curve {i + 1}")
+                   for i, r in enumerate(results)]  # fmt: skip
+        if force_control:
+            handles.append(Line2D([], [], color="k", ls="--", lw=1, label="f_d"))
+        handles.append(Line2D([], [], color="0.4", ls="--", lw=1,
+                              label="reference (dashed, in the curve's colour)"))  # fmt: skip
+        fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 4),
+                   fontsize=8, frameon=False)  # fmt: skip
     for ax in axes[3:]:
         ax.set_xlabel("t [s]")
     fig.suptitle(title, fontsize=12)
     return fig
+
+
+def _clip_torques(ax: Any, trace: pl.DataFrame) -> str:
+    """Limits a torque panel to a robust range when a start-up spike would flatten the
+    other traces; returns the note for the panel title ("" if nothing was clipped)."""
+    tau = np.concatenate([trace[c].to_numpy() for c in trace.columns if c.startswith("tau")])
+    tau = tau[np.isfinite(tau)]
+    if tau.size == 0:
+        return ""
+    lo, hi = np.percentile(tau, [0.5, 99.5])
+    pad = 0.15 * max(hi - lo, 1.0)
+    lo, hi = lo - pad, hi + pad
+    full_lo, full_hi = float(tau.min()), float(tau.max())
+    if (full_hi - full_lo) < 2.0 * (hi - lo):
+        return ""
+    ax.set_ylim(lo, hi)
+    extreme = full_lo if abs(full_lo) > abs(full_hi) else full_hi
+    t = trace["t"].to_numpy()
+    cols = [c for c in trace.columns if c.startswith("tau")]
+    at = next(float(t[np.nonzero(trace[c].to_numpy() == extreme)[0][0]])
+              for c in cols if (trace[c].to_numpy() == extreme).any())  # fmt: skip
+    return f"\nclipped: spike to {extreme:.0f} N·m at t = {at:.3g} s off scale"
 
 
 def _stable_mask(table: pl.DataFrame) -> npt.NDArray[np.bool_]:
