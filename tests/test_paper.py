@@ -53,9 +53,16 @@ def test_scenarios_follow_spec_section_9():
     assert fig5.wall is None and fig5.admittance is None
 
 
-def test_every_curve_is_stable(table):
+def test_only_model_free_force_control_is_unstable(table):
+    """No curve diverges. Model-free force control (figs. 12, 13, 18) loses contact in
+    35-38 % of the samples after 1 s: the paper's "poor tracking", judged not stable.
+    Every other curve is stable."""
     assert table.height == 29
-    assert table["stable"].all()
+    assert not table["diverged"].any()
+    unstable = table.filter(~pl.col("stable"))
+    assert unstable["figure"].to_list() == ["fig12", "fig13", "fig18"]
+    assert (unstable["contact_loss"] > 0.3).all()
+    assert (table.filter(pl.col("stable"))["force_oscillation"].fill_nan(0.0) <= 0.1).all()
 
 
 def test_scheme1_offset_and_scheme2_none(table):
@@ -116,7 +123,10 @@ def test_peak_force_grows_with_stiffness(table):
 def test_verdicts_report_the_known_differences(table):
     judged = reproduction.verdicts(table)
     assert set(judged) == set(FIGURES)
-    assert {name for name, v in judged.items() if not v.agrees} == {"fig9", "fig10", "fig20"}
+    # fig8, 10-14, 16: a z RMS number that cannot be reproduced; fig9, 10, 20: differ.
+    assert {name for name, v in judged.items() if not v.agrees} == {
+        "fig8", "fig9", "fig10", "fig11", "fig12", "fig13", "fig14", "fig16", "fig20",
+    }  # fmt: skip
 
 
 def png_size(path) -> tuple[int, int]:

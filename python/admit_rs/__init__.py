@@ -11,8 +11,9 @@ Example:
     (True, 10001, True)
 """
 
-from admit_rs import paper, plot
+from admit_rs import metrics, paper, plot
 from admit_rs._core import METRIC_NAMES, TRACE_COLUMNS, __version__
+from admit_rs._names import UnknownNameError
 from admit_rs.config import (
     Actuator,
     AdmittanceFilter,
@@ -31,6 +32,7 @@ from admit_rs.config import (
     parameter_paths,
 )
 from admit_rs.errors import AdmitError, ParameterError
+from admit_rs.metrics import METRICS, Metric
 from admit_rs.simulation import Result, Simulation, simulate
 from admit_rs.sweep import (
     CheckpointMismatchError,
@@ -44,6 +46,7 @@ from admit_rs.sweep import (
 )
 
 __all__ = [
+    "METRICS",
     "METRIC_NAMES",
     "TRACE_COLUMNS",
     "Actuator",
@@ -53,6 +56,7 @@ __all__ = [
     "Choice",
     "DistributionError",
     "LogUniform",
+    "Metric",
     "Normal",
     "SweepInterrupted",
     "Uniform",
@@ -70,8 +74,10 @@ __all__ = [
     "Sine",
     "Step",
     "TimeDelayControl",
+    "UnknownNameError",
     "Wall",
     "__version__",
+    "metrics",
     "paper",
     "parameter_paths",
     "plot",

@@ -14,7 +14,7 @@ TRACE_COLUMNS: Final[list[str]]
 """Trace column names in order: t, q1..q3, qd1..qd3, x, y, z, x_ref, y_ref, z_ref, f,
 f_measured, f_d, penetration, x_a, xa_dot, tau1..tau3, tau_cmd1..tau_cmd3."""
 METRIC_NAMES: Final[list[str]]
-"""Float metric names (SPEC §7 plus step_info-convention extras); ``stable`` comes besides."""
+"""Float metric names (see ``admit_rs.METRICS``); ``stable`` and ``diverged`` come besides."""
 
 class AdmitError(Exception):
     """Base of admit_rs runtime errors."""
@@ -39,7 +39,8 @@ def validate(scenario: dict[str, Any]) -> None:
 def simulate(scenario: dict[str, Any]) -> dict[str, Any]:
     """Run one scenario with the GIL released.
 
-    Returns ``{"columns": {name: ndarray}, "metrics": {name: float, "stable": bool},
+    Returns ``{"columns": {name: ndarray},
+    "metrics": {name: float, "stable": bool, "diverged": bool},
     "diverged_at": float | None, "divergence_cause": str | None}``.
     """
 
@@ -73,8 +74,9 @@ def simulate_batch(
 ) -> dict[str, Any]:
     """Run a batch on ``threads`` threads (None: all cores), GIL released.
 
-    Returns ``{"metrics": {name: ndarray}, "stable": ndarray[bool], "diverged_at": ndarray
-    (NaN when stable), "divergence_cause": list[str | None], "traces": list[dict] | None}``.
+    Returns ``{"metrics": {name: ndarray}, "stable": ndarray[bool], "diverged": ndarray[bool],
+    "diverged_at": ndarray (NaN when the run completed), "divergence_cause": list[str | None],
+    "traces": list[dict] | None}``.
     An invalid scenario raises ``ParameterError`` (with ``index``) before anything runs.
     """
 

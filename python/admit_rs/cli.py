@@ -2,13 +2,16 @@
 
 admit-rs paper --out paper-results          # every figure, metrics table, report
 admit-rs paper --figure 14 --out results    # one figure
-admit-rs run SCENARIO.toml [-o trace.parquet] [--plot run.png]
+admit-rs run SCENARIO.toml [-o trace.parquet] [--plot run.png] [--format json|table]
+
+Exit codes: 0 success, 2 invalid input, 3 run not stable, 130 interrupted.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from collections.abc import Sequence
@@ -19,19 +22,32 @@ import tomllib
 
 from admit_rs.errors import ParameterError
 
+EXIT_CODES = """exit codes:
+  0    success (run: the scenario is stable)
+  2    invalid input: bad parameter, unknown key, unreadable TOML, missing file, bad usage
+  3    run: the scenario completed or diverged but is not stable (see "verdict")
+  130  interrupted (Ctrl-C); sweep writes the finished runs first"""
+
 
 def _paper(args: argparse.Namespace) -> int:
-    from admit_rs.reproduction import reproduce, verdicts
+    from admit_rs.reproduction import AGREES, judge_claims, reproduce
 
     start = time.perf_counter()
     table = reproduce(args.out, args.figure, progress=not args.no_progress)
     elapsed = time.perf_counter() - start
-    judged = verdicts(table)
-    differs = [name for name, v in judged.items() if not v.agrees]
     print(f"wrote {table.height} curves of {len(set(table['figure']))} figures to {args.out}"
           f" in {elapsed:.1f} s")  # fmt: skip
-    if differs:
-        print(f"differ from the paper (see {args.out}/README.md): {', '.join(differs)}")
+    by_verdict: dict[str, list[str]] = {}
+    for claim, _, printed in judge_claims(table):
+        if printed != AGREES:
+            by_verdict.setdefault(printed, []).append(f"{claim.figure} ({claim.paper})")
+    for printed, claims in by_verdict.items():
+        print(f"{printed} (see {args.out}/README.md): {'; '.join(claims)}")
+    if args.update_doc is not None:
+        from admit_rs.reproduction import update_doc
+
+        changed = update_doc(args.update_doc, table)
+        print(f"{args.update_doc}: claims table {'updated' if changed else 'unchanged'}")
     return 0
 
 
@@ -47,10 +63,40 @@ def _run(args: argparse.Namespace) -> int:
         result.trace.write_parquet(args.output)
     if args.plot:
         result.plot().savefig(args.plot, dpi=100)
-    print(json.dumps({"stable": result.stable, "diverged_at": result.diverged_at,
-                      "divergence_cause": result.divergence_cause,
-                      "metrics": result.metrics}, indent=2))  # fmt: skip
+    report = {"stable": result.stable, "diverged": result.diverged, "verdict": result.verdict,
+              "diverged_at": result.diverged_at, "divergence_cause": result.divergence_cause,
+              "metrics": dict(result.metrics)}  # fmt: skip
+    if args.format == "table":
+        print(_table(report))
+    else:
+        print(json.dumps(_json_safe(report), indent=2, allow_nan=False))
     return 0 if result.stable else 3
+
+
+def _json_safe(value: Any) -> Any:
+    """NaN and ±inf become ``null`` (JSON has no NaN); numpy scalars become Python ones."""
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, bool) or value is None or isinstance(value, str | int):
+        return value
+    f = float(value)
+    return f if math.isfinite(f) else None
+
+
+def _table(report: dict[str, Any]) -> str:
+    from admit_rs.metrics import METRICS
+
+    rows = [("verdict", report["verdict"], "")]
+    for name, value in report["metrics"].items():
+        unit = METRICS[name].unit if name in METRICS else ""
+        text = str(value) if isinstance(value, bool) else f"{value:.6g}"
+        rows.append((name, "–" if text == "nan" else text, "" if unit == "bool" else unit))
+    width = max(len(r[0]) for r in rows)
+    vwidth = max(len(r[1]) for r in rows[1:])
+    lines = [f"{n:<{width}}  {v:>{vwidth}}  {u}".rstrip() for n, v, u in rows]
+    return "\n".join(lines)
 
 
 def load_sweep(path: Path) -> dict[str, Any]:
@@ -118,6 +164,8 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="admit-rs",
         description="Admittance force tracking control of robot manipulators (Jung & Jeong).",
+        epilog=EXIT_CODES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sub = p.add_subparsers(dest="command", required=True)
     paper = sub.add_parser("paper", help="reproduce the paper's figures 5-20 and a metrics table")
@@ -127,11 +175,18 @@ def _parser() -> argparse.ArgumentParser:
         help="only figure N (5-20); repeat for several",
     )  # fmt: skip
     paper.add_argument("--no-progress", action="store_true", help="no progress bar")
+    paper.add_argument("--update-doc", type=Path, metavar="MD",
+                       help="rewrite the claims table in this Markdown file"
+                            " (docs/reproduction.md)")  # fmt: skip
     paper.set_defaults(func=_paper)
-    run = sub.add_parser("run", help="run one scenario from a TOML file, print its metrics")
+    run = sub.add_parser("run", help="run one scenario from a TOML file, print its metrics",
+                         epilog=EXIT_CODES,
+                         formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
     run.add_argument("scenario", type=Path, help="TOML file (Scenario.to_dict layout)")
     run.add_argument("-o", "--output", type=Path, help="write the trace as Parquet")
     run.add_argument("--plot", type=Path, help="write the standard plot as PNG")
+    run.add_argument("--format", choices=("json", "table"), default="json",
+                     help="json (default; NaN printed as null) or a table with units")  # fmt: skip
     run.set_defaults(func=_run)
     sw = sub.add_parser("sweep", help="run a Monte Carlo / grid sweep from a TOML file")
     sw.add_argument("definition", type=Path, help="sweep TOML (see examples/)")

@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import ast
+import functools
+import inspect
+import re
+import textwrap
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
@@ -122,17 +127,54 @@ def plot_paper_figure(
                  "(d) z position [m]", ""]  # fmt: skip
         axes[4].set_visible(False)
     tau_title = "joint torques [N·m]" + (f" ({results[0].scenario.label})" if many else "")
-    names.append(("(f) " if force_control else "(e) ") + tau_title)
+    clip_note = _clip_torques(axes[5], results[0].trace)
+    names.append(("(f) " if force_control else "(e) ") + tau_title + clip_note)
     for ax, name in zip(axes, names, strict=True):
         ax.set_title(name, fontsize=10)
         ax.grid(True, alpha=0.3)
         ax.tick_params(labelsize=9)
-        if ax.get_legend_handles_labels()[0]:
+        # Plain tick labels: no "1e-5+7.34e-1" offset text on nearly constant traces.
+        ax.ticklabel_format(axis="y", useOffset=False, style="plain")
+        if ax.get_legend_handles_labels()[0] and (not many or ax is axes[5]):
             ax.legend(fontsize=7, loc="best")
+    if many:
+        # One legend for every panel, below them: curve colours, f_d, dashed references.
+        from matplotlib.lines import Line2D
+
+        handles = [Line2D([], [], color=f"C{i}", label=r.scenario.label or f"curve {i + 1}")
+                   for i, r in enumerate(results)]  # fmt: skip
+        if force_control:
+            handles.append(Line2D([], [], color="k", ls="--", lw=1, label="f_d"))
+        handles.append(Line2D([], [], color="0.4", ls="--", lw=1,
+                              label="reference (dashed, in the curve's colour)"))  # fmt: skip
+        fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 4),
+                   fontsize=8, frameon=False)  # fmt: skip
     for ax in axes[3:]:
         ax.set_xlabel("t [s]")
     fig.suptitle(title, fontsize=12)
     return fig
+
+
+def _clip_torques(ax: Any, trace: pl.DataFrame) -> str:
+    """Limits a torque panel to a robust range when a start-up spike would flatten the
+    other traces; returns the note for the panel title ("" if nothing was clipped)."""
+    tau = np.concatenate([trace[c].to_numpy() for c in trace.columns if c.startswith("tau")])
+    tau = tau[np.isfinite(tau)]
+    if tau.size == 0:
+        return ""
+    lo, hi = np.percentile(tau, [0.5, 99.5])
+    pad = 0.15 * max(hi - lo, 1.0)
+    lo, hi = lo - pad, hi + pad
+    full_lo, full_hi = float(tau.min()), float(tau.max())
+    if (full_hi - full_lo) < 2.0 * (hi - lo):
+        return ""
+    ax.set_ylim(lo, hi)
+    extreme = full_lo if abs(full_lo) > abs(full_hi) else full_hi
+    t = trace["t"].to_numpy()
+    cols = [c for c in trace.columns if c.startswith("tau")]
+    at = next(float(t[np.nonzero(trace[c].to_numpy() == extreme)[0][0]])
+              for c in cols if (trace[c].to_numpy() == extreme).any())  # fmt: skip
+    return f"\nclipped: spike to {extreme:.0f} N·m at t = {at:.3g} s off scale"
 
 
 def _stable_mask(table: pl.DataFrame) -> npt.NDArray[np.bool_]:
@@ -140,23 +182,29 @@ def _stable_mask(table: pl.DataFrame) -> npt.NDArray[np.bool_]:
 
 
 def sweep_scatter(table: pl.DataFrame, x: str, metric: str, *, logx: bool | None = None) -> Figure:
-    """A metric against one parameter, one dot per run; unstable runs as red crosses at
-    the top of the axis (their metrics are NaN)."""
+    """A metric against one parameter, one dot per run; unstable runs as red crosses (at
+    their value, or at the top of the axis when it is NaN because the run diverged)."""
     from matplotlib.figure import Figure
 
+    from admit_rs._names import check_column
+
+    for name in (x, metric):
+        check_column(table.columns, name, "column")
     fig = Figure(figsize=(8, 5), layout="constrained")
     ax = fig.subplots()
     stable = _stable_mask(table)
-    xs, ys = table[x].to_numpy(), table[metric].to_numpy()
+    xs, ys = table[x].to_numpy(), table[metric].to_numpy().astype(float)
     ax.scatter(xs[stable], ys[stable], s=8, alpha=0.6, label=f"stable ({stable.sum()})")
     if (~stable).any():
-        top = np.nanmax(ys[stable]) if stable.any() else 1.0
-        ax.scatter(xs[~stable], np.full((~stable).sum(), top), marker="x", color="r",
+        finite = ys[np.isfinite(ys)]
+        top = finite.max() if finite.size else 1.0
+        bad = np.where(np.isfinite(ys[~stable]), ys[~stable], top)
+        ax.scatter(xs[~stable], bad, marker="x", color="r",
                    label=f"unstable ({(~stable).sum()})")  # fmt: skip
-    if logx if logx is not None else _looks_logarithmic(xs):
+    if logx if logx is not None else _log_axis(xs):
         ax.set_xscale("log")
-    ax.set_xlabel(x)
-    ax.set_ylabel(metric)
+    ax.set_xlabel(_with_unit(x))
+    ax.set_ylabel(_metric_label(metric))
     ax.grid(True, alpha=0.3)
     ax.legend()
     ax.set_title(f"{metric} vs {x} ({table.height} runs)")
@@ -167,17 +215,47 @@ def sweep_hist(table: pl.DataFrame, metric: str, bins: int = 50) -> Figure:
     """Histogram of a metric over the stable runs; the unstable count in the title."""
     from matplotlib.figure import Figure
 
+    from admit_rs._names import check_column
+
+    check_column(table.columns, metric, "column")
     fig = Figure(figsize=(8, 5), layout="constrained")
     ax = fig.subplots()
     stable = _stable_mask(table)
     values = table[metric].to_numpy()[stable]
     values = values[np.isfinite(values)]
     ax.hist(values, bins=bins)
-    ax.set_xlabel(metric)
+    ax.set_xlabel(_metric_label(metric))
     ax.set_ylabel("runs")
     ax.grid(True, alpha=0.3)
     ax.set_title(f"{metric}: {stable.sum()} stable, {(~stable).sum()} unstable runs")
     return fig
+
+
+WORST_CASE: dict[str, str] = {
+    "force_ss_error": "absmax",
+    "force_rms_error": "max",
+    "force_peak": "max",
+    "overshoot_pct": "max",
+    "settling_time": "max",
+    "rise_time_63": "max",
+    "rise_time_10_90": "max",
+    "peak_time": "max",
+    "z_rms_error": "max",
+    "x_rms_error": "max",
+    "contact_loss": "max",
+    "force_oscillation": "max",
+}
+"""The default ``agg`` of :func:`sweep_heatmap` per metric: the worst run of each cell
+(largest peak, overshoot, oscillation, contact loss, error or time; the signed
+``force_ss_error`` of largest magnitude). Other columns default to the mean."""
+
+_REDUCERS: dict[str, Callable[[npt.NDArray[np.float64]], Any]] = {
+    "mean": np.mean,
+    "max": np.max,
+    "min": np.min,
+    "median": np.median,
+    "absmax": lambda v: v[np.argmax(np.abs(v))],
+}
 
 
 def sweep_heatmap(
@@ -187,29 +265,57 @@ def sweep_heatmap(
     metric: str,
     *,
     bins: int = 12,
-    agg: str = "mean",
-    logx: bool = False,
-    logy: bool = False,
+    agg: str | None = None,
+    logx: bool | None = None,
+    logy: bool | None = None,
+    units: dict[str, str] | None = None,
+    overlay_unstable: bool = False,
 ) -> Figure:
-    """A metric over two parameters: the grid values as they are, or ``bins`` bins per
-    axis for random draws; each cell aggregates its stable runs (``mean``, ``max``,
-    ``min`` or ``median``) and cells with any unstable run are hatched and annotated.
-    ``logx``/``logy`` bin and draw an axis logarithmically (for log-uniform draws)."""
-    from matplotlib.figure import Figure
+    """A metric over two parameters, to answer "which gains are safe".
 
-    if agg not in ("mean", "max", "min", "median"):
-        raise ValueError(f"agg = {agg!r} is invalid: must be mean, max, min or median")
+    The grid values as they are, or ``bins`` bins per axis for random draws. Each cell
+    aggregates its stable runs with ``agg`` (``max``, ``min``, ``mean``, ``median`` or
+    ``absmax``); the default is the worst case for the metric (:data:`WORST_CASE`: ``max``
+    of force_peak, overshoot_pct, force_oscillation, contact_loss and the errors, the
+    largest-magnitude force_ss_error), the mean for other columns. Cells whose runs are all
+    unstable are filled as the "unstable" category, cells with some unstable runs are
+    hatched with their count, cells without runs are grey; a legend explains the three.
+    ``logx``/``logy`` default to a log axis (and log bins) when the parameter looks
+    log-uniform or log-spaced; pass ``True``/``False`` to override. Axes and colour bar show
+    units (metrics from :data:`admit_rs.METRICS`, parameters from the blocks' docs;
+    ``units={"path": "unit"}`` adds or overrides). ``overlay_unstable`` marks every unstable
+    run with a red ×. Unknown ``x``/``y``/``metric`` raise :class:`admit_rs.UnknownNameError`.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> t = ar.sweep(ar.paper.scenario("fig14").replace(duration=1.5),
+        ...              grid={"wall.stiffness": [1e4, 1e5], "admittance.b": [200.0, 800.0]},
+        ...              progress=False)
+        >>> ax = ar.plot.sweep_heatmap(t, "wall.stiffness", "admittance.b", "force_peak").axes[0]
+        >>> ax.get_xlabel(), ax.get_xscale()
+        ('wall.stiffness [N/m]', 'linear')
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+
+    from admit_rs._names import check_column
+
+    for name in (x, y, metric):
+        check_column(table.columns, name, "column")
+    agg = agg if agg is not None else WORST_CASE.get(metric, "mean")
+    if agg not in _REDUCERS:
+        raise ValueError(f"agg = {agg!r} is invalid: must be one of {', '.join(_REDUCERS)}")
     xs, ys = table[x].to_numpy().astype(float), table[y].to_numpy().astype(float)
+    logx = _log_axis(xs, bins) if logx is None else logx
+    logy = _log_axis(ys, bins) if logy is None else logy
     xe, xi = _axis(xs, bins, logx)
     ye, yi = _axis(ys, bins, logy)
     values = table[metric].to_numpy().astype(float)
     stable = _stable_mask(table)
     grid = np.full((len(ye) - 1, len(xe) - 1), np.nan)
     unstable = np.zeros_like(grid, dtype=int)
-    reducers: dict[str, Callable[[npt.NDArray[np.float64]], Any]] = {
-        "mean": np.mean, "max": np.max, "min": np.min, "median": np.median,
-    }  # fmt: skip
-    reducer = reducers[agg]
+    runs = np.zeros_like(grid, dtype=int)
+    reducer = _REDUCERS[agg]
     for r in range(grid.shape[0]):
         for c in range(grid.shape[1]):
             cell = (yi == r) & (xi == c)
@@ -218,29 +324,130 @@ def sweep_heatmap(
             if good.size:
                 grid[r, c] = reducer(good)
             unstable[r, c] = int((cell & ~stable).sum())
-    fig = Figure(figsize=(8, 6), layout="constrained")
+            runs[r, c] = int(cell.sum())
+    fig = Figure(figsize=(8.5, 6), layout="constrained")
     ax = fig.subplots()
+    ax.set_facecolor("0.85")  # cells without a value show the background
     mesh = ax.pcolormesh(xe, ye, grid, shading="flat")
-    fig.colorbar(mesh, ax=ax, label=f"{agg} {metric} (stable runs)")
+    label = _metric_label(metric, units)
+    fig.colorbar(mesh, ax=ax, label=f"{agg} {label} (stable runs)")
+    handles: list[Any] = []
+    if (runs == 0).any():
+        handles.append(Patch(facecolor="0.85", edgecolor="0.5", label="no runs in cell"))
+    all_bad = (runs > 0) & (unstable == runs)
+    some_bad = (unstable > 0) & ~all_bad
     for r, c in zip(*np.nonzero(unstable), strict=True):
-        ax.add_patch(Rectangle((xe[c], ye[r]), xe[c + 1] - xe[c], ye[r + 1] - ye[r],
-                               fill=False, hatch="xx", edgecolor="r", lw=0))  # fmt: skip
-        ax.text((xe[c] + xe[c + 1]) / 2, (ye[r] + ye[r + 1]) / 2, f"{unstable[r, c]} ✗",
-                color="r", ha="center", va="center", fontsize=8)  # fmt: skip
+        w, h = xe[c + 1] - xe[c], ye[r + 1] - ye[r]
+        if all_bad[r, c]:
+            ax.add_patch(Rectangle((xe[c], ye[r]), w, h, facecolor="#8b0000", lw=0))
+        else:
+            ax.add_patch(Rectangle((xe[c], ye[r]), w, h, fill=False, hatch="xx",
+                                   edgecolor="r", lw=0))  # fmt: skip
+        cx = np.sqrt(xe[c] * xe[c + 1]) if logx else (xe[c] + xe[c + 1]) / 2
+        cy = np.sqrt(ye[r] * ye[r + 1]) if logy else (ye[r] + ye[r + 1]) / 2
+        box = None if all_bad[r, c] else {"facecolor": "w", "alpha": 0.7, "lw": 0}
+        ax.text(cx, cy, f"{unstable[r, c]} ✗", color="w" if all_bad[r, c] else "k",
+                ha="center", va="center", fontsize=8, bbox=box)  # fmt: skip
+    if all_bad.any():
+        handles.append(Patch(facecolor="#8b0000", label="unstable: every run in the cell"))
+    if some_bad.any():
+        handles.append(Patch(fill=False, hatch="xx", edgecolor="r",
+                             label="some runs unstable (count ✗)"))  # fmt: skip
+    if overlay_unstable and (~stable).any():
+        handles.append(ax.scatter(xs[~stable], ys[~stable], marker="x", color="r", s=12,
+                                  lw=0.8, label=f"unstable run ({(~stable).sum()})"))  # fmt: skip
     if logx:
         ax.set_xscale("log")
     if logy:
         ax.set_yscale("log")
-    ax.set_xlabel(x)
-    ax.set_ylabel(y)
-    ax.set_title(f"{metric} over {x} × {y} ({table.height} runs)")
+    ax.set_xlim(xe[0], xe[-1])
+    ax.set_ylim(ye[0], ye[-1])
+    ax.set_xlabel(_with_unit(x, units))
+    ax.set_ylabel(_with_unit(y, units))
+    if handles:
+        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.0, -0.12), ncols=2,
+                  fontsize=8, frameon=False)  # fmt: skip
+    ax.set_title(f"{agg} {metric} over {x} × {y} ({table.height} runs,"
+                 f" {int((~stable).sum())} unstable)")  # fmt: skip
     return fig
 
 
-def _looks_logarithmic(xs: npt.NDArray[Any]) -> bool:
-    xs = np.asarray(xs, dtype=float)
-    xs = xs[np.isfinite(xs)]
-    return bool(xs.size and xs.min() > 0 and xs.max() / xs.min() > 50)
+def parameter_unit(path: str) -> str:
+    """The unit of a dotted parameter path, from its block's attribute docstring ("" if none).
+
+    Example:
+        >>> parameter_unit("wall.stiffness"), parameter_unit("admittance.b")
+        ('N/m', 'N·s/m')
+    """
+    from admit_rs import config
+
+    leaf = path.rsplit(".", 1)[-1]
+    owner: Any = config.Scenario()
+    for part in path.split(".")[:-1]:
+        owner = getattr(owner, part, None)
+    classes = [type(owner)] if owner is not None else []
+    classes += [c for c in vars(config).values()
+                if isinstance(c, type) and issubclass(c, config._Block)]  # fmt: skip
+    for cls in classes:
+        for klass in cls.__mro__:
+            doc = _attribute_docs(klass).get(leaf)
+            if doc is not None:
+                found = re.search(r"\[([^\]]+)\]", doc)
+                return found.group(1) if found else ""
+    return ""
+
+
+@functools.cache
+def _attribute_docs(cls: type) -> dict[str, str]:
+    """``{field: docstring}`` from the string literal under each annotated field."""
+    try:
+        tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
+    except (OSError, TypeError, SyntaxError):
+        return {}
+    body = tree.body[0].body if tree.body and isinstance(tree.body[0], ast.ClassDef) else []
+    docs = {}
+    for a, b in zip(body, body[1:], strict=False):
+        if (isinstance(a, ast.AnnAssign) and isinstance(a.target, ast.Name)
+                and isinstance(b, ast.Expr) and isinstance(b.value, ast.Constant)
+                and isinstance(b.value.value, str)):  # fmt: skip
+            docs[a.target.id] = b.value.value
+    return docs
+
+
+def _metric_label(name: str, units: dict[str, str] | None = None) -> str:
+    from admit_rs.metrics import METRICS
+
+    if units and name in units:
+        return f"{name} [{units[name]}]"
+    return METRICS[name].label if name in METRICS else _with_unit(name, units)
+
+
+def _with_unit(name: str, units: dict[str, str] | None = None) -> str:
+    unit = (units or {}).get(name)
+    if unit is None:
+        unit = parameter_unit(name) if "." in name else ""
+    return f"{name} [{unit}]" if unit else name
+
+
+def _log_axis(values: npt.NDArray[np.float64], bins: int = 12) -> bool:
+    """Whether values look log-uniform (random draws) or log-spaced (a grid)."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0 or v.min() <= 0:
+        return False
+    distinct = np.unique(v)
+    if distinct.size < 3:
+        return bool(distinct[-1] / distinct[0] > 50)
+    if distinct.size <= bins:  # a grid: geometric rather than arithmetic spacing
+        lin, geo = np.diff(distinct), np.diff(np.log(distinct))
+        return bool(np.std(geo) / np.mean(geo) < np.std(lin) / np.mean(lin))
+    lo, hi = distinct[0], distinct[-1]
+    if hi / lo < 5:
+        return False
+    # Draws: the median sits at the geometric middle for log-uniform, the arithmetic one
+    # for uniform.
+    med = np.log(np.median(v))
+    return bool(abs(med - np.log(np.sqrt(lo * hi))) < abs(med - np.log((lo + hi) / 2)))
 
 
 def _axis(

@@ -13,8 +13,10 @@ import numpy.typing as npt
 import polars as pl
 
 from admit_rs import _core
+from admit_rs._names import MetricsDict
 from admit_rs.config import Scenario
 from admit_rs.errors import AdmitError
+from admit_rs.metrics import verdict
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -22,12 +24,15 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class Result:
-    """One run: the trace, the SPEC §7 metrics and how it ended.
+    """One run: the trace, its metrics (see :data:`admit_rs.METRICS` and docs/metrics.md)
+    and how it ended.
 
-    ``trace`` columns: t, q1..q3, qd1..qd3, x, y, z, x_ref, y_ref, z_ref, f (true force
-    along the wall normal), f_measured (what the sensor reported), f_d, penetration
-    (n·X − x_e; NaN without a wall), x_a, xa_dot, tau1..tau3 (applied torque),
-    tau_cmd1..tau_cmd3 (commanded torque). SI units: s, rad, rad/s, m, N, N·m, m/s.
+    ``metrics`` is a dict whose unknown keys raise :class:`admit_rs.UnknownNameError`
+    (a ``KeyError``) naming the closest metric. ``trace`` columns: t, q1..q3, qd1..qd3,
+    x, y, z, x_ref, y_ref, z_ref, f (true force along the wall normal), f_measured (what
+    the sensor reported), f_d, penetration (n·X − x_e; NaN without a wall), x_a, xa_dot,
+    tau1..tau3 (applied torque), tau_cmd1..tau_cmd3 (commanded torque). SI units: s, rad,
+    rad/s, m, N, N·m, m/s.
     """
 
     scenario: Scenario
@@ -39,8 +44,27 @@ class Result:
     """Why it stopped (velocity limit, non-finite state, singular Jacobian)."""
 
     @property
+    def diverged(self) -> bool:
+        """The run stopped early (non-finite state, singular Jacobian or velocity limit)."""
+        return self.diverged_at is not None
+
+    @property
     def stable(self) -> bool:
-        return self.diverged_at is None
+        """Not diverged and, for force-controlled runs, ``force_oscillation`` ≤ 0.1 and
+        ``contact_loss`` ≤ 0.05. :attr:`verdict` says which criterion failed."""
+        return bool(self.metrics["stable"])
+
+    @property
+    def verdict(self) -> str:
+        """``"stable"``, or ``"unstable: ..."`` naming each failed criterion in words.
+
+        Example:
+            >>> import admit_rs as ar
+            >>> sc = ar.paper.scenario("fig14")
+            >>> ar.simulate(sc.replace(**{"wall.stiffness": 7e5, "admittance.b": 200})).verdict
+            'unstable: contact lost in 88 % of samples after 1 s (limit 5 %); force oscillates...'
+        """
+        return verdict(self.metrics, self.diverged_at, self.divergence_cause)
 
     def step_info(self) -> dict[str, float]:
         """Force step metrics under python-control's ``step_info`` names."""
@@ -60,11 +84,7 @@ class Result:
         return plot_result(self, title=title)
 
     def __repr__(self) -> str:
-        status = (
-            "stable"
-            if self.stable
-            else f"diverged at t={self.diverged_at:.4g} s ({self.divergence_cause})"
-        )
+        status = self.verdict
         label = f" {self.scenario.label!r}" if self.scenario.label else ""
         return f"<Result{label}: {self.trace.height} samples, {status}>"
 
@@ -73,7 +93,7 @@ def _result(scenario: Scenario, columns: dict[str, Any], raw: Mapping[str, Any])
     return Result(
         scenario=scenario,
         trace=pl.DataFrame(columns),
-        metrics=raw["metrics"],
+        metrics=MetricsDict(raw["metrics"]),
         diverged_at=raw["diverged_at"],
         divergence_cause=raw["divergence_cause"],
     )

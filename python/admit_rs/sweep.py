@@ -301,6 +301,7 @@ def _run_chunk(
         columns[path] = [_column_value(r[path]) for r in rows]
     columns.update(raw["metrics"])
     columns["stable"] = raw["stable"]
+    columns["diverged"] = raw["diverged"]
     columns["diverged_at"] = raw["diverged_at"]
     columns["divergence_cause"] = pl.Series(raw["divergence_cause"], dtype=pl.String)
     table = pl.DataFrame(columns)
@@ -408,8 +409,9 @@ def sweep(
 
     Returns:
         One row per run: ``run_id``, ``seed``, a column per varied path, the metrics of
-        SPEC §7, ``stable``, ``diverged_at`` and ``divergence_cause``; with ``traces``, the
-        tuple ``(table, traces)``. An unstable run is a row with ``stable = False``.
+        :data:`admit_rs.METRICS`, ``stable``, ``diverged``, ``diverged_at`` and
+        ``divergence_cause``; with ``traces``, the tuple ``(table, traces)``. An unstable
+        run is a row with ``stable = False``; ``diverged`` says whether it stopped early.
 
     Raises:
         TypeError: unknown path (with the closest valid ones) or wrong type.

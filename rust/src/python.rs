@@ -437,6 +437,7 @@ fn outcome_into(
         metrics.set_item(name, v)?;
     }
     metrics.set_item("stable", run_metrics.stable)?;
+    metrics.set_item("diverged", run_metrics.diverged)?;
     out.set_item("metrics", metrics)?;
     match outcome {
         Outcome::Completed => {
@@ -544,7 +545,7 @@ fn trace_dict<'py>(py: Python<'py>, trace: Trace) -> PyResult<Bound<'py, PyDict>
 }
 
 /// Runs a batch of scenario dicts on `threads` threads (None: all cores) with the GIL
-/// released. Returns metric columns (one entry per run, in order), `stable`,
+/// released. Returns metric columns (one entry per run, in order), `stable`, `diverged`,
 /// `diverged_at` (NaN when stable), `divergence_cause` and, with `traces`, one column
 /// dict per run. An invalid scenario raises before anything runs, naming its index.
 #[pyfunction]
@@ -583,6 +584,7 @@ fn simulate_batch<'py>(
     let n = runs.len();
     let mut columns: Vec<Vec<f64>> = vec![Vec::with_capacity(n); METRIC_NAMES.len()];
     let mut stable = Vec::with_capacity(n);
+    let mut diverged = Vec::with_capacity(n);
     let mut diverged_at = Vec::with_capacity(n);
     let causes = PyList::empty(py);
     let trace_list = PyList::empty(py);
@@ -591,6 +593,7 @@ fn simulate_batch<'py>(
             c.push(v);
         }
         stable.push(run.metrics.stable);
+        diverged.push(run.metrics.diverged);
         match run.outcome {
             Outcome::Completed => {
                 diverged_at.push(f64::NAN);
@@ -611,6 +614,7 @@ fn simulate_batch<'py>(
     }
     out.set_item("metrics", metrics)?;
     out.set_item("stable", PyArray1::from_vec(py, stable))?;
+    out.set_item("diverged", PyArray1::from_vec(py, diverged))?;
     out.set_item("diverged_at", PyArray1::from_vec(py, diverged_at))?;
     out.set_item("divergence_cause", causes)?;
     out.set_item(

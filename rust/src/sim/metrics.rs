@@ -13,6 +13,10 @@ pub const STEADY_STATE_WINDOW: f64 = 2.0;
 pub const TRANSIENT_END: f64 = 1.0;
 /// Settling band, as a fraction of f_d.
 pub const SETTLING_BAND: f64 = 0.02;
+/// A force-controlled run whose `force_oscillation` exceeds this is not stable.
+pub const OSCILLATION_LIMIT: f64 = 0.1;
+/// A force-controlled run whose `contact_loss` exceeds this is not stable.
+pub const CONTACT_LOSS_LIMIT: f64 = 0.05;
 
 /// Metrics of one run. Force metrics are NaN in position-only runs, step metrics NaN when
 /// f_d is not a step, and every error metric NaN when the run diverged (`force_peak`
@@ -41,13 +45,20 @@ pub struct Metrics {
     pub x_rms_error: f64,
     /// Fraction of samples with f = 0 for t ≥ 1 s.
     pub contact_loss: f64,
+    /// std(f − f_d) / mean|f_d| over the last 2 s (t ≥ 1 s); for a constant f_d in that
+    /// window this is std(f) / |final f_d|. NaN when the window is empty or f_d ≡ 0 there.
+    pub force_oscillation: f64,
     /// Fraction of samples with any joint's applied torque at its limit (0 without limits).
     pub torque_saturation: f64,
+    /// The run stopped early (non-finite state or the velocity limit).
+    pub diverged: bool,
+    /// Not diverged and, for force-controlled runs, `force_oscillation` ≤ 0.1 and
+    /// `contact_loss` ≤ 0.05 (a criterion whose metric is NaN is not applied).
     pub stable: bool,
 }
 
 /// Metric names in the order of `Metrics::values`.
-pub const METRIC_NAMES: [&str; 12] = [
+pub const METRIC_NAMES: [&str; 13] = [
     "force_ss_error",
     "force_rms_error",
     "force_peak",
@@ -59,6 +70,7 @@ pub const METRIC_NAMES: [&str; 12] = [
     "z_rms_error",
     "x_rms_error",
     "contact_loss",
+    "force_oscillation",
     "torque_saturation",
 ];
 
@@ -76,6 +88,7 @@ impl Metrics {
             self.z_rms_error,
             self.x_rms_error,
             self.contact_loss,
+            self.force_oscillation,
             self.torque_saturation,
         ]
     }
@@ -89,7 +102,7 @@ impl Metrics {
         frame: &TaskFrame,
     ) -> Self {
         let (t, f, f_d) = (&trace.t, &trace.f, &trace.f_d);
-        let stable = !outcome.is_diverged();
+        let diverged = outcome.is_diverged();
         let force_control = config.admittance.is_some();
         let nan = f64::NAN;
         let mut m = Metrics {
@@ -104,10 +117,12 @@ impl Metrics {
             z_rms_error: nan,
             x_rms_error: nan,
             contact_loss: nan,
+            force_oscillation: nan,
             torque_saturation: torque_saturation(trace, config),
-            stable,
+            diverged,
+            stable: !diverged,
         };
-        if !stable || trace.is_empty() {
+        if diverged || trace.is_empty() {
             return m;
         }
         // Tracking errors along t̂ (z for the paper's wall) and along n (x).
@@ -132,6 +147,10 @@ impl Metrics {
         } else {
             nan
         };
+        let window = ss.max(late).min(t.len());
+        m.force_oscillation = oscillation(&f[window..], &f_d[window..]);
+        m.stable = within(m.force_oscillation, OSCILLATION_LIMIT)
+            && within(m.contact_loss, CONTACT_LOSS_LIMIT);
         if let Signal::Step { value, .. } = config.force_reference {
             m.overshoot_pct = 100.0 * (m.force_peak - value) / value;
             m.settling_time = settling_time(t, f, value, SETTLING_BAND);
@@ -194,6 +213,31 @@ fn rms_difference(a: &[f64], b: &[f64]) -> f64 {
     (a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>() / a.len() as f64).sqrt()
 }
 
+/// A stability criterion holds: the metric is at most `limit`, or NaN (not judged).
+fn within(value: f64, limit: f64) -> bool {
+    value.is_nan() || value <= limit
+}
+
+/// std(f − f_d) / mean|f_d| (NaN for an empty window or f_d ≡ 0).
+fn oscillation(f: &[f64], f_d: &[f64]) -> f64 {
+    if f.is_empty() {
+        return f64::NAN;
+    }
+    let n = f.len() as f64;
+    let scale = f_d.iter().map(|v| v.abs()).sum::<f64>() / n;
+    if scale == 0.0 {
+        return f64::NAN;
+    }
+    let mean = mean_difference(f, f_d);
+    let var = f
+        .iter()
+        .zip(f_d)
+        .map(|(a, b)| (a - b - mean) * (a - b - mean))
+        .sum::<f64>()
+        / n;
+    var.sqrt() / scale
+}
+
 /// First time the signal reaches `level` on the side of `target`'s sign (NaN if never).
 fn first_crossing(t: &[f64], y: &[f64], level: f64, target: f64) -> f64 {
     let sign = target.signum();
@@ -234,6 +278,21 @@ mod tests {
         assert!(first_crossing(&t, &f, 20.0, 10.0).is_nan());
         let never: Vec<f64> = t.iter().map(|_| 5.0).collect();
         assert!(settling_time(&t, &never, 10.0, 0.02).is_nan());
+    }
+
+    #[test]
+    fn oscillation_is_relative_std_about_the_reference() {
+        // f alternates 9 / 11 about f_d = 10: std 1, relative 0.1.
+        let f: Vec<f64> = (0..1000)
+            .map(|k| if k % 2 == 0 { 9.0 } else { 11.0 })
+            .collect();
+        let f_d = vec![10.0; 1000];
+        assert!((oscillation(&f, &f_d) - 0.1).abs() < 1e-12);
+        // Tracking a varying reference exactly is no oscillation.
+        let ramp: Vec<f64> = (0..1000).map(|k| 5.0 + k as f64 * 1e-2).collect();
+        assert_eq!(oscillation(&ramp, &ramp), 0.0);
+        assert!(oscillation(&[], &[]).is_nan());
+        assert!(oscillation(&[1.0], &[0.0]).is_nan());
     }
 
     #[test]

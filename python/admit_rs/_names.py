@@ -1,0 +1,56 @@
+"""Unknown names (metrics, table columns) raise one error that suggests the closest ones.
+
+Example:
+    >>> import admit_rs as ar
+    >>> r = ar.simulate(ar.paper.scenario("fig14").replace(duration=0.5))
+    >>> r.metrics["overshoot"]
+    Traceback (most recent call last):
+    ...
+    admit_rs._names.UnknownNameError: unknown metric 'overshoot'; did you mean 'overshoot_pct'? ...
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable
+from typing import Any
+
+from admit_rs.errors import AdmitError
+
+__all__ = ["MetricsDict", "UnknownNameError", "check_column"]
+
+
+class UnknownNameError(AdmitError, KeyError):
+    """An unknown metric or column name; ``name``, ``kind`` and ``suggestions`` say which.
+
+    A ``KeyError`` (so ``except KeyError`` keeps working) and an ``AdmitError``.
+    """
+
+    def __init__(self, kind: str, name: str, valid: Iterable[str]) -> None:
+        valid = sorted(str(v) for v in valid)
+        self.kind, self.name = kind, name
+        self.suggestions = difflib.get_close_matches(name, valid, n=3, cutoff=0.5)
+        hint = (
+            f"did you mean {' or '.join(repr(s) for s in self.suggestions)}? "
+            if self.suggestions
+            else ""
+        )
+        super().__init__(f"unknown {kind} {name!r}; {hint}valid: {', '.join(valid)}")
+
+    def __str__(self) -> str:  # KeyError would repr() the message
+        return str(self.args[0])
+
+
+class MetricsDict(dict[str, Any]):
+    """A run's metrics: a plain ``dict`` whose unknown keys raise :class:`UnknownNameError`."""
+
+    def __missing__(self, key: str) -> Any:
+        raise UnknownNameError("metric", str(key), self.keys())
+
+
+def check_column(columns: Iterable[str], name: str, kind: str = "column") -> str:
+    """Returns ``name`` if it is one of ``columns``, else raises :class:`UnknownNameError`."""
+    columns = list(columns)
+    if name not in columns:
+        raise UnknownNameError(kind, name, columns)
+    return name

@@ -1,0 +1,56 @@
+"""The command line prints valid JSON, a table on request, and documented exit codes."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from admit_rs import cli
+
+BOUNCING = (
+    "duration = 3.0\n[wall]\nstiffness = 700000.0\n"
+    '[admittance]\nkind = "admittance"\nb = 200.0\nka = 1.0\n'
+)
+
+
+def test_run_prints_valid_json_without_nan(tmp_path, capsys):
+    toml = tmp_path / "sc.toml"
+    toml.write_text('duration = 0.5\n[admittance]\nkind = "admittance"\nb = 400.0\nka = 1.0\n')
+    assert cli.main(["run", str(toml)]) == 0
+    out = capsys.readouterr().out
+    assert "NaN" not in out and "Infinity" not in out
+    data = json.loads(out)
+    # A 0.5 s run has no window after 1 s: NaN metrics are printed as null.
+    assert data["metrics"]["contact_loss"] is None
+    assert data["metrics"]["force_peak"] > 0
+    assert data["stable"] is True and data["diverged"] is False and data["verdict"] == "stable"
+
+
+def test_unstable_run_exits_3_with_its_verdict(tmp_path, capsys):
+    toml = tmp_path / "bounce.toml"
+    toml.write_text(BOUNCING)
+    assert cli.main(["run", str(toml)]) == 3
+    data = json.loads(capsys.readouterr().out)
+    assert data["stable"] is False and data["diverged"] is False
+    assert data["verdict"].startswith("unstable: contact lost in")
+
+
+def test_table_format_has_units(tmp_path, capsys):
+    toml = tmp_path / "bounce.toml"
+    toml.write_text(BOUNCING)
+    assert cli.main(["run", str(toml), "--format", "table"]) == 3
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("verdict") and "contact lost" in lines[0]
+    row = {line.split()[0]: line.split()[1:] for line in lines[1:]}
+    assert row["force_peak"][1] == "N" and row["z_rms_error"][1] == "m"
+    assert row["contact_loss"][1:] == ["fraction", "(0–1)"]
+    assert row["stable"] == ["False"]
+
+
+def test_help_documents_exit_codes(capsys):
+    with pytest.raises(SystemExit) as info:
+        cli.main(["--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    for code in ("0 ", "2 ", "3 ", "130"):
+        assert f"\n  {code}" in out
