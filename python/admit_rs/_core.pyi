@@ -29,6 +29,10 @@ class ParameterError(ValueError):
     allowed: str
     """The allowed range, in words."""
 
+def defaults() -> dict[str, dict[str, Any]]:
+    """The core's default parameters per block (robot, wall, sensor, actuator, model,
+    computed_torque, model_free, time_delay, admittance, scenario)."""
+
 def check_block(kind: str, params: dict[str, Any]) -> None:
     """Validate one block (kind: robot, wall, controller, admittance, signal, model, sensor,
     actuator)."""

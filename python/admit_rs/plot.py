@@ -37,7 +37,13 @@ def plot_result(result: Result, title: str | None = None) -> Figure:
     axes = fig.subplots(2, 2, sharex=True)
     (ax_f, ax_x), (ax_z, ax_a) = axes
     if force_control:
-        ax_f.plot(t, tr["f"].to_numpy(), label="f")
+        f = tr["f"].to_numpy()
+        measured = tr["f_measured"].to_numpy() if "f_measured" in tr.columns else f
+        differs = not np.array_equal(measured, f)
+        if differs:
+            # A real sensor: show what the controller saw behind the true force.
+            ax_f.plot(t, measured, color="C1", lw=0.6, alpha=0.7, label="f measured")
+        ax_f.plot(t, f, color="C0", label="f (true)" if differs else "f")
         ax_f.plot(t, tr["f_d"].to_numpy(), "--", color="k", lw=1, label="f_d")
         ax_f.set_ylabel("force [N]")
         ax_f.set_title("contact force")

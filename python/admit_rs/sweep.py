@@ -266,10 +266,24 @@ def _set_path(config: dict[str, Any], path: str, value: Any) -> None:
     node[leaf] = value
 
 
-def _configs(base: dict[str, Any], rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+def noise_seed(seed: int, run_id: int) -> int:
+    """The sensor-noise seed (``Scenario.seed``) of run ``run_id`` of a sweep with ``seed``.
+
+    Derived from (seed, run_id) alone, like the parameter draws, so a run's noise does not
+    depend on the thread count, the chunking, a resume or Dask; ``scenario.replace(seed=
+    noise_seed(seed, run_id))`` reproduces the run with :func:`admit_rs.simulate`.
+    """
+    state = np.random.SeedSequence([seed, run_id, 1]).generate_state(1, np.uint64)[0]
+    return int(state) >> 11  # 53 bits: exact as a float in the core's config
+
+
+def _configs(
+    base: dict[str, Any], rows: Sequence[dict[str, Any]], run_ids: Sequence[int], seed: int
+) -> list[dict[str, Any]]:
     out = []
-    for row in rows:
+    for row, run_id in zip(rows, run_ids, strict=True):
         config = copy.deepcopy(base)
+        config["seed"] = noise_seed(seed, run_id)  # a varied "seed" path overrides it
         for path, value in row.items():
             _set_path(config, path, value)
         out.append(config)
@@ -289,13 +303,15 @@ def _run_chunk(
     Top-level so that Dask workers can import it.
     """
     try:
-        raw = _core.simulate_batch(_configs(base, rows), threads, traces)
+        configs = _configs(base, rows, run_ids, seed)
+        raw = _core.simulate_batch(configs, threads, traces)
     except ParameterError as e:
         raise for_run(e, run_ids[getattr(e, "index", 0)]) from None
     n = len(run_ids)
     columns: dict[str, Any] = {
         "run_id": pl.Series("run_id", list(run_ids), dtype=pl.Int64),
         "seed": pl.Series("seed", [seed] * n, dtype=pl.Int64),
+        "noise_seed": pl.Series("noise_seed", [c["seed"] for c in configs], dtype=pl.Int64),
     }
     for path in rows[0] if rows else []:
         columns[path] = [_column_value(r[path]) for r in rows]

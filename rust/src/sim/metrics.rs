@@ -4,7 +4,8 @@
 use crate::control::reference::Signal;
 use crate::control::task::TaskFrame;
 use crate::robot::TaskVector;
-use crate::sim::simulation::{Outcome, ScenarioConfig};
+use crate::sim::outcome::Outcome;
+use crate::sim::scenario::ScenarioConfig;
 use crate::sim::trace::Trace;
 
 /// The steady-state window: the last 2 s.

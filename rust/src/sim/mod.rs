@@ -1,8 +1,14 @@
-//! Running the loop: the plant integrator, the stage pipeline, its trace and metrics, and
-//! batches of runs on all cores.
+//! Running the loop: the scenario, the plant integrator, the stage pipeline, its trace,
+//! outcome and metrics, and batches of runs on all cores.
+//!
+//! Dependencies run one way: `scenario`, `outcome` and `trace` are plain data; `metrics`
+//! reads them; `simulation` drives `plant` and records into `trace`, then calls `metrics`;
+//! `sweep` runs many `simulation`s.
 
 pub mod metrics;
+pub mod outcome;
 pub mod plant;
+pub mod scenario;
 pub mod simulation;
 pub mod sweep;
 pub mod trace;

@@ -1,0 +1,131 @@
+//! What defines one run: the scenario's parameters and their validation.
+
+use crate::control::controller::ControllerParams;
+use crate::control::filter::ForceControlParams;
+use crate::control::reference::Signal;
+use crate::error::{check, Error, Result};
+use crate::robot::RobotParams;
+use crate::world::actuator::ActuatorParams;
+use crate::world::environment::WallParams;
+use crate::world::sensor::SensorParams;
+
+/// Largest run accepted, in samples: a trace this long already takes ~1.5 GB.
+pub const MAX_SAMPLES: usize = 10_000_000;
+/// Largest number of RK4 substeps per control period.
+pub const MAX_SUBSTEPS: usize = 10_000;
+
+/// Everything that defines one run. Defaults are the paper preset of fig. 14.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScenarioConfig {
+    pub robot: RobotParams,
+    /// `None`: free space.
+    pub wall: Option<WallParams>,
+    pub controller: ControllerParams,
+    /// The outer force loop; `None` is position-only control (X_d = X0 + s t̂).
+    pub admittance: Option<ForceControlParams>,
+    /// Desired contact force f_d(t) along n [N].
+    pub force_reference: Signal,
+    /// Desired motion along t̂ from the start: s(t) [m] (z for the paper's wall).
+    pub z_reference: Signal,
+    /// The force sensor. Default: ideal.
+    pub sensor: SensorParams,
+    /// The motors. Default: ideal.
+    pub actuator: ActuatorParams,
+    /// Seed of the sensor noise. Default 0.
+    pub seed: u64,
+    /// Controller period T [s]. Default 1 ms.
+    pub period: f64,
+    /// RK4 substeps per period. Default 10.
+    pub substeps: usize,
+    /// Run length [s]; a multiple of `period`. Default 10.
+    pub duration: f64,
+    /// |q̇| at or above this [rad/s] stops the run as diverged. Default 100.
+    pub velocity_limit: f64,
+}
+
+impl Default for ScenarioConfig {
+    fn default() -> Self {
+        Self {
+            robot: RobotParams::default(),
+            wall: Some(WallParams::default()),
+            controller: ControllerParams::TimeDelay(Default::default()),
+            admittance: Some(ForceControlParams::Admittance(Default::default())),
+            force_reference: Signal::Step {
+                value: 10.0,
+                time: 0.0,
+                initial: 0.0,
+            },
+            z_reference: Signal::Sine {
+                offset: 0.0,
+                amplitude: 0.05,
+                omega: 1.0,
+                phase: 0.0,
+            },
+            sensor: SensorParams::default(),
+            actuator: ActuatorParams::default(),
+            seed: 0,
+            period: 1e-3,
+            substeps: 10,
+            duration: 10.0,
+            velocity_limit: 100.0,
+        }
+    }
+}
+
+impl ScenarioConfig {
+    /// Checks every field; errors name the field by its dotted path.
+    pub fn validate(&self) -> Result<()> {
+        self.robot.validate().map_err(|e| e.within("robot"))?;
+        if let Some(w) = &self.wall {
+            w.validate().map_err(|e| e.within("wall"))?;
+        }
+        self.controller
+            .validate()
+            .map_err(|e| e.within("controller"))?;
+        check::positive("period", self.period)?;
+        if let Some(a) = &self.admittance {
+            a.validate(self.period)
+                .map_err(|e| e.within("admittance"))?;
+        }
+        self.force_reference
+            .validate()
+            .map_err(|e| e.within("force_reference"))?;
+        self.z_reference
+            .validate()
+            .map_err(|e| e.within("z_reference"))?;
+        self.sensor.validate().map_err(|e| e.within("sensor"))?;
+        self.actuator
+            .validate(3)
+            .map_err(|e| e.within("actuator"))?;
+        check::positive("duration", self.duration)?;
+        check::positive("velocity_limit", self.velocity_limit)?;
+        if self.substeps == 0 || self.substeps > MAX_SUBSTEPS {
+            return Err(Error::parameter(
+                "substeps",
+                self.substeps,
+                &format!("an integer from 1 to {MAX_SUBSTEPS}"),
+            ));
+        }
+        let periods = self.duration / self.period;
+        if periods.round() + 1.0 > MAX_SAMPLES as f64 {
+            return Err(Error::parameter(
+                "duration",
+                self.duration,
+                &format!("at most {} periods of {} s", MAX_SAMPLES - 1, self.period),
+            ));
+        }
+        if (periods - periods.round()).abs() > 1e-6 * periods.max(1.0) {
+            return Err(Error::parameter(
+                "duration",
+                self.duration,
+                &format!("a whole multiple of period = {}", self.period),
+            ));
+        }
+        Ok(())
+    }
+
+    /// N = D/T + 1 samples.
+    pub fn samples(&self) -> usize {
+        (self.duration / self.period).round() as usize + 1
+    }
+}
