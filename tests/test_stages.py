@@ -3,13 +3,12 @@ actuators, stepping and the explicit state, each against an independent answer."
 
 import math
 
+import admit_rs as ar
 import numpy as np
 import polars as pl
 import pytest
-from scipy import signal
-
-import admit_rs as ar
 from admit_rs import _core
+from scipy import signal
 
 # An ideal inner loop: computed torque with the true model, contact compensation and fast
 # gains (SPEC §9's tests), so the force loop behaves like its closed form.
