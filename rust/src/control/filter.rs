@@ -59,23 +59,33 @@ impl AdmittanceParams {
     /// filter a controller can run at any sample rate).
     pub fn validate_for_period(&self, period: f64) -> Result<()> {
         self.validate()?;
+        // (field, its value, the rate it drives with m = 1, the rate with the true m)
         let rates = [
-            ("b", self.b, self.b / self.m * period),
-            ("k", self.k, self.k / self.m * period * period),
-            ("ka", self.ka, self.ka / self.m * period),
+            ("b", self.b, self.b * period),
+            ("k", self.k, self.k * period * period),
+            ("ka", self.ka, self.ka * period),
         ];
-        for (field, value, rate) in rates {
-            if !(rate.is_finite() && rate <= MAX_DISCRETE_RATE) {
-                return Err(Error::parameter(
-                    field,
-                    value,
-                    &format!(
-                        "such that b·T/m, k·T²/m and ka·T/m are at most {MAX_DISCRETE_RATE:e} \
-                         (T = {period} s; m = {})",
-                        self.m
-                    ),
-                ));
+        for (field, value, unit_mass_rate) in rates {
+            let rate = unit_mass_rate / self.m;
+            if rate.is_finite() && rate <= MAX_DISCRETE_RATE {
+                continue;
             }
+            // Blame m when the field alone would be fine with a unit mass.
+            let (field, value) = if unit_mass_rate <= MAX_DISCRETE_RATE {
+                ("m", self.m)
+            } else {
+                (field, value)
+            };
+            return Err(Error::parameter(
+                field,
+                value,
+                &format!(
+                    "such that b·T/m, k·T²/m and ka·T/m are at most {MAX_DISCRETE_RATE:e} \
+                     (T = {period} s, m = {}, b = {}, k = {}, ka = {}): the filter's \
+                     zero-order hold is not representable beyond that",
+                    self.m, self.b, self.k, self.ka
+                ),
+            ));
         }
         let (ad, bd) = self.discretize(period);
         if !(ad.iter().chain(bd.iter()).all(|v| v.is_finite())) {
@@ -314,5 +324,53 @@ mod tests {
     fn negative_damping_rejected() {
         let p = AdmittanceParams::scheme2(-1.0, 1.0);
         assert!(p.validate().unwrap_err().to_string().starts_with("b = -1"));
+    }
+
+    /// Gains the zero-order hold cannot represent are errors naming the culprit, at once
+    /// (they used to hang the matrix exponential); the largest accepted rate discretises.
+    #[test]
+    fn unrepresentable_filters_are_rejected_quickly() {
+        let t = 1e-3;
+        for (p, field) in [
+            (
+                AdmittanceParams {
+                    k: 1e100,
+                    ..AdmittanceParams::default()
+                },
+                "k = ",
+            ),
+            (
+                AdmittanceParams {
+                    b: 1e100,
+                    ..AdmittanceParams::default()
+                },
+                "b = ",
+            ),
+            (
+                AdmittanceParams {
+                    k: 1e300,
+                    ..AdmittanceParams::default()
+                },
+                "k = ",
+            ),
+            (
+                AdmittanceParams {
+                    m: 1e-300,
+                    ..AdmittanceParams::default()
+                },
+                "m = ",
+            ),
+        ] {
+            let e = p.validate_for_period(t).unwrap_err().to_string();
+            assert!(e.starts_with(field), "{e}");
+        }
+        let edge = AdmittanceParams {
+            b: MAX_DISCRETE_RATE / t,
+            k: MAX_DISCRETE_RATE / (t * t),
+            ..AdmittanceParams::default()
+        };
+        edge.validate_for_period(t).unwrap();
+        let (ad, bd) = edge.discretize(t);
+        assert!(ad.iter().chain(bd.iter()).all(|v| v.is_finite()));
     }
 }

@@ -153,7 +153,12 @@ impl Metrics {
         m.stable = within(m.force_oscillation, OSCILLATION_LIMIT)
             && within(m.contact_loss, CONTACT_LOSS_LIMIT);
         if let Signal::Step { value, .. } = config.force_reference {
-            m.overshoot_pct = 100.0 * (m.force_peak - value) / value;
+            // Relative to f_d: undefined (NaN) for f_d = 0.
+            m.overshoot_pct = if value == 0.0 {
+                f64::NAN
+            } else {
+                100.0 * (m.force_peak - value) / value
+            };
             m.settling_time = settling_time(t, f, value, SETTLING_BAND);
             m.rise_time_63 = first_crossing(t, f, 0.632 * value, value);
             m.rise_time_10_90 =
@@ -185,8 +190,18 @@ fn mean_difference(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x - y).sum::<f64>() / a.len() as f64
 }
 
-fn rms(v: impl Iterator<Item = f64>, n: usize) -> f64 {
-    (v.map(|x| x * x).sum::<f64>() / n as f64).sqrt()
+fn rms(v: impl Iterator<Item = f64> + Clone, n: usize) -> f64 {
+    let plain = (v.clone().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
+    if plain.is_finite() {
+        return plain;
+    }
+    // The squares overflowed (errors beyond 1e154): scale by the largest, so a huge but
+    // finite error reads as itself rather than inf.
+    let scale = v.clone().fold(0.0f64, |m, x| m.max(x.abs()));
+    if !scale.is_finite() || scale == 0.0 {
+        return plain;
+    }
+    scale * (v.map(|x| (x / scale) * (x / scale)).sum::<f64>() / n as f64).sqrt()
 }
 
 /// Fraction of samples where some joint's applied torque sits at its limit.
@@ -211,7 +226,7 @@ fn torque_saturation(trace: &Trace, config: &ScenarioConfig) -> f64 {
 }
 
 fn rms_difference(a: &[f64], b: &[f64]) -> f64 {
-    (a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>() / a.len() as f64).sqrt()
+    rms(a.iter().zip(b).map(|(x, y)| x - y), a.len())
 }
 
 /// A stability criterion holds: the metric is at most `limit`, or NaN (not judged).
@@ -303,5 +318,12 @@ mod tests {
         assert_eq!(first_index_at(-1.0, 1e-3), 0);
         assert!((rms_difference(&[1.0, -1.0], &[0.0, 0.0]) - 1.0).abs() < 1e-15);
         assert_eq!(mean_difference(&[3.0, 5.0], &[1.0, 1.0]), 3.0);
+    }
+
+    #[test]
+    fn rms_of_huge_errors_does_not_overflow() {
+        let v = [1e300, -1e300, 1e300, -1e300];
+        assert_eq!(rms(v.iter().copied(), 4), 1e300);
+        assert_eq!(rms_difference(&[3.0, 4.0], &[0.0, 0.0]), (12.5f64).sqrt());
     }
 }
