@@ -91,7 +91,7 @@ fn dynamics(c: &mut Criterion) {
             arm.evaluate(black_box(&s.q), black_box(&s.qd))
         })
     });
-    let contact = |p: &Vec3, v: &Vec3| wall.force(p, v);
+    let contact = |along: f64, rate: f64| wall.force_along(along, rate);
     g.bench_function("accelerate", |b| {
         b.iter(|| {
             let (s, tau) = replay.next();
@@ -101,7 +101,7 @@ fn dynamics(c: &mut Criterion) {
                 black_box(tau),
                 &contact,
                 &wall.normal,
-                wall.needs_velocity(),
+                wall.needs_rate(),
             )
         })
     });

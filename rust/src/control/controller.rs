@@ -307,7 +307,7 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
     }
 
     /// The commanded joint torque τ_k for the measurement at t_k.
-    #[inline]
+    #[inline(always)]
     pub fn step(
         &mut self,
         m: &Measurement<N>,

@@ -94,29 +94,26 @@ pub trait RobotModel<const N: usize>: Clone + Send + Sync {
         }
     }
 
-    /// q̈ with the tip force given by `contact` from the tip's position and velocity at
-    /// this same state: one RK4 stage of the plant. `contact` returns the force along the
-    /// wall normal `normal`; the arm feels −f n through Jᵀ. Returns (q̈, f).
+    /// q̈ with the contact force evaluated at this same state: one RK4 stage of the plant.
+    /// `contact(s, ṡ)` gives the force f along the wall normal `normal` from the tip's
+    /// displacement s = n·X and rate ṡ = n·Ẋ; the arm feels −f n through Jᵀ.
+    /// Returns (q̈, f).
     ///
-    /// `needs_velocity` says whether `contact` reads the velocity (a damped wall), so an
-    /// undamped wall skips J q̇.
+    /// `needs_rate` says whether `contact` reads ṡ (a damped wall); without it ṡ is 0.
     #[inline(always)]
     fn accelerate(
         &self,
         c: &Self::Config,
         qd: &JointVector<N>,
         tau: &JointVector<N>,
-        contact: &impl Fn(&TaskVector, &TaskVector) -> f64,
+        contact: &impl Fn(f64, f64) -> f64,
         normal: &TaskVector,
-        needs_velocity: bool,
+        needs_rate: bool,
     ) -> (JointVector<N>, f64) {
         let k = self.kinematics(c, qd);
-        let velocity = if needs_velocity {
-            k.jacobian * qd
-        } else {
-            TaskVector::zeros()
-        };
-        let f = contact(&k.position, &velocity);
+        let jt_n = k.jacobian.transpose() * normal;
+        let rate = if needs_rate { jt_n.dot(qd) } else { 0.0 };
+        let f = contact(normal.dot(&k.position), rate);
         (self.forward_dynamics(c, qd, tau, &(normal * -f)), f)
     }
 

@@ -382,35 +382,31 @@ impl ThreeLinkArm {
     }
 
     /// Joint accelerations with the environment's force evaluated at the same state:
-    /// eq. (1) with τ_ext = Jᵀ(−f n), f = `contact(X, Ẋ)`. Returns (q̈, f).
+    /// eq. (1) with τ_ext = Jᵀ(−f n), f = `contact(n·X, n·Ẋ)`. Returns (q̈, f).
     #[inline(always)]
     fn accelerate_at(
         &self,
         t: &Trig,
         qd: &Vec3,
         tau: &Vec3,
-        contact: &impl Fn(&TaskVector, &TaskVector) -> f64,
+        contact: &impl Fn(f64, f64) -> f64,
         normal: &TaskVector,
-        needs_velocity: bool,
+        needs_rate: bool,
     ) -> (Vec3, f64) {
         let t = *t;
-        let r = self.l2 * t.c2 + self.l3 * t.c23;
-        let h = self.l2 * t.s2 + self.l3 * t.s23;
-        let position = Vec3::new(t.c1 * r, t.s1 * r, self.l1 + h);
-        let l3s23 = self.l3 * t.s23;
-        // Jᵀ n, from J's entries (see `kinematics_from`); J's third row has a 0 in column 1.
+        let r = self.l2 * t.c2 + self.l3 * t.c23; // distance from the yaw axis
+        let h = self.l2 * t.s2 + self.l3 * t.s23; // height above the shoulder
+                                                  // The normal's horizontal part in the arm's yaw frame: a = (c1, s1)·(n0, n1) and
+                                                  // b = (−s1, c1)·(n0, n1). Then n·X = r a + n2 (l1 + h), and Jᵀ n follows from J's
+                                                  // entries (see `kinematics_from`); for the paper's n = e_x, n·X = x and Jᵀ n is J's
+                                                  // first row.
         let (n0, n1, n2) = (normal[0], normal[1], normal[2]);
-        let jt_n = Vec3::new(
-            -t.s1 * r * n0 + t.c1 * r * n1,
-            -t.c1 * h * n0 - t.s1 * h * n1 + r * n2,
-            -t.c1 * l3s23 * n0 - t.s1 * l3s23 * n1 + self.l3 * t.c23 * n2,
-        );
-        let velocity = if needs_velocity {
-            self.kinematics_from(&t, qd).jacobian * qd
-        } else {
-            Vec3::zeros()
-        };
-        let f = contact(&position, &velocity);
+        let a = t.c1 * n0 + t.s1 * n1;
+        let b = t.c1 * n1 - t.s1 * n0;
+        let along = r * a + n2 * (self.l1 + h);
+        let jt_n = Vec3::new(r * b, r * n2 - h * a, self.l3 * (t.c23 * n2 - t.s23 * a));
+        let rate = if needs_rate { jt_n.dot(qd) } else { 0.0 };
+        let f = contact(along, rate);
         // The wall pushes the tip along −n.
         let contact_torque = jt_n * -f;
         let d = self.dynamics_from(&t, qd);
@@ -534,11 +530,11 @@ impl RobotModel<3> for ThreeLinkArm {
         t: &Trig,
         qd: &JointVector<3>,
         tau: &JointVector<3>,
-        contact: &impl Fn(&TaskVector, &TaskVector) -> f64,
+        contact: &impl Fn(f64, f64) -> f64,
         normal: &TaskVector,
-        needs_velocity: bool,
+        needs_rate: bool,
     ) -> (JointVector<3>, f64) {
-        self.accelerate_at(t, qd, tau, contact, normal, needs_velocity)
+        self.accelerate_at(t, qd, tau, contact, normal, needs_rate)
     }
 
     fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {
@@ -666,16 +662,17 @@ mod tests {
         let q = Vec3::new(0.1, 0.7, -0.6);
         let qd = Vec3::new(0.2, 0.3, -0.4);
         let tau = Vec3::new(1.0, 40.0, 9.0);
-        let n = Vec3::new(0.6, 0.0, 0.8);
-        let contact = |p: &Vec3, v: &Vec3| 1000.0 * n.dot(p) + 20.0 * n.dot(v);
+        let n = Vec3::new(0.6, 0.48, 0.64);
+        let contact = |s: f64, rate: f64| 1000.0 * s + 20.0 * rate;
         let (qdd, f) = arm.accelerate(&Trig::new(&q), &qd, &tau, &contact, &n, true);
         let k = arm.kinematics(&Trig::new(&q), &qd);
-        assert_eq!(f, contact(&k.position, &(k.jacobian * qd)));
+        let expected = contact(n.dot(&k.position), n.dot(&(k.jacobian * qd)));
+        assert!((f - expected).abs() < 1e-12, "{f} vs {expected}");
         let reference = arm.forward_dynamics_at(&q, &qd, &tau, &(n * -f));
         assert!((qdd - reference).abs().max() < 1e-12);
-        // Without the velocity the contact sees Ẋ = 0.
+        // Without the rate the contact sees ṡ = 0.
         let (_, f0) = arm.accelerate(&Trig::new(&q), &qd, &tau, &contact, &n, false);
-        assert_eq!(f0, 1000.0 * n.dot(&k.position));
+        assert!((f0 - 1000.0 * n.dot(&k.position)).abs() < 1e-12);
     }
 
     /// Angle addition agrees with a fresh evaluation to rounding, over the whole range

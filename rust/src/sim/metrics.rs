@@ -126,14 +126,10 @@ impl Metrics {
         if diverged || trace.is_empty() {
             return m;
         }
-        // Tracking errors along t̂ (z for the paper's wall) and along n (x).
-        let error = |i: usize| {
-            TaskVector::new(trace.x_ref[i], trace.y_ref[i], trace.z_ref[i])
-                - TaskVector::new(trace.x[i], trace.y[i], trace.z[i])
-        };
-        let n = trace.len();
-        m.z_rms_error = rms((0..n).map(|i| frame.along_tangent(&error(i))), n);
-        m.x_rms_error = rms((0..n).map(|i| frame.along_normal(&error(i))), n);
+        // Tracking errors along n (x for the paper's wall) and along t̂ (z).
+        let (along_n, along_t) = task_errors(trace, frame);
+        m.x_rms_error = rms(along_n.iter().copied(), along_n.len());
+        m.z_rms_error = rms(along_t.iter().copied(), along_t.len());
         if !force_control {
             return m;
         }
@@ -188,6 +184,19 @@ fn max(v: &[f64]) -> f64 {
 
 fn mean_difference(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x - y).sum::<f64>() / a.len() as f64
+}
+
+/// The tracking error X_d − X of every sample, along n and along t̂.
+fn task_errors(trace: &Trace, frame: &TaskFrame) -> (Vec<f64>, Vec<f64>) {
+    let (n, t) = (&frame.normal, &frame.tangent);
+    let errors = trace
+        .x_ref
+        .iter()
+        .zip(&trace.y_ref)
+        .zip(&trace.z_ref)
+        .zip(trace.x.iter().zip(&trace.y).zip(&trace.z))
+        .map(|(((xr, yr), zr), ((x, y), z))| TaskVector::new(xr - x, yr - y, zr - z));
+    errors.map(|e| (n.dot(&e), t.dot(&e))).unzip()
 }
 
 fn rms(v: impl Iterator<Item = f64> + Clone, n: usize) -> f64 {

@@ -99,13 +99,13 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
     ) -> JointVector<N> {
         match &self.wall {
             Some(w) => {
-                let contact = |p: &TaskVector, v: &TaskVector| w.force(p, v);
+                let contact = |along: f64, rate: f64| w.force_along(along, rate);
                 self.arm
-                    .accelerate(c, qd, tau, &contact, &w.normal, w.needs_velocity())
+                    .accelerate(c, qd, tau, &contact, &w.normal, w.needs_rate())
                     .0
             }
             None => {
-                let free = |_: &TaskVector, _: &TaskVector| 0.0;
+                let free = |_: f64, _: f64| 0.0;
                 self.arm
                     .accelerate(c, qd, tau, &free, &TaskVector::x(), false)
                     .0
@@ -220,7 +220,7 @@ mod tests {
         let mut plant = Plant::new(arm.clone(), Some(wall), start, h * 10.0, substeps);
         let (mut q, mut qd) = (start.q, start.qd);
         let mut contact_periods = 0;
-        let contact = |p: &Vec3, v: &Vec3| wall.force(p, v);
+        let contact = |along: f64, rate: f64| wall.force_along(along, rate);
         let f = |q: &Vec3, qd: &Vec3, t: &Vec3| {
             arm.accelerate(&Trig::new(q), qd, t, &contact, &wall.normal, false)
                 .0

@@ -209,7 +209,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         let wall = self.plant.wall();
         let (force, penetration) = match wall {
             Some(w) => {
-                let velocity = if w.needs_velocity() {
+                let velocity = if w.needs_rate() {
                     kin.jacobian * qd
                 } else {
                     TaskVector::zeros()

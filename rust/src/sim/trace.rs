@@ -114,7 +114,7 @@ impl Trace {
         self.q.len()
     }
 
-    #[inline]
+    #[inline(always)]
     pub fn push(&mut self, r: &Row) {
         self.t.push(r.t);
         for (c, v) in self.q.iter_mut().zip(r.q) {

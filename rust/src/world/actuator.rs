@@ -91,7 +91,7 @@ impl<const N: usize> Actuator<N> {
     }
 
     /// The torque applied at sample `k` for the command `command`.
-    #[inline]
+    #[inline(always)]
     pub fn apply(&mut self, k: usize, command: &JointVector<N>) -> JointVector<N> {
         let delay = self.in_flight.len();
         let mut tau = if delay == 0 {

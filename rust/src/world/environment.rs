@@ -122,16 +122,22 @@ impl Wall {
         self.normal.dot(position) - self.position
     }
 
-    /// Whether the force reads the tip velocity (it does only with damping).
+    /// Whether the force reads the tip's rate along n (it does only with damping).
     #[inline(always)]
-    pub fn needs_velocity(&self) -> bool {
+    pub fn needs_rate(&self) -> bool {
         self.damping != 0.0
     }
 
     /// Contact force along n [N] at tip position X and velocity Ẋ: 0 while δ ≤ 0.
     #[inline(always)]
     pub fn force(&self, position: &TaskVector, velocity: &TaskVector) -> f64 {
-        let delta = self.penetration(position);
+        self.force_along(self.normal.dot(position), self.normal.dot(velocity))
+    }
+
+    /// Contact force along n [N] from the tip's displacement s = n·X and rate ṡ = n·Ẋ.
+    #[inline(always)]
+    pub fn force_along(&self, along: f64, rate: f64) -> f64 {
+        let delta = along - self.position;
         if delta <= 0.0 {
             return 0.0;
         }
@@ -143,7 +149,6 @@ impl Wall {
             // The paper's wall: no velocity term at all (and no 0·δ̇ to round).
             return self.stiffness * spring;
         }
-        let rate = self.normal.dot(velocity);
         let f = match self.model {
             ContactModel::KelvinVoigt => self.stiffness * delta + self.damping * rate,
             ContactModel::HuntCrossley => spring * (self.stiffness + self.damping * rate),

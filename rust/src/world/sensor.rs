@@ -98,7 +98,7 @@ impl ForceSensor {
     }
 
     /// The reading at sample `k` of the true force `force` [N].
-    #[inline]
+    #[inline(always)]
     pub fn measure(&mut self, k: usize, force: f64) -> f64 {
         let p = &self.params;
         let mut u = force + p.bias;
