@@ -83,7 +83,7 @@ def test_choice_of_blocks_and_values():
 def test_unstable_run_is_a_row():
     """Model-free control diverges at K_A = 0.1: a row with stable = False, not an error."""
     table = ar.sweep(ar.paper.scenario("fig12").replace(duration=0.5),
-                     grid={"controller.ka": [5.0, 0.1]}, progress=False)  # fmt: skip
+                     grid={"controller.command_divisor": [5.0, 0.1]}, progress=False)  # fmt: skip
     assert table["stable"].to_list() == [True, False]
     bad = table.row(1, named=True)
     assert bad["diverged_at"] > 0 and "velocity" in bad["divergence_cause"]
@@ -280,8 +280,8 @@ def test_sweep_plots():
                                 metric="force_peak", logx=True)  # fmt: skip
     assert log.axes[0].get_xscale() == "log"
     mixed = ar.sweep(ar.paper.scenario("fig12").replace(duration=0.5),
-                     grid={"controller.ka": [5.0, 0.1]}, progress=False)  # fmt: skip
-    fig = ar.plot.sweep_scatter(mixed, x="controller.ka", metric="force_peak")
+                     grid={"controller.command_divisor": [5.0, 0.1]}, progress=False)  # fmt: skip
+    fig = ar.plot.sweep_scatter(mixed, x="controller.command_divisor", metric="force_peak")
     labels = fig.axes[0].get_legend_handles_labels()[1]
     assert labels == ["stable (1)", "unstable (1)"]
     fig = ar.plot.sweep_hist(table, "force_peak")

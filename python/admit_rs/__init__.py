@@ -28,7 +28,7 @@ from admit_rs.config import (
     Wall,
     parameter_paths,
 )
-from admit_rs.errors import AdmitError, ParameterError
+from admit_rs.errors import AdmitError, ParameterError, UnknownParameterError
 from admit_rs.simulation import Result, simulate
 from admit_rs.sweep import (
     CheckpointMismatchError,
@@ -65,6 +65,7 @@ __all__ = [
     "Sine",
     "Step",
     "TimeDelayControl",
+    "UnknownParameterError",
     "Wall",
     "__version__",
     "paper",

@@ -16,18 +16,8 @@ x_a, tau1..tau3, xa_dot."""
 METRIC_NAMES: Final[list[str]]
 """Float metric names (SPEC §7 plus step_info-convention extras); ``stable`` comes besides."""
 
-class AdmitError(Exception):
-    """Base of admit_rs runtime errors."""
-
-class ParameterError(ValueError):
-    """A parameter outside its allowed range."""
-
-    field: str
-    """Dotted path of the parameter, e.g. ``wall.stiffness``."""
-    value: str
-    """The rejected value, as text."""
-    allowed: str
-    """The allowed range, in words."""
+# Errors: the extension raises admit_rs.errors.ParameterError (defined in Python so that it
+# is both a ValueError and an admit_rs.AdmitError); it defines no exception class itself.
 
 def check_block(kind: str, params: dict[str, Any]) -> None:
     """Validate one block (kind: robot, wall, controller, admittance, signal, model)."""

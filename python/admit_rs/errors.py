@@ -1,13 +1,76 @@
-"""Exceptions raised by admit_rs.
+"""Exceptions raised by admit_rs, all under one root, :class:`AdmitError`.
 
-``ParameterError`` subclasses ``ValueError``: every invalid parameter raises it with the
-field's dotted path, its value and the allowed range (also as attributes ``field``,
-``value`` and ``allowed``). Unknown keywords and wrong types raise ``TypeError``.
+``except admit_rs.AdmitError`` catches every error the library raises on purpose. Each
+class also derives from the built-in exception a caller would expect:
+
+- :class:`ParameterError` (also a ``ValueError``): a value outside its range, with the
+  field's dotted path, its value and the allowed range (also as attributes ``field``,
+  ``value`` and ``allowed``).
+- :class:`UnknownParameterError` (also a ``TypeError``): a keyword, dotted path or TOML
+  key that names no field, with the closest valid names (attribute ``suggestions``).
+- ``DistributionError``, ``CheckpointMismatchError`` (also ``ValueError``) and
+  ``SweepInterrupted`` (also a ``KeyboardInterrupt``) of :mod:`admit_rs.sweep`.
+
+This module imports nothing from the Rust extension: the extension raises the classes
+defined here.
+
+Example:
+    >>> import admit_rs as ar
+    >>> try:
+    ...     ar.Wall(stifness=5000)
+    ... except ar.AdmitError as e:
+    ...     print(type(e).__name__, isinstance(e, TypeError), e)
+    UnknownParameterError True Wall: unknown keyword 'stifness'; did you mean stiffness?
 """
 
-from admit_rs._core import AdmitError, ParameterError
+from __future__ import annotations
 
-__all__ = ["AdmitError", "ParameterError"]
+import difflib
+from collections.abc import Iterable
+
+__all__ = ["AdmitError", "ParameterError", "UnknownParameterError"]
+
+
+class AdmitError(Exception):
+    """Root of every exception admit_rs raises on purpose."""
+
+
+class ParameterError(AdmitError, ValueError):
+    """A parameter outside its allowed range; ``field``, ``value`` and ``allowed`` say
+    which and why."""
+
+    field: str
+    value: str
+    allowed: str
+
+
+class UnknownParameterError(AdmitError, TypeError):
+    """A keyword, dotted path or TOML key that names no field. ``name`` is the unknown
+    name, ``suggestions`` the closest valid ones (possibly empty)."""
+
+    def __init__(self, message: str, name: str = "", suggestions: Iterable[str] = ()) -> None:
+        super().__init__(message)
+        self.name = name
+        self.suggestions = list(suggestions)
+
+
+def closest(name: str, valid: Iterable[str], n: int = 3) -> list[str]:
+    """The up to ``n`` valid names closest to ``name`` (difflib ratio ≥ 0.6)."""
+    return difflib.get_close_matches(name, list(valid), n=n, cutoff=0.6)
+
+
+def unknown(message: str, name: str, valid: Iterable[str]) -> UnknownParameterError:
+    """``message; did you mean a, b?`` or, without a close match, ``message; valid: ...``
+    (the list only when it is short)."""
+    valid = list(valid)
+    close = closest(name, valid)
+    if close:
+        hint = f"; did you mean {', '.join(close)}?"
+    elif len(valid) <= 16:
+        hint = f"; valid: {', '.join(valid)}"
+    else:
+        hint = ""
+    return UnknownParameterError(f"{message}{hint}", name, close)
 
 
 def _copy(err: ParameterError, message: str, field: str) -> ParameterError:

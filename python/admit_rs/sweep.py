@@ -30,8 +30,8 @@ import numpy as np
 import polars as pl
 
 from admit_rs import _core
-from admit_rs.config import Scenario, _Block, _check_path
-from admit_rs.errors import ParameterError, for_run
+from admit_rs.config import Scenario, _Block, _check_path, _core_path, _python_error
+from admit_rs.errors import AdmitError, ParameterError, for_run
 
 if TYPE_CHECKING:
     from dask.distributed import Client
@@ -51,17 +51,21 @@ DEFAULT_CHUNK_SIZE = 256
 """Runs per checkpoint file and per Dask task."""
 
 
-class DistributionError(ValueError):
+class DistributionError(AdmitError, ValueError):
     """A distribution with impossible parameters (low > high, negative sigma, ...)."""
 
 
-class CheckpointMismatchError(ValueError):
+class CheckpointMismatchError(AdmitError, ValueError):
     """A checkpoint folder holds a different sweep than the one asked for."""
 
 
 class SweepInterrupted(KeyboardInterrupt):
     """Ctrl-C during a sweep. ``table`` holds every run that finished (checkpointed chunks
-    stay on disk); rerunning the same call with the same ``checkpoint`` resumes."""
+    stay on disk); rerunning the same call with the same ``checkpoint`` resumes.
+
+    The one admit_rs exception that is not an :class:`~admit_rs.AdmitError`: AdmitError is
+    an ``Exception``, and a Ctrl-C must not be swallowed by ``except Exception``. Catch it
+    as ``except (ar.AdmitError, ar.SweepInterrupted)`` or as ``KeyboardInterrupt``."""
 
     def __init__(self, table: pl.DataFrame) -> None:
         super().__init__(f"sweep interrupted after {table.height} finished runs")
@@ -215,8 +219,9 @@ def _plan(
     grid = {k: list(v) for k, v in (grid or {}).items()}
     if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
         raise ValueError(f"seed = {seed!r} is invalid: must be an integer >= 0")
-    for path in list(vary) + list(grid):
-        _check_path(scenario, path)
+    # Paths in current field names (a deprecated name warns once, here).
+    vary = {_check_path(scenario, p): d for p, d in vary.items()}
+    grid = {_check_path(scenario, p): v for p, v in grid.items()}
     both = set(vary) & set(grid)
     if both:
         raise ValueError(f"{sorted(both)} given in both vary and grid")
@@ -271,7 +276,7 @@ def _configs(base: dict[str, Any], rows: Sequence[dict[str, Any]]) -> list[dict[
     for row in rows:
         config = copy.deepcopy(base)
         for path, value in row.items():
-            _set_path(config, path, value)
+            _set_path(config, _core_path(path), value)
         out.append(config)
     return out
 
@@ -291,7 +296,7 @@ def _run_chunk(
     try:
         raw = _core.simulate_batch(_configs(base, rows), threads, traces)
     except ParameterError as e:
-        raise for_run(e, run_ids[getattr(e, "index", 0)]) from None
+        raise for_run(_python_error(e), run_ids[getattr(e, "index", 0)]) from None
     n = len(run_ids)
     columns: dict[str, Any] = {
         "run_id": pl.Series("run_id", list(run_ids), dtype=pl.Int64),

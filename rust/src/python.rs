@@ -3,8 +3,8 @@
 //! No numerics here.
 
 use numpy::{PyArray1, PyArray2};
-use pyo3::create_exception;
-use pyo3::exceptions::{PyException, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::import_exception;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -20,18 +20,9 @@ use crate::reference::Signal;
 use crate::robot::{MassModel, RobotModel, RobotParams, ThreeLinkArm, Vec3};
 use crate::simulation::{Outcome, RunResult, ScenarioConfig, MAX_SUBSTEPS, TRACE_COLUMNS};
 
-create_exception!(
-    _core,
-    ParameterError,
-    PyValueError,
-    "A parameter outside its allowed range; `field`, `value` and `allowed` say which and why."
-);
-create_exception!(
-    _core,
-    AdmitError,
-    PyException,
-    "Base of admit_rs runtime errors."
-);
+// The exception classes live in Python (admit_rs/errors.py) so that ParameterError can be
+// both a ValueError and an admit_rs.AdmitError, which create_exception! cannot express.
+import_exception!(admit_rs.errors, ParameterError);
 
 fn parameter_error(py: Python<'_>, field: &str, value: &str, allowed: &str) -> PyErr {
     let err = ParameterError::new_err(format!("{field} = {value} is invalid: must be {allowed}"));
@@ -586,8 +577,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     py.check_signals()?;
     PyArray1::<f64>::zeros(py, 0, false);
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    m.add("ParameterError", py.get_type::<ParameterError>())?;
-    m.add("AdmitError", py.get_type::<AdmitError>())?;
     m.add("TRACE_COLUMNS", PyList::new(py, TRACE_COLUMNS)?)?;
     m.add("METRIC_NAMES", PyList::new(py, METRIC_NAMES)?)?;
     m.add_function(wrap_pyfunction!(check_block, m)?)?;
