@@ -32,6 +32,7 @@ from admit_rs.errors import AdmitError, ParameterError, UnknownParameterError
 from admit_rs.simulation import Result, simulate
 from admit_rs.sweep import (
     CheckpointMismatchError,
+    CheckpointWarning,
     Choice,
     DistributionError,
     LogUniform,
@@ -47,6 +48,7 @@ __all__ = [
     "AdmitError",
     "AdmittanceFilter",
     "CheckpointMismatchError",
+    "CheckpointWarning",
     "Choice",
     "DistributionError",
     "LogUniform",

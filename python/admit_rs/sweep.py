@@ -21,6 +21,7 @@ import itertools
 import json
 import math
 import os
+import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import polars as pl
+from polars.exceptions import PanicException
 
 from admit_rs import _core
 from admit_rs.config import Scenario, _Block, _check_path, _core_path, _python_error
@@ -38,6 +40,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CheckpointMismatchError",
+    "CheckpointWarning",
     "Choice",
     "DistributionError",
     "LogUniform",
@@ -57,6 +60,11 @@ class DistributionError(AdmitError, ValueError):
 
 class CheckpointMismatchError(AdmitError, ValueError):
     """A checkpoint folder holds a different sweep than the one asked for."""
+
+
+class CheckpointWarning(UserWarning):
+    """A checkpoint chunk file that cannot be used (unreadable, or not this sweep's): it is
+    named in the message, its runs are computed again and the file is replaced."""
 
 
 class SweepInterrupted(KeyboardInterrupt):
@@ -336,6 +344,7 @@ class _Checkpoint:
 
     def __init__(self, folder: str | os.PathLike[str], manifest: dict[str, Any]) -> None:
         self.folder = Path(folder)
+        self.traces = bool(manifest.get("traces"))
         self.folder.mkdir(parents=True, exist_ok=True)
         path = self.folder / "manifest.json"
         text = json.dumps(manifest, sort_keys=True, indent=1)
@@ -353,18 +362,71 @@ class _Checkpoint:
     def _path(self, kind: str, index: int) -> Path:
         return self.folder / f"{kind}-{index:06d}.parquet"
 
-    def load(self, index: int) -> tuple[pl.DataFrame, pl.DataFrame | None] | None:
+    def load(
+        self, index: int, plan: _Plan, ids: range
+    ) -> tuple[pl.DataFrame, pl.DataFrame | None] | None:
+        """Chunk ``index`` if it is on disk, readable and this sweep's; else ``None`` (to
+        compute), with a :class:`CheckpointWarning` naming a file that is not usable."""
         path = self._path("chunk", index)
         if not path.exists():
             return None
         tpath = self._path("traces", index)
-        return pl.read_parquet(path), (pl.read_parquet(tpath) if tpath.exists() else None)
+        problem = None
+        try:
+            table = pl.read_parquet(path)
+            long = None
+            if self.traces:
+                long = pl.read_parquet(tpath) if tpath.exists() else None
+                if long is None:
+                    problem = f"{path} has no {tpath.name} beside it"
+            foreign = _foreign(table, long, plan, ids)
+            problem = problem or (f"{path} is {foreign}" if foreign else None)
+        except (Exception, PanicException) as e:  # a damaged file can fail in any way
+            reason = str(e).strip().splitlines()[0] if str(e).strip() else ""
+            problem = f"{path} is unreadable ({type(e).__name__}: {reason})"
+        if problem is not None:
+            warnings.warn(
+                f"checkpoint: {problem}; recomputing runs {ids.start}..{ids.stop - 1}"
+                " (the file will be replaced)",
+                CheckpointWarning,
+                stacklevel=3,
+            )
+            return None
+        return table, long
 
     def save(self, index: int, table: pl.DataFrame, traces: pl.DataFrame | None) -> None:
         # Traces first, the chunk last and atomically: a chunk file means a finished chunk.
         if traces is not None:
             _atomic_parquet(traces, self._path("traces", index))
         _atomic_parquet(table, self._path("chunk", index))
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Equal as read back from Parquet: tuples as lists, NaN equal to NaN."""
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return bool(a == b)
+
+
+def _foreign(table: pl.DataFrame, long: pl.DataFrame | None, plan: _Plan, ids: range) -> str | None:
+    """Why a readable chunk file is not chunk ``ids`` of this sweep, or ``None`` if it is."""
+    name = f"chunk of runs {ids.start}..{ids.stop - 1}"
+    if "run_id" not in table.columns or table["run_id"].to_list() != list(ids):
+        return f"not the {name} of this sweep (other run_ids)"
+    missing = [c for c in ("seed", *plan.paths, "stable") if c not in table.columns]
+    if missing:
+        return f"not the {name} of this sweep (no column {', '.join(missing)})"
+    if table["seed"].to_list() != [plan.seed] * len(ids):
+        return f"not the {name} of this sweep (another seed)"
+    rows = plan.rows[ids.start : ids.stop]
+    for path in plan.paths:
+        if not _same(table[path].to_list(), [_column_value(r[path]) for r in rows]):
+            return f"not the {name} of this sweep (other {path} values)"
+    if long is not None and set(long["run_id"].unique().to_list()) != set(ids):
+        return f"not the {name} of this sweep (its traces hold other run_ids)"
+    return None
 
 
 def _atomic_parquet(frame: pl.DataFrame, path: Path) -> None:
@@ -421,6 +483,11 @@ def sweep(
         DistributionError, ValueError: impossible distribution or sweep definition.
         ParameterError: a drawn or listed value outside its range (names the run_id).
         CheckpointMismatchError: ``checkpoint`` holds a different sweep.
+
+    Warns:
+        CheckpointWarning: a chunk file in ``checkpoint`` is unreadable (truncated, damaged)
+            or not this sweep's; the message names it, its runs are computed again and the
+            file is overwritten, so the table still equals a clean run.
         SweepInterrupted: Ctrl-C; ``.table`` holds the finished runs.
     """
     if not isinstance(chunk_size, int) or chunk_size < 1:
@@ -439,7 +506,7 @@ def sweep(
     done: dict[int, tuple[pl.DataFrame, pl.DataFrame | None]] = {}
     todo = []
     for index, ids in _chunks(n, chunk_size):
-        loaded = store.load(index) if store is not None else None
+        loaded = store.load(index, plan, ids) if store is not None else None
         if loaded is not None:
             done[index] = loaded
         else:
