@@ -11,7 +11,7 @@ Example:
     (True, 10001, True)
 """
 
-from admit_rs import paper, plot
+from admit_rs import export, paper, plot
 from admit_rs._core import METRIC_NAMES, TRACE_COLUMNS, __version__
 from admit_rs.config import (
     AdmittanceFilter,
@@ -28,7 +28,7 @@ from admit_rs.config import (
     Wall,
     parameter_paths,
 )
-from admit_rs.errors import AdmitError, ParameterError, UnknownParameterError
+from admit_rs.errors import AdmitError, ExportError, ParameterError, UnknownParameterError
 from admit_rs.simulation import Result, simulate
 from admit_rs.sweep import (
     CheckpointMismatchError,
@@ -51,6 +51,7 @@ __all__ = [
     "CheckpointWarning",
     "Choice",
     "DistributionError",
+    "ExportError",
     "LogUniform",
     "Normal",
     "SweepInterrupted",
@@ -70,6 +71,7 @@ __all__ = [
     "UnknownParameterError",
     "Wall",
     "__version__",
+    "export",
     "paper",
     "parameter_paths",
     "plot",

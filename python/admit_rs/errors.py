@@ -8,6 +8,8 @@ class also derives from the built-in exception a caller would expect:
   ``value`` and ``allowed``).
 - :class:`UnknownParameterError` (also a ``TypeError``): a keyword, dotted path or TOML
   key that names no field, with the closest valid names (attribute ``suggestions``).
+- :class:`ExportError` (also a ``ValueError``): a scenario an export target cannot
+  express faithfully (:mod:`admit_rs.export`).
 - ``DistributionError``, ``CheckpointMismatchError`` (also ``ValueError``) and
   ``SweepInterrupted`` (also a ``KeyboardInterrupt``) of :mod:`admit_rs.sweep`.
 
@@ -28,7 +30,7 @@ from __future__ import annotations
 import difflib
 from collections.abc import Iterable
 
-__all__ = ["AdmitError", "ParameterError", "UnknownParameterError"]
+__all__ = ["AdmitError", "ExportError", "ParameterError", "UnknownParameterError"]
 
 
 class AdmitError(Exception):
@@ -52,6 +54,11 @@ class UnknownParameterError(AdmitError, TypeError):
         super().__init__(message)
         self.name = name
         self.suggestions = list(suggestions)
+
+
+class ExportError(AdmitError, ValueError):
+    """A scenario that an export target cannot express faithfully; the message says why
+    and names the nearest faithful alternative."""
 
 
 def closest(name: str, valid: Iterable[str], n: int = 3) -> list[str]:
