@@ -14,6 +14,7 @@ import functools
 import inspect
 import math
 import sys
+import textwrap
 import warnings
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
@@ -761,7 +762,10 @@ def _default_text(f: dataclasses.Field[Any]) -> str:
     if f.default is not dataclasses.MISSING:
         return repr(f.default)
     if f.default_factory is not dataclasses.MISSING:
-        return repr(f.default_factory())
+        value = f.default_factory()
+        if isinstance(value, _Block) and value == type(value)():
+            return f"{type(value).__name__}()"  # its own defaults: see help() of that block
+        return repr(value)
     return "required"
 
 
@@ -776,7 +780,7 @@ def _document_fields(cls: type[_Block], docs: Mapping[str, Mapping[str, str]]) -
                      if f.name in docs.get(c.__name__, {})), "")  # fmt: skip
         lines.append(f"    {f.name} ({f.type}, default {_default_text(f)})")
         if text:
-            lines.append(f"        {text}")
+            lines += textwrap.wrap(text, 92, initial_indent=" " * 8, subsequent_indent=" " * 8)
     for old, new in cls._RENAMED.items():
         lines.append(f"    {old}: deprecated name of {new}; warns.")
     cls.__doc__ = inspect.cleandoc(cls.__doc__) + "\n".join(lines) + "\n"
