@@ -1,7 +1,9 @@
-"""Exceptions raised by admit_rs, all under one root, :class:`AdmitError`.
+"""Exceptions of admit_rs, under one root, :class:`AdmitError`.
 
-``except admit_rs.AdmitError`` catches every error the library raises on purpose. Each
-class also derives from the built-in exception a caller would expect:
+Every exception class admit_rs defines (warning categories aside) derives from
+:class:`AdmitError` but ``SweepInterrupted``, and also from the built-in exception a caller
+would expect. (A value of the wrong type and a bad ``sweep()`` argument still raise plain
+``TypeError`` / ``ValueError``.)
 
 - :class:`ParameterError` (also a ``ValueError``): a value outside its range, with the
   field's dotted path, its value and the allowed range (also as attributes ``field``,
@@ -11,7 +13,9 @@ class also derives from the built-in exception a caller would expect:
 - :class:`ExportError` (also a ``ValueError``): a scenario an export target cannot
   express faithfully (:mod:`admit_rs.export`).
 - ``DistributionError``, ``CheckpointMismatchError`` (also ``ValueError``) and
-  ``SweepInterrupted`` (also a ``KeyboardInterrupt``) of :mod:`admit_rs.sweep`.
+  ``SweepInterrupted`` (a ``KeyboardInterrupt`` only, not an AdmitError: that is an
+  ``Exception``, and ``except Exception`` must not swallow a Ctrl-C) of
+  :mod:`admit_rs.sweep`.
 
 This module imports nothing from the Rust extension: the extension raises the classes
 defined here.
@@ -34,7 +38,7 @@ __all__ = ["AdmitError", "ExportError", "ParameterError", "UnknownParameterError
 
 
 class AdmitError(Exception):
-    """Root of every exception admit_rs raises on purpose."""
+    """Root of the exceptions admit_rs defines."""
 
 
 class ParameterError(AdmitError, ValueError):
