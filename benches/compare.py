@@ -120,7 +120,7 @@ def check_preset(sc: ar.Scenario, c: peers.Fig14) -> None:
         "controller": (type(ctl).__name__, "TimeDelayControl"),
         "controller.law": (ctl.law, "jacobian_transpose"),
         "controller.gains": (
-            (ctl.ka, ctl.kd, ctl.kp, ctl.scale_feedforward),
+            (ctl.command_divisor, ctl.kd, ctl.kp, ctl.scale_feedforward),
             (c.ka, c.kd, c.kp, True),
         ),
         "controller.inertia": ((ctl.inertia, ctl.torque_constant), (c.inertia, c.torque_constant)),

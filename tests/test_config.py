@@ -12,13 +12,14 @@ import pytest
 def test_defaults_are_the_paper_preset():
     sc = ar.Scenario()
     assert isinstance(sc.controller, ar.TimeDelayControl)
-    assert sc.controller.ka == 5.0 and sc.controller.kd == 20.0 and sc.controller.kp == 100.0
+    ctl = sc.controller
+    assert ctl.command_divisor == 5.0 and ctl.kd == 20.0 and ctl.kp == 100.0
     assert sc.controller.inertia == 0.1 and sc.controller.torque_constant == 200.0
     assert sc.admittance == ar.AdmittanceFilter(m=1.0, b=800.0, k=0.0, ka=1.0)
     assert sc.wall == ar.Wall(stiffness=30_000.0, position=None, position_error=0.0)
     assert sc.period == 1e-3 and sc.substeps == 10 and sc.duration == 10.0
     assert sc.samples == 10_001
-    assert ar.ComputedTorque().ka == 0.1
+    assert ar.ComputedTorque().command_divisor == 0.1
     assert sc.robot.q0 == (0.0, math.pi / 4, -math.pi / 4)
 
 
@@ -115,7 +116,7 @@ BAD_BLOCKS = [
     (lambda: ar.Robot(q0=(0.0, math.pi / 2, 0.3)), None, None),  # regular: no error
     (lambda: ar.Wall(stiffness=-1.0), "stiffness", ">= 0"),
     (lambda: ar.Wall(position_error=math.nan), "position_error", "finite"),
-    (lambda: ar.ComputedTorque(ka=0.0), "ka", "> 0"),
+    (lambda: ar.ComputedTorque(command_divisor=0.0), "command_divisor", "> 0"),
     (lambda: ar.ModelFree(kd=-1.0), "kd", ">= 0"),
     (lambda: ar.ModelFree(inertia=0.0), "inertia", "> 0"),
     (lambda: ar.TimeDelayControl(torque_constant=math.inf), "torque_constant", "> 0"),
@@ -169,8 +170,10 @@ def test_scenario_level_errors_name_the_dotted_path():
     assert info.value.field == "stiffness"
     from admit_rs import _core
 
+    core = sc._to_core()  # the core's dict names command_divisor "ka"
+    core["wall"]["stiffness"] = -3.0
     with pytest.raises(ar.ParameterError) as info:
-        _core.validate(bad)
+        _core.validate(core)
     assert info.value.field == "wall.stiffness"
     assert info.value.value == "-3"
 
@@ -194,3 +197,43 @@ def test_signals_evaluate_in_python_like_in_rust():
     assert float(ar.Step(value=10.0, time=1.0)(0.5)) == 0.0
     samp = ar.Sampled(times=[0.0, 2.0], values=[0.0, 4.0])
     assert float(samp(1.0)) == 2.0
+
+
+# --- help(ar.Wall) and friends: fields with meaning, unit, default ---------------------
+
+BLOCKS = [ar.Robot, ar.Wall, ar.ModelError, ar.ComputedTorque, ar.ModelFree,
+          ar.TimeDelayControl, ar.AdmittanceFilter, ar.ImpedanceReference, ar.Step, ar.Sine,
+          ar.Sampled, ar.Scenario]  # fmt: skip
+
+
+@pytest.mark.parametrize("cls", BLOCKS)
+def test_block_docstring_lists_every_field_with_its_meaning(cls):
+    doc = cls.__doc__
+    assert "Fields (keyword-only; units in brackets):" in doc
+    for f in dataclasses.fields(cls):
+        line = f"\n    {f.name} ({f.type}, default "
+        assert line in doc, f.name
+        # Every field has a meaning line under it (from its attribute docstring).
+        after = doc.split(line, 1)[1].split("\n", 2)
+        assert after[1].startswith("        ") and len(after[1].strip()) > 5, f.name
+
+
+def test_block_docstrings_give_units_and_defaults():
+    assert (
+        "    stiffness (float, default 30000.0)\n"
+        "        Environment stiffness k_e [N/m] (Hunt–Crossley: [N/m^p]); unknown to the "
+        "controller." in ar.Wall.__doc__
+    )
+    assert "    b (float, default 800.0)\n        Damping [N·s/m]." in ar.AdmittanceFilter.__doc__
+    assert "    omega (float, default 1.0)\n        Angular frequency [rad/s]." in ar.Sine.__doc__
+    # Inherited fields take their base class's text.
+    assert "    inertia (float, default 0.1)\n        Constant inertia D̄ = α I [kg·m²]." in (
+        ar.ModelFree.__doc__
+    )
+    assert "command_divisor (float, default 0.1)\n        K_A of eq. (39)" in (
+        ar.ComputedTorque.__doc__
+    )
+    assert "    ka: deprecated name of command_divisor; warns." in ar.TimeDelayControl.__doc__
+    assert "    period (float, default 0.001)\n        Controller period T [s]." in (
+        ar.Scenario.__doc__
+    )

@@ -19,7 +19,9 @@ def ideal(admittance: ar.AdmittanceFilter | ar.ImpedanceReference, duration: flo
     K_P = 1e4, K_D = 200, z held still. Then x tracks x̂_e + x_a almost exactly and the
     force loop is m s² + b s + k + k_a k_e."""
     return ar.Scenario(
-        controller=ar.ComputedTorque(ka=1.0, kd=200.0, kp=1e4, contact_compensation=True),
+        controller=ar.ComputedTorque(
+            command_divisor=1.0, kd=200.0, kp=1e4, contact_compensation=True
+        ),
         admittance=admittance,
         z_reference=ar.Step(value=0.0),
         duration=duration,
@@ -134,7 +136,7 @@ def test_position_only_mode():
 
 
 def test_model_free_with_small_ka_diverges_with_a_report():
-    sc = ar.paper.scenario("fig12").replace(**{"controller.ka": 0.1})
+    sc = ar.paper.scenario("fig12").replace(**{"controller.command_divisor": 0.1})
     r = ar.simulate(sc)
     assert r.stable is False and r.metrics["stable"] is False
     assert r.diverged_at is not None and 0.0 < r.diverged_at < 10.0

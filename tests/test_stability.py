@@ -32,7 +32,7 @@ def test_fig14_is_stable():
 
 
 def test_diverging_model_free_run_is_diverged():
-    r = ar.simulate(ar.paper.scenario("fig12").replace(**{"controller.ka": 0.1}))
+    r = ar.simulate(ar.paper.scenario("fig12").replace(**{"controller.command_divisor": 0.1}))
     assert r.diverged is True and r.metrics["diverged"] is True
     assert r.stable is False
     assert r.verdict.startswith("unstable: diverged at t = ")

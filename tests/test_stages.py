@@ -12,7 +12,7 @@ from scipy import signal
 
 # An ideal inner loop: computed torque with the true model, contact compensation and fast
 # gains (SPEC §9's tests), so the force loop behaves like its closed form.
-IDEAL = ar.ComputedTorque(ka=1.0, kp=1e4, kd=200.0, contact_compensation=True)
+IDEAL = ar.ComputedTorque(command_divisor=1.0, kp=1e4, kd=200.0, contact_compensation=True)
 
 
 def ideal_scenario(**changes):

@@ -83,7 +83,7 @@ def test_choice_of_blocks_and_values():
 def test_unstable_run_is_a_row():
     """Model-free control diverges at K_A = 0.1: a row with stable = False, not an error."""
     table = ar.sweep(ar.paper.scenario("fig12").replace(duration=0.5),
-                     grid={"controller.ka": [5.0, 0.1]}, progress=False)  # fmt: skip
+                     grid={"controller.command_divisor": [5.0, 0.1]}, progress=False)  # fmt: skip
     assert table["stable"].to_list() == [True, False]
     bad = table.row(1, named=True)
     assert bad["diverged_at"] > 0 and "velocity" in bad["divergence_cause"]
@@ -280,8 +280,8 @@ def test_sweep_plots():
                                 metric="force_peak", logx=False)  # fmt: skip
     assert lin.axes[0].get_xscale() == "linear"
     mixed = ar.sweep(ar.paper.scenario("fig12").replace(duration=0.5),
-                     grid={"controller.ka": [5.0, 0.1]}, progress=False)  # fmt: skip
-    fig = ar.plot.sweep_scatter(mixed, x="controller.ka", metric="force_peak")
+                     grid={"controller.command_divisor": [5.0, 0.1]}, progress=False)  # fmt: skip
+    fig = ar.plot.sweep_scatter(mixed, x="controller.command_divisor", metric="force_peak")
     labels = fig.axes[0].get_legend_handles_labels()[1]
     assert labels == ["stable (1)", "unstable (1)"]
     fig = ar.plot.sweep_hist(table, "force_peak")
@@ -328,3 +328,30 @@ def test_traces_to_parquet_folder(tmp_path):
     on_disk = pl.scan_parquet(out / "*.parquet").collect().sort("run_id", maintain_order=True)
     _, in_memory = run(grid={"admittance.b": [200.0, 400.0, 800.0]}, traces=True)
     assert on_disk.equals(in_memory)
+
+
+def test_damaged_or_foreign_checkpoint_chunk_is_named_and_recomputed(tmp_path):
+    clean = run(vary=VARY, samples=9, seed=2, chunk_size=3)
+    ck = tmp_path / "ck"
+    assert run(vary=VARY, samples=9, seed=2, chunk_size=3, checkpoint=ck).equals(clean)
+    # Truncate chunk 1 (as a full disk or a copy cut short would) and put chunk 0's file
+    # where chunk 2 belongs (a foreign file).
+    damaged = ck / "chunk-000001.parquet"
+    damaged.write_bytes(damaged.read_bytes()[: damaged.stat().st_size // 2])
+    (ck / "chunk-000002.parquet").write_bytes((ck / "chunk-000000.parquet").read_bytes())
+    before = (ck / "chunk-000000.parquet").read_bytes()
+    with pytest.warns(ar.CheckpointWarning) as record:
+        resumed = run(vary=VARY, samples=9, seed=2, chunk_size=3, checkpoint=ck)
+    messages = sorted(str(w.message) for w in record)
+    assert len(messages) == 2
+    assert f"checkpoint: {damaged} is unreadable (" in messages[0]
+    assert messages[0].endswith("recomputing runs 3..5 (the file will be replaced)")
+    assert messages[1] == (
+        f"checkpoint: {ck / 'chunk-000002.parquet'} is not the chunk of runs 6..8 of this sweep"
+        " (other run_ids); recomputing runs 6..8 (the file will be replaced)"
+    )
+    assert record[0].filename == __file__
+    assert resumed.equals(clean)
+    assert (ck / "chunk-000000.parquet").read_bytes() == before  # the good chunk was reused
+    # The files were replaced: a second resume reads them all without a warning.
+    assert run(vary=VARY, samples=9, seed=2, chunk_size=3, checkpoint=ck).equals(clean)

@@ -11,7 +11,7 @@ Example:
     (True, 10001, True)
 """
 
-from admit_rs import metrics, paper, plot
+from admit_rs import export, metrics, paper, plot
 from admit_rs._core import METRIC_NAMES, TRACE_COLUMNS, __version__
 from admit_rs._names import UnknownNameError
 from admit_rs.config import (
@@ -31,11 +31,12 @@ from admit_rs.config import (
     Wall,
     parameter_paths,
 )
-from admit_rs.errors import AdmitError, ParameterError
+from admit_rs.errors import AdmitError, ExportError, ParameterError, UnknownParameterError
 from admit_rs.metrics import METRICS, Metric
 from admit_rs.simulation import Result, Simulation, simulate
 from admit_rs.sweep import (
     CheckpointMismatchError,
+    CheckpointWarning,
     Choice,
     DistributionError,
     LogUniform,
@@ -53,8 +54,10 @@ __all__ = [
     "AdmitError",
     "AdmittanceFilter",
     "CheckpointMismatchError",
+    "CheckpointWarning",
     "Choice",
     "DistributionError",
+    "ExportError",
     "LogUniform",
     "Metric",
     "Normal",
@@ -75,8 +78,10 @@ __all__ = [
     "Step",
     "TimeDelayControl",
     "UnknownNameError",
+    "UnknownParameterError",
     "Wall",
     "__version__",
+    "export",
     "metrics",
     "paper",
     "parameter_paths",

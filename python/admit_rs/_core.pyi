@@ -16,18 +16,8 @@ f_measured, f_d, penetration, x_a, xa_dot, tau1..tau3, tau_cmd1..tau_cmd3."""
 METRIC_NAMES: Final[list[str]]
 """Float metric names (see ``admit_rs.METRICS``); ``stable`` and ``diverged`` come besides."""
 
-class AdmitError(Exception):
-    """Base of admit_rs runtime errors."""
-
-class ParameterError(ValueError):
-    """A parameter outside its allowed range."""
-
-    field: str
-    """Dotted path of the parameter, e.g. ``wall.stiffness``."""
-    value: str
-    """The rejected value, as text."""
-    allowed: str
-    """The allowed range, in words."""
+# Errors: the extension raises admit_rs.errors.ParameterError (defined in Python so that it
+# is both a ValueError and an admit_rs.AdmitError); it defines no exception class itself.
 
 def defaults() -> dict[str, dict[str, Any]]:
     """The core's default parameters per block (robot, wall, sensor, actuator, model,

@@ -8,18 +8,31 @@ that names the field, the value and the allowed range. Defaults are the paper pr
 
 from __future__ import annotations
 
+import ast
 import dataclasses
-import difflib
+import functools
+import inspect
 import math
+import sys
+import textwrap
+import warnings
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, ClassVar, Literal, TypeAlias
 
 import numpy as np
 import numpy.typing as npt
 
 from admit_rs import _core
-from admit_rs.errors import ParameterError, within
+from admit_rs.errors import (
+    ParameterError,
+    UnknownParameterError,
+    _copy,
+    closest,
+    unknown,
+    within,
+)
 
 Vector3: TypeAlias = tuple[float, float, float]
 ArrayLike3: TypeAlias = "Iterable[float] | npt.NDArray[np.float64]"
@@ -54,11 +67,57 @@ def _core_value(value: Any) -> Any:
     return value
 
 
+_CORE_KEYS: dict[str, str] = {"command_divisor": "ka"}
+"""Python field name -> the Rust core's dict key, where they differ."""
+
+
+def _core_path(path: str) -> str:
+    """A dotted parameter path in the Rust core's key names."""
+    return ".".join(_CORE_KEYS.get(part, part) for part in path.split("."))
+
+
+_PACKAGE_DIR = Path(__file__).resolve().parent
+
+
+def _in_package(filename: str) -> bool:
+    return Path(filename).resolve().parent == _PACKAGE_DIR
+
+
+def _warn_renamed(old: str, new: str) -> None:
+    """DeprecationWarning for a renamed field, attributed to the first caller outside
+    admit_rs (the user's line, however deep the library's own calls go)."""
+    level, frame = 2, sys._getframe(1)  # stacklevel 2 is our caller
+    while frame is not None and _in_package(frame.f_code.co_filename):
+        level, frame = level + 1, frame.f_back  # type: ignore[assignment]
+    warnings.warn(
+        f"{old} is deprecated and will be removed in the next release; use {new}",
+        DeprecationWarning,
+        stacklevel=level,
+    )
+
+
+def _python_error(err: ParameterError, prefix: str = "") -> ParameterError:
+    """The core's ParameterError in Python field names (the core's key for
+    ``controller.command_divisor`` is ``ka``). ``prefix`` is the field's place, if the
+    core's path does not say it."""
+    field = getattr(err, "field", "")
+    parts = (prefix + field).split(".")
+    if parts[-2:] != ["controller", "ka"]:
+        return err
+    new_field = field[: -len("ka")] + "command_divisor"
+    new = _copy(err, f"{new_field} = {err.value} is invalid: must be {err.allowed}", new_field)
+    if hasattr(err, "index"):
+        new.index = err.index  # type: ignore[attr-defined]
+    return new
+
+
 class _Block:
     """Shared machinery: conversion to the core's dict and validation through Rust."""
 
     _kind: ClassVar[str | None] = None
     _check: ClassVar[str] = ""
+    _RENAMED: ClassVar[dict[str, str]] = {}
+    """Deprecated field name -> its new name; the old one still works, with a warning."""
 
     def _to_core(self) -> dict[str, Any]:
         out: dict[str, Any] = {}
@@ -67,11 +126,14 @@ class _Block:
         for f in dataclasses.fields(self):  # type: ignore[arg-type]
             if f.name == "label":
                 continue
-            out[f.name] = _core_value(getattr(self, f.name))
+            out[_CORE_KEYS.get(f.name, f.name)] = _core_value(getattr(self, f.name))
         return out
 
     def _validate(self) -> None:
-        _core.check_block(self._check, self._to_core())
+        try:
+            _core.check_block(self._check, self._to_core())
+        except ParameterError as e:
+            raise _python_error(e, f"{self._check}.") from None
 
     def __post_init__(self) -> None:
         # Every block checks itself in Rust on construction, so a bad value fails where
@@ -83,7 +145,16 @@ class _Block:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain nested dict (tuples as lists), with a ``kind`` tag on tagged blocks."""
-        return self._to_core()
+        out: dict[str, Any] = {}
+        if self._kind is not None:
+            out["kind"] = self._kind
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            value = getattr(self, f.name)
+            if isinstance(value, _Block):
+                out[f.name] = value.to_dict()
+            else:
+                out[f.name] = _core_value(value)
+        return out
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -257,15 +328,22 @@ class ModelError(_Block):
     """How the controller's arm model differs from the plant (for sweeps)."""
 
     mass_scale: float = 1.0
-    """Factor on every link mass (and inertia) in the controller's model."""
+    """Factor on every link mass (and inertia) in the controller's model [dimensionless]."""
     friction_scale: float = 1.0
-    """Factor on viscous and Coulomb friction in the controller's model."""
+    """Factor on viscous and Coulomb friction in the controller's model [dimensionless]."""
 
     _check: ClassVar[str] = "model"
 
 
 class _Controller(_Block):
     _check: ClassVar[str] = "controller"
+    _RENAMED: ClassVar[dict[str, str]] = {"ka": "command_divisor"}
+
+    @property
+    def ka(self) -> float:
+        """Deprecated name of :attr:`command_divisor` (K_A of eq. 39); warns."""
+        _warn_renamed("controller.ka", "controller.command_divisor")
+        return self.command_divisor  # type: ignore[attr-defined, no-any-return]
 
     def __post_init__(self) -> None:
         model = getattr(self, "model", None)
@@ -278,8 +356,10 @@ class _Controller(_Block):
 class ComputedTorque(_Controller):
     """Computed torque, eq. (7) with V of eq. (39): τ = D̂ J⁻¹(V − J̇q̇) + Ĉ + Ĝ + τ̂_f."""
 
-    ka: float = 0.1
-    """K_A of eq. (39); K_A⁻¹ multiplies the whole command, feed-forward included."""
+    command_divisor: float = 0.1
+    """K_A of eq. (39), formerly ``ka``: V = (Ẍ_d + K_D ė + K_P e) / K_A, it divides the
+    whole Cartesian command, feed-forward included (only the feedback with
+    ``scale_feedforward=False``) [dimensionless]."""
     kd: float = 20.0
     """K_D of eq. (39) [1/s]."""
     kp: float = 100.0
@@ -299,8 +379,9 @@ class ComputedTorque(_Controller):
 class _ConstantInertiaLaw(_Controller):
     """Fields shared by the laws built on a constant inertia D̄ (eqs. 17 and 18)."""
 
-    ka: float = 5.0
-    """K_A of eq. (39)."""
+    command_divisor: float = 5.0
+    """K_A of eq. (39), formerly ``ka``: V = (Ẍ_d + K_D ė + K_P e) / K_A, it divides the
+    whole Cartesian command [dimensionless]."""
     kd: float = 20.0
     """K_D of eq. (39) [1/s]."""
     kp: float = 100.0
@@ -359,7 +440,7 @@ class AdmittanceFilter(_Block):
     k: float = 0.0
     """Stiffness [N/m]; 0 is Scheme 2."""
     ka: float = 1.0
-    """Filter gain k_a."""
+    """Filter gain k_a of eqs. (30)/(38): the filter input is k_a e_f [dimensionless]."""
 
     _kind: ClassVar[str] = "admittance"
     _check: ClassVar[str] = "admittance"
@@ -417,8 +498,11 @@ class Step(_Signal):
     """``initial`` before ``time``, ``value`` from ``time`` on."""
 
     value: float = 10.0
+    """Value from ``time`` on [unit of the signal: N for a force, m for z]."""
     time: float = 0.0
+    """Step time [s]."""
     initial: float = 0.0
+    """Value before ``time`` [unit of the signal]."""
 
     _kind: ClassVar[str] = "step"
 
@@ -431,9 +515,13 @@ class Sine(_Signal):
     """``offset + amplitude · sin(omega t + phase)``, omega in rad/s."""
 
     offset: float = 0.0
+    """Mean value [unit of the signal: N for a force, m for z]."""
     amplitude: float = 1.0
+    """Amplitude [unit of the signal]."""
     omega: float = 1.0
+    """Angular frequency [rad/s]."""
     phase: float = 0.0
+    """Phase at t = 0 [rad]."""
 
     _kind: ClassVar[str] = "sine"
 
@@ -455,7 +543,9 @@ class Sampled(_Signal):
     """
 
     times: tuple[float, ...] = (0.0,)
+    """Sample times, increasing [s]."""
     values: tuple[float, ...] = (0.0,)
+    """Sample values, one per time [unit of the signal: N for a force, m for z]."""
 
     _kind: ClassVar[str] = "sampled"
 
@@ -494,9 +584,11 @@ class Scenario(_Block):
     """
 
     robot: Robot = field(default_factory=Robot)
+    """The arm (plant)."""
     wall: Wall | None = field(default_factory=Wall)
-    """``None``: free space."""
+    """The environment; ``None``: free space."""
     controller: Controller = field(default_factory=TimeDelayControl)
+    """The inner position loop: ComputedTorque, ModelFree or TimeDelayControl."""
     admittance: ForceControl | None = field(
         default_factory=lambda: AdmittanceFilter.scheme2(b=800.0, ka=1.0)
     )
@@ -531,7 +623,10 @@ class Scenario(_Block):
         if not isinstance(self.label, str):
             raise TypeError(f"label must be a str, got {type(self.label).__name__}")
         _check_integer("seed", self.seed, 2**53)
-        _core.validate(self._to_core())
+        try:
+            _core.validate(self._to_core())
+        except ParameterError as e:
+            raise _python_error(e) from None
 
     def replace(self, **changes: Any) -> Scenario:
         """A copy with fields changed; nested fields by dotted path.
@@ -551,10 +646,6 @@ class Scenario(_Block):
         """Builds a scenario from the nested dict of :meth:`to_dict` (or a parsed TOML file)."""
         return _from_dict(cls, data, "")
 
-    def to_dict(self) -> dict[str, Any]:
-        out = self._to_core()
-        out["label"] = self.label
-        return out
 
 
 def parameter_paths(obj: Any, prefix: str = "") -> list[str]:
@@ -571,26 +662,33 @@ def parameter_paths(obj: Any, prefix: str = "") -> list[str]:
 
 
 def _replace_paths(obj: Any, changes: Mapping[str, Any]) -> Any:
-    for path in changes:
-        _check_path(obj, path)
-    return _apply(obj, changes)
+    canonical: dict[str, Any] = {}
+    for path, value in changes.items():
+        canonical[_check_path(obj, path)] = value
+    return _apply(obj, canonical)
 
 
-def _check_path(obj: Any, path: str) -> None:
-    """Raises TypeError for a path that names no field, with the closest valid ones."""
+def _check_path(obj: Any, path: str) -> str:
+    """The path in current field names; raises UnknownParameterError (a TypeError) for a
+    path that names no field, with the closest valid ones. A deprecated field name is
+    replaced by its new one, with a DeprecationWarning."""
     node: Any = obj
     walked: list[str] = []
     for part in path.split("."):
         if not isinstance(node, _Block):
             where = ".".join(walked)
             raise TypeError(f"cannot set {path}: {where} is {type(node).__name__}")
-        if part not in {f.name for f in dataclasses.fields(node)}:  # type: ignore[arg-type]
-            valid = parameter_paths(obj)
-            close = difflib.get_close_matches(path, valid, n=3, cutoff=0.6)
-            hint = f"; did you mean {', '.join(close)}?" if close else ""
-            raise TypeError(f"{path}: no such parameter in {type(obj).__name__}{hint}")
+        names = {f.name for f in dataclasses.fields(node)}  # type: ignore[arg-type]
+        if part not in names and part in node._RENAMED and node._RENAMED[part] in names:
+            new = node._RENAMED[part]
+            _warn_renamed(".".join([*walked, part]), ".".join([*walked, new]))
+            part = new
+        if part not in names:
+            raise unknown(f"{path}: no such parameter in {type(obj).__name__}", path,
+                          parameter_paths(obj))  # fmt: skip
         node = getattr(node, part)
         walked.append(part)
+    return ".".join(walked)
 
 
 def _apply(obj: Any, changes: Mapping[str, Any]) -> Any:
@@ -622,35 +720,179 @@ _KINDS: dict[str, type[_Block]] = {
     "sine": Sine,
     "sampled": Sampled,
 }
-_FIXED: dict[str, type[_Block]] = {
-    "robot": Robot,
-    "wall": Wall,
-    "model": ModelError,
-    "sensor": ForceSensor,
-    "actuator": Actuator,
+_SLOTS: dict[str, tuple[type[_Block], ...]] = {
+    **{k: tuple(t for t in v if issubclass(t, _Block)) for k, v in _UNIONS.items()},
+    "model": (ModelError,),
 }
+"""The block types each table may hold, by its key (the same in every parent)."""
+_SLOT_DEFAULTS: dict[str, Any] = {
+    **{f.name: getattr(Scenario(), f.name) for f in dataclasses.fields(Scenario)},
+    "model": ModelError(),
+}
+"""The default block of each table: what a table without ``kind`` extends."""
+
+
+def _field_names(cls: type[Any]) -> list[str]:
+    return [f.name for f in dataclasses.fields(cls)]
+
+
+def _kind_of(t: type[_Block]) -> str:
+    return t._kind or t.__name__
+
+
+def _table_type(key: str, table: Mapping[str, Any], where: str) -> type[_Block]:
+    """The block type of TOML table ``key``: its ``kind``, else the one type its keys fit."""
+    types = _SLOTS[key]
+    kinds = {_kind_of(t): t for t in types}
+    if "kind" in table:
+        kind = table["kind"]
+        if len(types) == 1 and types[0]._kind is None:
+            raise UnknownParameterError(f"{where}.kind: a {key} table takes no kind", "kind")
+        if kind not in kinds:
+            raise UnknownParameterError(
+                f"{where}.kind: unknown kind {kind!r} for {key}; one of {list(kinds)}",
+                str(kind),
+                closest(str(kind), kinds),
+            )
+        return kinds[kind]
+    if len(types) == 1:
+        return types[0]
+    # No kind: the field's default block if it has every key, else the one kind that has.
+    keys = set(table)
+    fit = [t for t in types if keys <= set(_field_names(t)) | set(t._RENAMED)]
+    default = type(_SLOT_DEFAULTS[key])
+    if default in fit:
+        return default
+    if len(fit) == 1:
+        return fit[0]
+    if fit:
+        raise UnknownParameterError(
+            f"{where}: these keys fit several kinds ({', '.join(_kind_of(t) for t in fit)});"
+            f" add kind = one of {list(kinds)}"
+        )
+    # No type has every key: name the first unknown key of the type missing the fewest.
+    best = min(types, key=lambda t: len(keys - set(_field_names(t)) - set(t._RENAMED)))
+    bad = sorted(keys - set(_field_names(best)) - set(best._RENAMED))[0]
+    allowed = sorted({n for t in types for n in _field_names(t)})
+    err = unknown(f"{where}: unknown key {bad!r}", bad, allowed)
+    raise UnknownParameterError(
+        f"{err} ({key} kinds: {', '.join(kinds)}; add kind = ... to choose one)",
+        bad,
+        err.suggestions,
+    )
 
 
 def _from_dict(cls: type[Any], data: Mapping[str, Any], path: str) -> Any:
+    names = _field_names(cls)
     kwargs: dict[str, Any] = {}
     for key, value in data.items():
         if key == "kind":
             continue
-        if isinstance(value, Mapping):
-            sub: type[Any]
-            if "kind" in value:
-                kind = value["kind"]
-                if kind not in _KINDS:
-                    raise TypeError(
-                        f"{path}{key}.kind: unknown kind {kind!r}; one of {list(_KINDS)}"
-                    )
-                sub = _KINDS[kind]
-            elif key in _FIXED:
-                sub = _FIXED[key]
-            else:
-                raise TypeError(f"{path}{key}: a table needs a 'kind' (one of {list(_KINDS)})")
+        if key not in names:
+            renamed = cls._RENAMED.get(key)
+            if renamed is None or renamed not in names:
+                article = "an" if cls.__name__[0] in "AEIOU" else "a"
+                raise unknown(f"{path}{key}: unknown key in {article} {cls.__name__} table",
+                              key, names)  # fmt: skip
+            _warn_renamed(f"{path}{key}", f"{path}{renamed}")
+            key = renamed
+        if isinstance(value, Mapping) and key in _SLOTS:
+            sub = _table_type(key, value, f"{path}{key}")
             value = _from_dict(sub, value, f"{path}{key}.")
         elif isinstance(value, list):
             value = tuple(value)
         kwargs[key] = value
     return cls(**kwargs)
+
+
+def _guard_init(cls: type[_Block]) -> None:
+    """Wraps the dataclass ``__init__``: an unknown keyword raises UnknownParameterError
+    with the closest field names; a deprecated name warns and is renamed."""
+    init = cls.__init__
+    names = _field_names(cls)
+
+    @functools.wraps(init)
+    def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
+        for key in [k for k in kwargs if k not in names]:
+            new = cls._RENAMED.get(key)
+            if new is None or new not in names:
+                raise unknown(f"{cls.__name__}: unknown keyword {key!r}", key, names)
+            if new in kwargs:
+                raise TypeError(f"{cls.__name__}: both {key} and {new} given")
+            _warn_renamed(f"{cls.__name__}({key}=...)", f"{cls.__name__}({new}=...)")
+            kwargs[new] = kwargs.pop(key)
+        init(self, *args, **kwargs)
+
+    cls.__init__ = __init__  # type: ignore[method-assign]
+
+
+_BLOCKS: tuple[type[_Block], ...] = (
+    Robot,
+    Wall,
+    ModelError,
+    ComputedTorque,
+    ModelFree,
+    TimeDelayControl,
+    AdmittanceFilter,
+    ImpedanceReference,
+    Step,
+    Sine,
+    Sampled,
+    Scenario,
+)
+"""Every public block type."""
+
+
+
+def _attribute_docs() -> dict[str, dict[str, str]]:
+    """Class name -> {field: the string literal written under it} in this file's source."""
+    tree = ast.parse(Path(__file__).read_text(encoding="utf-8"))
+    out: dict[str, dict[str, str]] = {}
+    for node in tree.body:
+        if not isinstance(node, ast.ClassDef):
+            continue
+        docs = out.setdefault(node.name, {})
+        for stmt, nxt in zip(node.body, node.body[1:], strict=False):
+            if (
+                isinstance(stmt, ast.AnnAssign)
+                and isinstance(stmt.target, ast.Name)
+                and isinstance(nxt, ast.Expr)
+                and isinstance(nxt.value, ast.Constant)
+                and isinstance(nxt.value.value, str)
+            ):
+                docs[stmt.target.id] = " ".join(nxt.value.value.split())
+    return out
+
+
+def _default_text(f: dataclasses.Field[Any]) -> str:
+    if f.default is not dataclasses.MISSING:
+        return repr(f.default)
+    if f.default_factory is not dataclasses.MISSING:
+        value = f.default_factory()
+        if isinstance(value, _Block) and value == type(value)():
+            return f"{type(value).__name__}()"  # its own defaults: see help() of that block
+        return repr(value)
+    return "required"
+
+
+def _document_fields(cls: type[_Block], docs: Mapping[str, Mapping[str, str]]) -> None:
+    """Appends a ``Fields:`` section (name, type, default, meaning with unit) to the class
+    docstring, from the attribute docstrings of the class and its bases."""
+    if cls.__doc__ is None:  # python -OO
+        return
+    lines = ["", "", "Fields (keyword-only; units in brackets):"]
+    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+        text = next((docs[c.__name__][f.name] for c in cls.__mro__
+                     if f.name in docs.get(c.__name__, {})), "")  # fmt: skip
+        lines.append(f"    {f.name} ({f.type}, default {_default_text(f)})")
+        if text:
+            lines += textwrap.wrap(text, 92, initial_indent=" " * 8, subsequent_indent=" " * 8)
+    for old, new in cls._RENAMED.items():
+        lines.append(f"    {old}: deprecated name of {new}; warns.")
+    cls.__doc__ = inspect.cleandoc(cls.__doc__) + "\n".join(lines) + "\n"
+
+
+_DOCS = _attribute_docs()
+for _cls in _BLOCKS:
+    _guard_init(_cls)
+    _document_fields(_cls, _DOCS)

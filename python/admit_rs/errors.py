@@ -1,13 +1,87 @@
-"""Exceptions raised by admit_rs.
+"""Exceptions of admit_rs, under one root, :class:`AdmitError`.
 
-``ParameterError`` subclasses ``ValueError``: every invalid parameter raises it with the
-field's dotted path, its value and the allowed range (also as attributes ``field``,
-``value`` and ``allowed``). Unknown keywords and wrong types raise ``TypeError``.
+Every exception class admit_rs defines (warning categories aside) derives from
+:class:`AdmitError` but ``SweepInterrupted``, and also from the built-in exception a caller
+would expect. (A value of the wrong type and a bad ``sweep()`` argument still raise plain
+``TypeError`` / ``ValueError``.)
+
+- :class:`ParameterError` (also a ``ValueError``): a value outside its range, with the
+  field's dotted path, its value and the allowed range (also as attributes ``field``,
+  ``value`` and ``allowed``).
+- :class:`UnknownParameterError` (also a ``TypeError``): a keyword, dotted path or TOML
+  key that names no field, with the closest valid names (attribute ``suggestions``).
+- :class:`ExportError` (also a ``ValueError``): a scenario an export target cannot
+  express faithfully (:mod:`admit_rs.export`).
+- ``DistributionError``, ``CheckpointMismatchError`` (also ``ValueError``) and
+  ``SweepInterrupted`` (a ``KeyboardInterrupt`` only, not an AdmitError: that is an
+  ``Exception``, and ``except Exception`` must not swallow a Ctrl-C) of
+  :mod:`admit_rs.sweep`.
+
+This module imports nothing from the Rust extension: the extension raises the classes
+defined here.
+
+Example:
+    >>> import admit_rs as ar
+    >>> try:
+    ...     ar.Wall(stifness=5000)
+    ... except ar.AdmitError as e:
+    ...     print(type(e).__name__, isinstance(e, TypeError), e)
+    UnknownParameterError True Wall: unknown keyword 'stifness'; did you mean stiffness?
 """
 
-from admit_rs._core import AdmitError, ParameterError
+from __future__ import annotations
 
-__all__ = ["AdmitError", "ParameterError"]
+import difflib
+from collections.abc import Iterable
+
+__all__ = ["AdmitError", "ExportError", "ParameterError", "UnknownParameterError"]
+
+
+class AdmitError(Exception):
+    """Root of the exceptions admit_rs defines."""
+
+
+class ParameterError(AdmitError, ValueError):
+    """A parameter outside its allowed range; ``field``, ``value`` and ``allowed`` say
+    which and why."""
+
+    field: str
+    value: str
+    allowed: str
+
+
+class UnknownParameterError(AdmitError, TypeError):
+    """A keyword, dotted path or TOML key that names no field. ``name`` is the unknown
+    name, ``suggestions`` the closest valid ones (possibly empty)."""
+
+    def __init__(self, message: str, name: str = "", suggestions: Iterable[str] = ()) -> None:
+        super().__init__(message)
+        self.name = name
+        self.suggestions = list(suggestions)
+
+
+class ExportError(AdmitError, ValueError):
+    """A scenario that an export target cannot express faithfully; the message says why
+    and names the nearest faithful alternative."""
+
+
+def closest(name: str, valid: Iterable[str], n: int = 3) -> list[str]:
+    """The up to ``n`` valid names closest to ``name`` (difflib ratio ≥ 0.6)."""
+    return difflib.get_close_matches(name, list(valid), n=n, cutoff=0.6)
+
+
+def unknown(message: str, name: str, valid: Iterable[str]) -> UnknownParameterError:
+    """``message; did you mean a, b?`` or, without a close match, ``message; valid: ...``
+    (the list only when it is short)."""
+    valid = list(valid)
+    close = closest(name, valid)
+    if close:
+        hint = f"; did you mean {', '.join(close)}?"
+    elif len(valid) <= 16:
+        hint = f"; valid: {', '.join(valid)}"
+    else:
+        hint = ""
+    return UnknownParameterError(f"{message}{hint}", name, close)
 
 
 def _copy(err: ParameterError, message: str, field: str) -> ParameterError:

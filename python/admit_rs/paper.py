@@ -108,7 +108,7 @@ FIGURES: dict[str, Figure] = {
 
 
 def _ct() -> ComputedTorque:
-    return ComputedTorque(ka=0.1)
+    return ComputedTorque(command_divisor=0.1)
 
 
 def _run(

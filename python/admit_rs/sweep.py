@@ -21,6 +21,7 @@ import itertools
 import json
 import math
 import os
+import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,16 +29,18 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import polars as pl
+from polars.exceptions import PanicException
 
 from admit_rs import _core
-from admit_rs.config import Scenario, _Block, _check_path
-from admit_rs.errors import ParameterError, for_run
+from admit_rs.config import Scenario, _Block, _check_path, _core_path, _python_error
+from admit_rs.errors import AdmitError, ParameterError, for_run
 
 if TYPE_CHECKING:
     from dask.distributed import Client
 
 __all__ = [
     "CheckpointMismatchError",
+    "CheckpointWarning",
     "Choice",
     "DistributionError",
     "LogUniform",
@@ -51,17 +54,26 @@ DEFAULT_CHUNK_SIZE = 256
 """Runs per checkpoint file and per Dask task."""
 
 
-class DistributionError(ValueError):
+class DistributionError(AdmitError, ValueError):
     """A distribution with impossible parameters (low > high, negative sigma, ...)."""
 
 
-class CheckpointMismatchError(ValueError):
+class CheckpointMismatchError(AdmitError, ValueError):
     """A checkpoint folder holds a different sweep than the one asked for."""
+
+
+class CheckpointWarning(UserWarning):
+    """A checkpoint chunk file that cannot be used (unreadable, or not this sweep's): it is
+    named in the message, its runs are computed again and the file is replaced."""
 
 
 class SweepInterrupted(KeyboardInterrupt):
     """Ctrl-C during a sweep. ``table`` holds every run that finished (checkpointed chunks
-    stay on disk); rerunning the same call with the same ``checkpoint`` resumes."""
+    stay on disk); rerunning the same call with the same ``checkpoint`` resumes.
+
+    The one admit_rs exception that is not an :class:`~admit_rs.AdmitError`: AdmitError is
+    an ``Exception``, and a Ctrl-C must not be swallowed by ``except Exception``. Catch it
+    as ``except (ar.AdmitError, ar.SweepInterrupted)`` or as ``KeyboardInterrupt``."""
 
     def __init__(self, table: pl.DataFrame) -> None:
         super().__init__(f"sweep interrupted after {table.height} finished runs")
@@ -215,8 +227,9 @@ def _plan(
     grid = {k: list(v) for k, v in (grid or {}).items()}
     if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
         raise ValueError(f"seed = {seed!r} is invalid: must be an integer >= 0")
-    for path in list(vary) + list(grid):
-        _check_path(scenario, path)
+    # Paths in current field names (a deprecated name warns once, here).
+    vary = {_check_path(scenario, p): d for p, d in vary.items()}
+    grid = {_check_path(scenario, p): v for p, v in grid.items()}
     both = set(vary) & set(grid)
     if both:
         raise ValueError(f"{sorted(both)} given in both vary and grid")
@@ -285,7 +298,7 @@ def _configs(
         config = copy.deepcopy(base)
         config["seed"] = noise_seed(seed, run_id)  # a varied "seed" path overrides it
         for path, value in row.items():
-            _set_path(config, path, value)
+            _set_path(config, _core_path(path), value)
         out.append(config)
     return out
 
@@ -306,7 +319,7 @@ def _run_chunk(
         configs = _configs(base, rows, run_ids, seed)
         raw = _core.simulate_batch(configs, threads, traces)
     except ParameterError as e:
-        raise for_run(e, run_ids[getattr(e, "index", 0)]) from None
+        raise for_run(_python_error(e), run_ids[getattr(e, "index", 0)]) from None
     n = len(run_ids)
     columns: dict[str, Any] = {
         "run_id": pl.Series("run_id", list(run_ids), dtype=pl.Int64),
@@ -348,6 +361,7 @@ class _Checkpoint:
 
     def __init__(self, folder: str | os.PathLike[str], manifest: dict[str, Any]) -> None:
         self.folder = Path(folder)
+        self.traces = bool(manifest.get("traces"))
         self.folder.mkdir(parents=True, exist_ok=True)
         path = self.folder / "manifest.json"
         text = json.dumps(manifest, sort_keys=True, indent=1)
@@ -365,18 +379,71 @@ class _Checkpoint:
     def _path(self, kind: str, index: int) -> Path:
         return self.folder / f"{kind}-{index:06d}.parquet"
 
-    def load(self, index: int) -> tuple[pl.DataFrame, pl.DataFrame | None] | None:
+    def load(
+        self, index: int, plan: _Plan, ids: range
+    ) -> tuple[pl.DataFrame, pl.DataFrame | None] | None:
+        """Chunk ``index`` if it is on disk, readable and this sweep's; else ``None`` (to
+        compute), with a :class:`CheckpointWarning` naming a file that is not usable."""
         path = self._path("chunk", index)
         if not path.exists():
             return None
         tpath = self._path("traces", index)
-        return pl.read_parquet(path), (pl.read_parquet(tpath) if tpath.exists() else None)
+        problem = None
+        try:
+            table = pl.read_parquet(path)
+            long = None
+            if self.traces:
+                long = pl.read_parquet(tpath) if tpath.exists() else None
+                if long is None:
+                    problem = f"{path} has no {tpath.name} beside it"
+            foreign = _foreign(table, long, plan, ids)
+            problem = problem or (f"{path} is {foreign}" if foreign else None)
+        except (Exception, PanicException) as e:  # a damaged file can fail in any way
+            reason = str(e).strip().splitlines()[0] if str(e).strip() else ""
+            problem = f"{path} is unreadable ({type(e).__name__}: {reason})"
+        if problem is not None:
+            warnings.warn(
+                f"checkpoint: {problem}; recomputing runs {ids.start}..{ids.stop - 1}"
+                " (the file will be replaced)",
+                CheckpointWarning,
+                stacklevel=3,
+            )
+            return None
+        return table, long
 
     def save(self, index: int, table: pl.DataFrame, traces: pl.DataFrame | None) -> None:
         # Traces first, the chunk last and atomically: a chunk file means a finished chunk.
         if traces is not None:
             _atomic_parquet(traces, self._path("traces", index))
         _atomic_parquet(table, self._path("chunk", index))
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Equal as read back from Parquet: tuples as lists, NaN equal to NaN."""
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return bool(a == b)
+
+
+def _foreign(table: pl.DataFrame, long: pl.DataFrame | None, plan: _Plan, ids: range) -> str | None:
+    """Why a readable chunk file is not chunk ``ids`` of this sweep, or ``None`` if it is."""
+    name = f"chunk of runs {ids.start}..{ids.stop - 1}"
+    if "run_id" not in table.columns or table["run_id"].to_list() != list(ids):
+        return f"not the {name} of this sweep (other run_ids)"
+    missing = [c for c in ("seed", *plan.paths, "stable") if c not in table.columns]
+    if missing:
+        return f"not the {name} of this sweep (no column {', '.join(missing)})"
+    if table["seed"].to_list() != [plan.seed] * len(ids):
+        return f"not the {name} of this sweep (another seed)"
+    rows = plan.rows[ids.start : ids.stop]
+    for path in plan.paths:
+        if not _same(table[path].to_list(), [_column_value(r[path]) for r in rows]):
+            return f"not the {name} of this sweep (other {path} values)"
+    if long is not None and set(long["run_id"].unique().to_list()) != set(ids):
+        return f"not the {name} of this sweep (its traces hold other run_ids)"
+    return None
 
 
 def _atomic_parquet(frame: pl.DataFrame, path: Path) -> None:
@@ -434,6 +501,11 @@ def sweep(
         DistributionError, ValueError: impossible distribution or sweep definition.
         ParameterError: a drawn or listed value outside its range (names the run_id).
         CheckpointMismatchError: ``checkpoint`` holds a different sweep.
+
+    Warns:
+        CheckpointWarning: a chunk file in ``checkpoint`` is unreadable (truncated, damaged)
+            or not this sweep's; the message names it, its runs are computed again and the
+            file is overwritten, so the table still equals a clean run.
         SweepInterrupted: Ctrl-C; ``.table`` holds the finished runs.
     """
     if not isinstance(chunk_size, int) or chunk_size < 1:
@@ -452,7 +524,7 @@ def sweep(
     done: dict[int, tuple[pl.DataFrame, pl.DataFrame | None]] = {}
     todo = []
     for index, ids in _chunks(n, chunk_size):
-        loaded = store.load(index) if store is not None else None
+        loaded = store.load(index, plan, ids) if store is not None else None
         if loaded is not None:
             done[index] = loaded
         else:

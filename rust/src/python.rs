@@ -3,8 +3,8 @@
 //! No numerics here.
 
 use numpy::{PyArray1, PyArray2};
-use pyo3::create_exception;
-use pyo3::exceptions::{PyException, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::import_exception;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -28,18 +28,9 @@ use crate::world::actuator::ActuatorParams;
 use crate::world::environment::{ContactModel, WallParams};
 use crate::world::sensor::SensorParams;
 
-create_exception!(
-    _core,
-    ParameterError,
-    PyValueError,
-    "A parameter outside its allowed range; `field`, `value` and `allowed` say which and why."
-);
-create_exception!(
-    _core,
-    AdmitError,
-    PyException,
-    "Base of admit_rs runtime errors."
-);
+// The exception classes live in Python (admit_rs/errors.py) so that ParameterError can be
+// both a ValueError and an admit_rs.AdmitError, which create_exception! cannot express.
+import_exception!(admit_rs.errors, ParameterError);
 
 fn parameter_error(py: Python<'_>, field: &str, value: &str, allowed: &str) -> PyErr {
     let err = ParameterError::new_err(format!("{field} = {value} is invalid: must be {allowed}"));
@@ -396,7 +387,8 @@ macro_rules! py_dict {
 
 fn gains_dict<'py>(py: Python<'py>, g: &PositionGains) -> PyResult<Bound<'py, PyDict>> {
     Ok(py_dict!(py, {
-        "ka": g.ka, "kd": g.kd, "kp": g.kp, "scale_feedforward": g.scale_feedforward,
+        "command_divisor": g.ka, "kd": g.kd, "kp": g.kp,
+        "scale_feedforward": g.scale_feedforward,
     }))
 }
 
@@ -852,8 +844,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     py.check_signals()?;
     PyArray1::<f64>::zeros(py, 0, false);
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    m.add("ParameterError", py.get_type::<ParameterError>())?;
-    m.add("AdmitError", py.get_type::<AdmitError>())?;
     m.add("TRACE_COLUMNS", PyList::new(py, trace_columns(3))?)?;
     m.add("METRIC_NAMES", PyList::new(py, METRIC_NAMES)?)?;
     m.add_class::<Stepper>()?;

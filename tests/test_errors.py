@@ -1,0 +1,217 @@
+"""One exception root, unknown names with suggestions, TOML kinds, the renamed K_A."""
+
+from __future__ import annotations
+
+import inspect
+import math
+import sys
+import warnings
+
+import admit_rs as ar
+import pytest
+import tomllib
+from admit_rs import errors
+
+# --- one root ---------------------------------------------------------------------------
+
+
+def _exported_exceptions():
+    found = {}
+    for module in (ar, errors, sys.modules["admit_rs.sweep"], sys.modules["admit_rs.config"]):
+        for name in dir(module):
+            obj = getattr(module, name)
+            if (
+                inspect.isclass(obj)
+                and issubclass(obj, BaseException)
+                and obj.__module__.startswith("admit_rs")  # defined here, not imported
+            ):
+                found[name] = obj
+    return found
+
+
+def test_every_exported_exception_derives_from_admit_error():
+    found = _exported_exceptions()
+    # The walk must see the classes it is meant to check.
+    assert {"AdmitError", "ParameterError", "UnknownParameterError", "DistributionError",
+            "CheckpointMismatchError", "SweepInterrupted"} <= set(found)  # fmt: skip
+    for name, cls in found.items():
+        if issubclass(cls, Warning):  # warned, never raised (CheckpointWarning)
+            continue
+        if cls is ar.SweepInterrupted:
+            # Deliberately a KeyboardInterrupt only: AdmitError is an Exception, and
+            # `except Exception` must not swallow a Ctrl-C.
+            assert issubclass(cls, KeyboardInterrupt) and not issubclass(cls, Exception)
+            continue
+        assert issubclass(cls, ar.AdmitError), name
+    assert issubclass(ar.ParameterError, ValueError)
+    assert issubclass(ar.UnknownParameterError, TypeError)
+    assert issubclass(ar.DistributionError, ValueError)
+    assert issubclass(ar.CheckpointMismatchError, ValueError)
+
+
+def test_errors_raised_by_the_rust_core_are_admit_errors():
+    with pytest.raises(ar.AdmitError) as info:
+        ar.Wall(stiffness=-1.0)
+    assert type(info.value) is ar.ParameterError and isinstance(info.value, ValueError)
+    assert info.value.field == "stiffness" and info.value.allowed == "finite and >= 0"
+    with pytest.raises(ar.AdmitError, match="low = 2.0 > high = 1.0"):
+        ar.Uniform(2.0, 1.0)
+
+
+# --- unknown keywords on every block ----------------------------------------------------
+
+MISSPELLED = [
+    (ar.Robot, "mases", "masses"),
+    (ar.Wall, "stifness", "stiffness"),
+    (ar.ModelError, "mass_scal", "mass_scale"),
+    (ar.ComputedTorque, "contact_compensaton", "contact_compensation"),
+    (ar.ModelFree, "torque_constnt", "torque_constant"),
+    (ar.TimeDelayControl, "laww", "law"),
+    (ar.AdmittanceFilter, "bb", "b"),
+    (ar.ImpedanceReference, "assumed_stifness", "assumed_stiffness"),
+    (ar.Step, "valeu", "value"),
+    (ar.Sine, "amplitud", "amplitude"),
+    (ar.Sampled, "time", "times"),
+    (ar.Scenario, "duraton", "duration"),
+]
+
+
+@pytest.mark.parametrize(("cls", "typo", "right"), MISSPELLED)
+def test_every_block_suggests_the_closest_keyword(cls, typo, right):
+    with pytest.raises(ar.UnknownParameterError) as info:
+        cls(**{typo: 1.0})
+    assert isinstance(info.value, TypeError) and isinstance(info.value, ar.AdmitError)
+    assert str(info.value).startswith(f"{cls.__name__}: unknown keyword {typo!r}; did you mean")
+    assert info.value.suggestions[0] == right
+    assert info.value.name == typo
+
+
+def test_no_close_match_lists_the_valid_keywords():
+    with pytest.raises(ar.UnknownParameterError) as info:
+        ar.Wall(zzz=1.0)
+    assert str(info.value) == (
+        "Wall: unknown keyword 'zzz'; valid: stiffness, damping, model, exponent, normal, position, "
+        "position_error"
+    )
+    assert info.value.suggestions == []
+
+
+def test_replace_unknown_path_is_an_unknown_parameter_error():
+    with pytest.raises(ar.UnknownParameterError) as info:
+        ar.Scenario().replace(**{"admittance.bb": 1.0})
+    assert str(info.value).startswith("admittance.bb: no such parameter in Scenario; did you")
+    assert "admittance.b" in info.value.suggestions
+
+
+# --- TOML: keys, kinds ------------------------------------------------------------------
+
+
+def _toml(text: str) -> ar.Scenario:
+    return ar.Scenario.from_dict(tomllib.loads(text))
+
+
+def test_toml_admittance_without_kind_is_the_filter():
+    sc = _toml("[admittance]\nb = 200.0\nka = 2.0\n")
+    assert sc.admittance == ar.AdmittanceFilter(m=1.0, b=200.0, k=0.0, ka=2.0)
+
+
+def test_toml_table_without_kind_takes_the_only_kind_its_keys_fit():
+    sc = _toml("[admittance]\nassumed_stiffness = 5e4\n")
+    assert sc.admittance == ar.ImpedanceReference(k=10_000.0, assumed_stiffness=5e4)
+    sc = _toml("[controller]\ncontact_compensation = true\n")
+    assert type(sc.controller) is ar.ComputedTorque and sc.controller.contact_compensation
+    sc = _toml("[force_reference]\noffset = 10.0\namplitude = 5.0\n")
+    assert sc.force_reference == ar.Sine(offset=10.0, amplitude=5.0)
+    # Keys the default block has: the default block (TDC, Step), like any omitted field.
+    sc = _toml("[controller]\nkd = 30.0\n[force_reference]\nvalue = 4.0\n")
+    assert sc.controller == ar.TimeDelayControl(kd=30.0)
+    assert sc.force_reference == ar.Step(value=4.0)
+
+
+def test_toml_unknown_kind_lists_only_the_kinds_valid_there():
+    with pytest.raises(ar.UnknownParameterError) as info:
+        _toml('[admittance]\nkind = "sine"\n')
+    assert str(info.value) == (
+        "admittance.kind: unknown kind 'sine' for admittance; one of ['admittance', 'impedance']"
+    )
+    with pytest.raises(ar.UnknownParameterError) as info:
+        _toml('[controller]\nkind = "time_dealy"\n')
+    assert "one of ['computed_torque', 'model_free', 'time_delay']" in str(info.value)
+    assert info.value.suggestions == ["time_delay"]
+    with pytest.raises(ar.UnknownParameterError, match="one of \\['step', 'sine', 'sampled'\\]"):
+        _toml('[z_reference]\nkind = "admittance"\n')
+
+
+def test_toml_keys_that_fit_several_non_default_kinds_need_a_kind():
+    # `omega` is a Sine field; `value` a Step field: no single kind has both.
+    with pytest.raises(ar.UnknownParameterError) as info:
+        _toml("[force_reference]\nomega = 1.0\nvalue = 2.0\n")
+    assert "force_reference: unknown key" in str(info.value)
+    assert "force_reference kinds: step, sine, sampled" in str(info.value)
+
+
+def test_toml_key_typos_name_the_path_and_the_closest_key():
+    cases = {
+        "[wall]\nstifness = 1e4\n": "wall.stifness: unknown key in a Wall table; "
+        "did you mean stiffness?",
+        "duraton = 2.0\n": "duraton: unknown key in a Scenario table; did you mean duration?",
+        '[controller]\nkind = "time_delay"\n[controller.model]\nmass_scle = 1.1\n':
+            "controller.model.mass_scle: unknown key in a ModelError table; "
+            "did you mean mass_scale?",
+        '[admittance]\nkind = "admittance"\nbb = 1.0\n': "admittance.bb: unknown key in an"
+        " AdmittanceFilter table; did you mean b?",
+    }  # fmt: skip
+    for text, message in cases.items():
+        with pytest.raises(ar.UnknownParameterError) as info:
+            _toml(text)
+        assert str(info.value) == message
+
+
+def test_toml_fixed_table_with_a_kind_is_rejected():
+    with pytest.raises(ar.UnknownParameterError, match="a wall table takes no kind"):
+        _toml('[wall]\nkind = "wall"\n')
+
+
+# --- K_A of eq. 39: controller.command_divisor ------------------------------------------
+
+
+def test_command_divisor_is_k_a_of_eq_39_and_admittance_ka_is_unchanged():
+    sc = ar.paper.scenarios("fig10")[0]  # CT, Scheme 2, b = 800, k_a = 1
+    assert sc.controller.command_divisor == 0.1 and sc.admittance.ka == 1.0
+    assert "command_divisor=0.1" in repr(sc.controller) and "ka=" not in repr(sc.controller)
+    assert sc.to_dict()["controller"]["command_divisor"] == 0.1
+    assert sc._to_core()["controller"]["ka"] == 0.1  # the Rust core's key is unchanged
+
+
+def test_deprecated_controller_ka_still_works_and_warns():
+    with pytest.warns(DeprecationWarning, match=r"ComputedTorque\(ka=\.\.\.\) is deprecated"):
+        ctl = ar.ComputedTorque(ka=0.2)
+    assert ctl == ar.ComputedTorque(command_divisor=0.2)
+    with pytest.warns(DeprecationWarning, match="use controller.command_divisor"):
+        assert ctl.ka == 0.2
+    with pytest.warns(DeprecationWarning, match="controller.ka is deprecated") as record:
+        sc = ar.Scenario().replace(**{"controller.ka": 3.0})
+    assert record[0].filename == __file__  # attributed to the caller's line
+    assert sc.controller.command_divisor == 3.0
+    with pytest.warns(DeprecationWarning, match="controller.ka is deprecated"):
+        sc = _toml("[controller]\nka = 4.0\n")
+    assert sc.controller == ar.TimeDelayControl(command_divisor=4.0)
+    with pytest.warns(DeprecationWarning, match="controller.ka is deprecated"):
+        table = ar.sweep(ar.Scenario(duration=0.01), grid={"controller.ka": [4.0]},
+                         progress=False)  # fmt: skip
+    assert table["controller.command_divisor"].to_list() == [4.0]
+    with pytest.raises(TypeError, match="both ka and command_divisor"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            ar.ModelFree(ka=1.0, command_divisor=2.0)
+
+
+def test_command_divisor_range_error_uses_the_new_name():
+    with pytest.raises(ar.ParameterError) as info:
+        ar.TimeDelayControl(command_divisor=0.0)
+    assert info.value.field == "command_divisor"
+    assert str(info.value) == "command_divisor = 0 is invalid: must be finite and > 0"
+    with pytest.raises(ar.ParameterError) as info:
+        ar.sweep(ar.Scenario(duration=0.01), grid={"controller.command_divisor": [1.0, math.nan]},
+                 progress=False)  # fmt: skip
+    assert info.value.field == "controller.command_divisor" and info.value.run_id == 1
