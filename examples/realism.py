@@ -12,10 +12,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import admit_rs as ar
 import polars as pl
 from matplotlib.figure import Figure
-
-import admit_rs as ar
 
 SENSOR = ar.ForceSensor(noise_std=0.5, cutoff=30.0, latency=2)
 """0.5 N RMS noise, a 30 Hz first-order low-pass, 2 samples (2 ms) of latency."""
@@ -117,8 +116,10 @@ def torque_figure(results: dict[str, ar.Result]) -> Figure:
         ax.grid(True, alpha=0.3)
     axes[0].axhline(50.39, color="k", lw=0.8, ls="--", label="gravity torque at q0")
     axes[0].legend(fontsize=7, loc="lower right")
-    fig.suptitle("First second: commanded vs applied torque. Joint 2 needs about 43 N·m to hold "
-                 "the arm in contact (50.4 N·m against gravity alone at q0): a 40 N·m motor cannot")  # fmt: skip
+    fig.suptitle(
+        "First second: commanded vs applied torque. Joint 2 needs about 43 N·m to hold the arm "
+        "in contact (50.4 N·m against gravity alone at q0): a 40 N·m motor cannot"
+    )
     return fig
 
 

@@ -90,8 +90,8 @@ def test_no_close_match_lists_the_valid_keywords():
     with pytest.raises(ar.UnknownParameterError) as info:
         ar.Wall(zzz=1.0)
     assert str(info.value) == (
-        "Wall: unknown keyword 'zzz'; valid: stiffness, damping, model, exponent, normal, position, "
-        "position_error"
+        "Wall: unknown keyword 'zzz'; valid: stiffness, damping, model, exponent, normal, "
+        "position, position_error"
     )
     assert info.value.suggestions == []
 
