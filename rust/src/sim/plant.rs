@@ -210,6 +210,30 @@ mod tests {
         Vec3::new(yaw, 45.0 + 5.0 * (period as f64 * 0.01).sin(), 10.0)
     }
 
+    /// Classical RK4 written out, `substeps` steps of `h` with τ held: the reference the
+    /// plant is checked against.
+    fn textbook_rk4(
+        f: &impl Fn(&Vec3, &Vec3, &Vec3) -> Vec3,
+        mut q: Vec3,
+        mut qd: Vec3,
+        t: &Vec3,
+        h: f64,
+        substeps: usize,
+    ) -> (Vec3, Vec3) {
+        for _ in 0..substeps {
+            let a1 = f(&q, &qd, t);
+            let (q2, qd2) = (q + qd * (h / 2.0), qd + a1 * (h / 2.0));
+            let a2 = f(&q2, &qd2, t);
+            let (q3, qd3) = (q + qd2 * (h / 2.0), qd + a2 * (h / 2.0));
+            let a3 = f(&q3, &qd3, t);
+            let (q4, qd4) = (q + qd3 * h, qd + a3 * h);
+            let a4 = f(&q4, &qd4, t);
+            q += (qd + (qd2 + qd3) * 2.0 + qd4) * (h / 6.0);
+            qd += (a1 + (a2 + a3) * 2.0 + a4) * (h / 6.0);
+        }
+        (q, qd)
+    }
+
     /// The plant's RK4 (stage trig by angle addition) against a textbook RK4 that evaluates
     /// sin and cos afresh at every stage: one second of fig. 14-like motion, with contact.
     #[test]
@@ -231,17 +255,7 @@ mod tests {
             if wall.force(&arm.forward_kinematics(&q), &Vec3::zeros()) > 0.0 {
                 contact_periods += 1;
             }
-            for _ in 0..substeps {
-                let a1 = f(&q, &qd, &t);
-                let (q2, qd2) = (q + qd * (h / 2.0), qd + a1 * (h / 2.0));
-                let a2 = f(&q2, &qd2, &t);
-                let (q3, qd3) = (q + qd2 * (h / 2.0), qd + a2 * (h / 2.0));
-                let a3 = f(&q3, &qd3, &t);
-                let (q4, qd4) = (q + qd3 * h, qd + a3 * h);
-                let a4 = f(&q4, &qd4, &t);
-                q += (qd + (qd2 + qd3) * 2.0 + qd4) * (h / 6.0);
-                qd += (a1 + (a2 + a3) * 2.0 + a4) * (h / 6.0);
-            }
+            (q, qd) = textbook_rk4(&f, q, qd, &t, h, substeps);
         }
         let s = plant.state();
         assert!(
@@ -285,17 +299,7 @@ mod tests {
             if wall.penetration(&arm.forward_kinematics(&q)) > 0.0 {
                 contact_periods += 1;
             }
-            for _ in 0..substeps {
-                let a1 = f(&q, &qd, &t);
-                let (q2, qd2) = (q + qd * (h / 2.0), qd + a1 * (h / 2.0));
-                let a2 = f(&q2, &qd2, &t);
-                let (q3, qd3) = (q + qd2 * (h / 2.0), qd + a2 * (h / 2.0));
-                let a3 = f(&q3, &qd3, &t);
-                let (q4, qd4) = (q + qd3 * h, qd + a3 * h);
-                let a4 = f(&q4, &qd4, &t);
-                q += (qd + (qd2 + qd3) * 2.0 + qd4) * (h / 6.0);
-                qd += (a1 + (a2 + a3) * 2.0 + a4) * (h / 6.0);
-            }
+            (q, qd) = textbook_rk4(&f, q, qd, &t, h, substeps);
         }
         assert!(contact_periods > 100, "{contact_periods}");
         let s = plant.state();
