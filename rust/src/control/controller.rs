@@ -216,16 +216,24 @@ pub enum ControlFailure {
 /// Jacobian counts as singular: J⁻¹ would amplify rounding beyond any use.
 const SINGULAR_RATIO: f64 = 1e-9;
 
-/// Joint accelerations for a task acceleration: J⁻¹ rhs (eqs. 7 and 17). Defined for a
-/// square Jacobian (three joints, position task); a chain of another size needs the damped
-/// pseudo-inverse of SPEC §11, which arrives with those arms.
+/// Damping λ of the pseudo-inverse J⁺ = Jᵀ (J Jᵀ + λ² I)⁻¹ (SPEC §11's default).
+pub const PSEUDO_INVERSE_DAMPING: f64 = 1e-3;
+
+/// Joint accelerations for a task acceleration (eqs. 7 and 17): J⁻¹ rhs for a square
+/// Jacobian (three joints, position task, as the paper writes it); the damped
+/// pseudo-inverse Jᵀ (J Jᵀ + λ² I)⁻¹ rhs of SPEC §11 for any other joint count.
 #[inline]
 fn solve_jacobian<const N: usize>(
     j: &Jacobian<N>,
     rhs: &TaskVector,
 ) -> std::result::Result<JointVector<N>, ControlFailure> {
     if N != 3 {
-        return Err(ControlFailure::SingularJacobian);
+        let damped = j * j.transpose() + Matrix3::identity() * PSEUDO_INVERSE_DAMPING.powi(2);
+        return damped
+            .try_inverse()
+            .map(|inv| j.transpose() * (inv * rhs))
+            .filter(|qdd| qdd.iter().all(|v| v.is_finite()))
+            .ok_or(ControlFailure::SingularJacobian);
     }
     let j: Matrix3<f64> = j.fixed_view::<3, 3>(0, 0).into_owned();
     let bound = j.column(0).norm() * j.column(1).norm() * j.column(2).norm();
@@ -562,5 +570,34 @@ mod tests {
 
     fn g_of(arm: &ThreeLinkArm, q: &Vec3) -> Vec3 {
         gravity(arm, q)
+    }
+
+    /// For a redundant arm (3×4 J) the damped pseudo-inverse reaches the task acceleration
+    /// (to λ²) with the least-norm joint acceleration: it lies in J's row space.
+    #[test]
+    fn redundant_jacobian_uses_the_damped_pseudo_inverse() {
+        #[rustfmt::skip]
+        let j = Jacobian::<4>::new(
+            0.3, -0.2, 0.5, 0.1,
+            0.0, 0.7, 0.2, -0.4,
+            0.6, 0.1, -0.3, 0.2,
+        );
+        let rhs = TaskVector::new(1.0, -2.0, 0.5);
+        let qdd = solve_jacobian(&j, &rhs).unwrap();
+        assert!((j * qdd - rhs).norm() < 1e-5, "{}", (j * qdd - rhs).norm());
+        // Least norm: qdd = Jᵀ y for some y, so its part in J's null space is zero.
+        let pinv = j.pseudo_inverse(1e-12).unwrap();
+        let null_projector = nalgebra::Matrix4::identity() - pinv * j;
+        assert!((null_projector * qdd).norm() < 1e-5);
+        // A rank-deficient J still gives a finite answer (the damping's purpose).
+        let flat = Jacobian::<4>::from_rows(&[
+            j.row(0).into_owned(),
+            j.row(0).into_owned(),
+            j.row(2).into_owned(),
+        ]);
+        assert!(solve_jacobian(&flat, &rhs)
+            .unwrap()
+            .iter()
+            .all(|v| v.is_finite()));
     }
 }
