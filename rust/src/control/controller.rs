@@ -425,12 +425,24 @@ mod tests {
 
     type Ctl = Controller<ThreeLinkArm, 3>;
     const X: TaskVector = TaskVector::new(1.0, 0.0, 0.0);
+    const REST: Vec3 = Vec3::new(0.0, 0.0, 0.0);
 
     fn at_q0() -> (ThreeLinkArm, Vec3, Kinematics) {
         let arm = ThreeLinkArm::new(&RobotParams::default());
         let q = arm.initial_position();
         let k = arm.kinematics(&arm.configure(&q), &Vec3::zeros());
         (arm, q, k)
+    }
+
+    /// The measurement of a controller test: no contact force, the paper's wall normal.
+    fn measured<'a>(q: &'a Vec3, qd: &'a Vec3, k: &'a Kinematics) -> Measurement<'a, 3> {
+        Measurement {
+            q,
+            qd,
+            kinematics: k,
+            force: 0.0,
+            normal: &X,
+        }
     }
 
     fn gravity(arm: &ThreeLinkArm, q: &Vec3) -> Vec3 {
@@ -463,13 +475,7 @@ mod tests {
             &r,
             1e-3,
         );
-        let m = Measurement {
-            q: &q,
-            qd: &Vec3::zeros(),
-            kinematics: &k,
-            force: 0.0,
-            normal: &X,
-        };
+        let m = measured(&q, &REST, &k);
         let d = Desired {
             position: k.position,
             ..Desired::default()
@@ -491,13 +497,7 @@ mod tests {
             ..Desired::default()
         };
         let qd = Vec3::zeros();
-        let m = Measurement {
-            q: &q,
-            qd: &qd,
-            kinematics: &k,
-            force: 0.0,
-            normal: &X,
-        };
+        let m = measured(&q, &qd, &k);
         let tau0 = c.step(&m, &d).unwrap();
         let g = gravity(&r, &q);
         // V = 100·0.01/5 = 0.2 along x; D̄ K_t = 20.
@@ -524,13 +524,7 @@ mod tests {
             &r,
             1e-3,
         );
-        let m = Measurement {
-            q: &q,
-            qd: &Vec3::zeros(),
-            kinematics: &k,
-            force: 0.0,
-            normal: &X,
-        };
+        let m = measured(&q, &REST, &k);
         assert_eq!(
             c.step(&m, &Desired::default()),
             Err(ControlFailure::SingularJacobian)
@@ -550,13 +544,7 @@ mod tests {
             position: k.position + Vec3::new(0.01, 0.0, 0.0),
             ..Desired::default()
         };
-        let m = Measurement {
-            q: &q,
-            qd: &Vec3::zeros(),
-            kinematics: &k,
-            force: 0.0,
-            normal: &X,
-        };
+        let m = measured(&q, &REST, &k);
         let tau0 = c.step(&m, &d).unwrap();
         let applied = tau0.map(|t| t.clamp(-20.0, 20.0));
         c.applied(&applied);

@@ -98,11 +98,12 @@ mod tests {
                 let trace = r
                     .trace
                     .iter()
-                    .flat_map(|t| t.columns().into_iter().flatten());
+                    .flat_map(|t| t.clone().into_named_columns())
+                    .flat_map(|(_, column)| column);
                 r.metrics
                     .values()
                     .into_iter()
-                    .chain(trace.copied())
+                    .chain(trace)
                     .collect::<Vec<_>>()
             })
             .map(f64::to_bits)

@@ -148,30 +148,7 @@ impl Trace {
         self.columns_mut().into_iter().for_each(|c| c.truncate(len));
     }
 
-    /// Every column in the order of `trace_columns`.
-    pub fn columns(&self) -> Vec<&Vec<f64>> {
-        let mut out = vec![&self.t];
-        out.extend(self.q.iter());
-        out.extend(self.qd.iter());
-        out.extend([
-            &self.x,
-            &self.y,
-            &self.z,
-            &self.x_ref,
-            &self.y_ref,
-            &self.z_ref,
-            &self.f,
-            &self.f_measured,
-            &self.f_d,
-            &self.penetration,
-            &self.x_a,
-            &self.xa_dot,
-        ]);
-        out.extend(self.tau.iter());
-        out.extend(self.tau_cmd.iter());
-        out
-    }
-
+    /// Every column in the order of `trace_columns` (the one place that lists them).
     fn columns_mut(&mut self) -> Vec<&mut Vec<f64>> {
         let mut out = vec![&mut self.t];
         out.extend(self.q.iter_mut());
@@ -195,47 +172,10 @@ impl Trace {
         out
     }
 
-    /// Columns with their names, moved out.
-    pub fn into_named_columns(self) -> Vec<(String, Vec<f64>)> {
+    /// Columns with their names, moved out (no copy).
+    pub fn into_named_columns(mut self) -> Vec<(String, Vec<f64>)> {
         let names = trace_columns(self.joints());
-        let Trace {
-            t,
-            q,
-            qd,
-            x,
-            y,
-            z,
-            x_ref,
-            y_ref,
-            z_ref,
-            f,
-            f_measured,
-            f_d,
-            penetration,
-            x_a,
-            xa_dot,
-            tau,
-            tau_cmd,
-        } = self;
-        let mut cols = vec![t];
-        cols.extend(q);
-        cols.extend(qd);
-        cols.extend([
-            x,
-            y,
-            z,
-            x_ref,
-            y_ref,
-            z_ref,
-            f,
-            f_measured,
-            f_d,
-            penetration,
-            x_a,
-            xa_dot,
-        ]);
-        cols.extend(tau);
-        cols.extend(tau_cmd);
+        let cols = self.columns_mut().into_iter().map(std::mem::take);
         names.into_iter().zip(cols).collect()
     }
 }
@@ -265,7 +205,6 @@ mod tests {
         tr.push(&row);
         let named = tr.clone().into_named_columns();
         assert_eq!(named.len(), trace_columns(2).len());
-        assert_eq!(tr.columns().len(), named.len());
         let value = |name: &str| named.iter().find(|(n, _)| n == name).unwrap().1[0];
         assert_eq!(value("t"), 0.5);
         assert_eq!(value("qd2"), 4.0);
