@@ -136,7 +136,9 @@ def plot_paper_figure(
     clip_note = _clip_torques(axes[5], results[0].trace)
     names.append(("(f) " if force_control else "(e) ") + tau_title + clip_note)
     for ax, name in zip(axes, names, strict=True):
-        ax.set_title(name, fontsize=10)
+        # Long curve labels wrap instead of running past the figure's edge.
+        lines = name.split("\n")
+        ax.set_title("\n".join(textwrap.fill(line, 62) for line in lines), fontsize=10)
         ax.grid(True, alpha=0.3)
         ax.tick_params(labelsize=9)
         # Plain tick labels: no "1e-5+7.34e-1" offset text on nearly constant traces.
