@@ -659,7 +659,7 @@ def _concat(
     tables = [t for t, _ in pieces]
     longs = [x for _, x in pieces if x is not None]
     return (
-        pl.concat(tables, how="vertical_relaxed") if tables else pl.DataFrame(),
+        pl.concat(tables, how="vertical_relaxed", rechunk=True) if tables else pl.DataFrame(),
         pl.concat(longs) if longs else None,
     )
 

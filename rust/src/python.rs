@@ -612,7 +612,7 @@ impl Stepper {
             return Ok(None);
         };
         let sim = &self.sim;
-        let metrics = Metrics::compute(sim.trace(), sim.config(), &outcome, sim.frame());
+        let metrics = sim.metrics(&outcome);
         let out = PyDict::new(py);
         outcome_into(py, &out, metrics, outcome)?;
         Ok(Some(out))

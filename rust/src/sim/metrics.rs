@@ -6,7 +6,7 @@ use crate::control::task::TaskFrame;
 use crate::robot::TaskVector;
 use crate::sim::outcome::Outcome;
 use crate::sim::scenario::ScenarioConfig;
-use crate::sim::trace::Trace;
+use crate::sim::trace::{Row, Trace};
 
 /// The steady-state window: the last 2 s.
 pub const STEADY_STATE_WINDOW: f64 = 2.0;
@@ -94,78 +94,17 @@ impl Metrics {
         ]
     }
 
-    /// The metrics of a run from its trace; `frame` gives the directions x (along n) and z
-    /// (along t̂) are measured in.
+    /// The metrics of a recorded run, by replaying its trace through [`OnlineMetrics`];
+    /// `frame` gives the directions x (along n) and z (along t̂) are measured in.
     pub fn compute(
         trace: &Trace,
         config: &ScenarioConfig,
         outcome: &Outcome,
         frame: &TaskFrame,
     ) -> Self {
-        let (t, f, f_d) = (&trace.t, &trace.f, &trace.f_d);
-        let diverged = outcome.is_diverged();
-        let force_control = config.admittance.is_some();
-        let nan = f64::NAN;
-        let mut m = Metrics {
-            force_ss_error: nan,
-            force_rms_error: nan,
-            force_peak: if force_control { max(f) } else { nan },
-            overshoot_pct: nan,
-            settling_time: nan,
-            rise_time_63: nan,
-            rise_time_10_90: nan,
-            peak_time: nan,
-            z_rms_error: nan,
-            x_rms_error: nan,
-            contact_loss: nan,
-            force_oscillation: nan,
-            torque_saturation: torque_saturation(trace, config),
-            diverged,
-            stable: !diverged,
-        };
-        if diverged || trace.is_empty() {
-            return m;
-        }
-        // Tracking errors along n (x for the paper's wall) and along t̂ (z).
-        let (along_n, along_t) = task_errors(trace, frame);
-        m.x_rms_error = rms(along_n.iter().copied(), along_n.len());
-        m.z_rms_error = rms(along_t.iter().copied(), along_t.len());
-        if !force_control {
-            return m;
-        }
-        let end = t[t.len() - 1];
-        let period = config.period;
-        let ss = first_index_at(end - STEADY_STATE_WINDOW, period);
-        let late = first_index_at(TRANSIENT_END, period).min(t.len());
-        m.force_ss_error = mean_difference(&f_d[ss..], &f[ss..]);
-        m.force_rms_error = rms_difference(&f_d[late..], &f[late..]);
-        m.contact_loss = if late < f.len() {
-            f[late..].iter().filter(|v| **v == 0.0).count() as f64 / (f.len() - late) as f64
-        } else {
-            nan
-        };
-        let window = ss.max(late).min(t.len());
-        m.force_oscillation = oscillation(&f[window..], &f_d[window..]);
-        m.stable = within(m.force_oscillation, OSCILLATION_LIMIT)
-            && within(m.contact_loss, CONTACT_LOSS_LIMIT);
-        if let Signal::Step { value, .. } = config.force_reference {
-            // Relative to f_d: undefined (NaN) for f_d = 0.
-            m.overshoot_pct = if value == 0.0 {
-                f64::NAN
-            } else {
-                100.0 * (m.force_peak - value) / value
-            };
-            m.settling_time = settling_time(t, f, value, SETTLING_BAND);
-            m.rise_time_63 = first_crossing(t, f, 0.632 * value, value);
-            m.rise_time_10_90 =
-                first_crossing(t, f, 0.9 * value, value) - first_crossing(t, f, 0.1 * value, value);
-            let peak = f.iter().enumerate().fold(
-                0,
-                |best, (i, v)| if v.abs() > f[best].abs() { i } else { best },
-            );
-            m.peak_time = t[peak];
-        }
-        m
+        let mut online = OnlineMetrics::new(config, frame);
+        online.replay(trace);
+        online.finish(outcome)
     }
 }
 
@@ -178,64 +117,348 @@ fn first_index_at(time: f64, period: f64) -> usize {
     }
 }
 
-fn max(v: &[f64]) -> f64 {
-    v.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+/// Σx² of a stream that cannot overflow to inf for finite x: the plain sum (exact
+/// sequential order) and, beside it, a scaled sum (scale = max|x|, as BLAS `nrm2` keeps it)
+/// that is used only when the plain one overflowed.
+#[derive(Debug, Clone, Copy)]
+struct SumOfSquares {
+    plain: f64,
+    scale: f64,
+    scaled: f64,
+    count: usize,
 }
 
-fn mean_difference(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x - y).sum::<f64>() / a.len() as f64
-}
-
-/// The tracking error X_d − X of every sample, along n and along t̂.
-fn task_errors(trace: &Trace, frame: &TaskFrame) -> (Vec<f64>, Vec<f64>) {
-    let (n, t) = (&frame.normal, &frame.tangent);
-    let errors = trace
-        .x_ref
-        .iter()
-        .zip(&trace.y_ref)
-        .zip(&trace.z_ref)
-        .zip(trace.x.iter().zip(&trace.y).zip(&trace.z))
-        .map(|(((xr, yr), zr), ((x, y), z))| TaskVector::new(xr - x, yr - y, zr - z));
-    errors.map(|e| (n.dot(&e), t.dot(&e))).unzip()
-}
-
-fn rms(v: impl Iterator<Item = f64> + Clone, n: usize) -> f64 {
-    let plain = (v.clone().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
-    if plain.is_finite() {
-        return plain;
-    }
-    // The squares overflowed (errors beyond 1e154): scale by the largest, so a huge but
-    // finite error reads as itself rather than inf.
-    let scale = v.clone().fold(0.0f64, |m, x| m.max(x.abs()));
-    if !scale.is_finite() || scale == 0.0 {
-        return plain;
-    }
-    scale * (v.map(|x| (x / scale) * (x / scale)).sum::<f64>() / n as f64).sqrt()
-}
-
-/// Fraction of samples where some joint's applied torque sits at its limit.
-fn torque_saturation(trace: &Trace, config: &ScenarioConfig) -> f64 {
-    let Some(limits) = &config.actuator.torque_limit else {
-        return 0.0;
+impl SumOfSquares {
+    const ZERO: Self = Self {
+        plain: 0.0,
+        scale: 0.0,
+        scaled: 1.0,
+        count: 0,
     };
-    if trace.is_empty() {
-        return f64::NAN;
-    }
-    let limit = |j: usize| {
-        if limits.len() == 1 {
-            limits[0]
-        } else {
-            limits[j]
+
+    #[inline(always)]
+    fn push(&mut self, x: f64) {
+        self.plain += x * x;
+        self.count += 1;
+        // The scaled sum only matters past 1e154; keep the per-sample cost to a compare.
+        let a = x.abs();
+        if a > self.scale {
+            if self.scale > 0.0 {
+                let r = self.scale / a;
+                self.scaled = 1.0 + self.scaled * r * r;
+            }
+            self.scale = a;
+        } else if a > 0.0 {
+            let r = a / self.scale;
+            self.scaled += r * r;
         }
-    };
-    let saturated = (0..trace.len())
-        .filter(|&i| (0..trace.joints()).any(|j| trace.tau[j][i].abs() >= limit(j)))
-        .count();
-    saturated as f64 / trace.len() as f64
+    }
+
+    /// √(Σx²/n): NaN for no samples.
+    fn rms(&self) -> f64 {
+        let n = self.count as f64;
+        let plain = (self.plain / n).sqrt();
+        if plain.is_finite() || !self.scale.is_finite() || self.scale == 0.0 {
+            return plain;
+        }
+        self.scale * (self.scaled / n).sqrt()
+    }
 }
 
-fn rms_difference(a: &[f64], b: &[f64]) -> f64 {
-    rms(a.iter().zip(b).map(|(x, y)| x - y), a.len())
+/// Running mean and variance of d = f − f_d (Welford's update, stable where the mean is
+/// large against the spread), with the mean |f_d| that scales it.
+#[derive(Debug, Clone, Copy)]
+struct Spread {
+    count: usize,
+    mean: f64,
+    m2: f64,
+    reference: f64,
+}
+
+impl Spread {
+    const ZERO: Self = Self {
+        count: 0,
+        mean: 0.0,
+        m2: 0.0,
+        reference: 0.0,
+    };
+
+    #[inline(always)]
+    fn push(&mut self, f: f64, f_d: f64) {
+        self.count += 1;
+        let d = f - f_d;
+        let delta = d - self.mean;
+        self.mean += delta / self.count as f64;
+        self.m2 += delta * (d - self.mean);
+        self.reference += f_d.abs();
+    }
+
+    /// std(f − f_d) / mean|f_d| (NaN for an empty window or f_d ≡ 0).
+    fn relative_std(&self) -> f64 {
+        if self.count == 0 || self.reference == 0.0 {
+            return f64::NAN;
+        }
+        let n = self.count as f64;
+        (self.m2 / n).sqrt() / (self.reference / n)
+    }
+}
+
+/// Every metric of §7/§10, accumulated one sample at a time while the run advances, so a
+/// run needs no trace to be judged. The windows are fixed up front: a run that completes
+/// ends at t = (N − 1)·T, and a diverged run reports no windowed metric.
+#[derive(Debug, Clone)]
+pub struct OnlineMetrics {
+    period: f64,
+    force_control: bool,
+    /// f_d of a step reference (step metrics are defined only for those).
+    step: Option<f64>,
+    normal: TaskVector,
+    tangent: TaskVector,
+    torque_limit: Option<Vec<f64>>,
+    /// First sample of the last 2 s.
+    steady_start: usize,
+    /// First sample after the transient (t ≥ 1 s).
+    late_start: usize,
+    /// First sample of the oscillation window: the later of the two.
+    window_start: usize,
+    // Running values.
+    samples: usize,
+    force_peak: f64,
+    saturated: usize,
+    along_n: SumOfSquares,
+    along_t: SumOfSquares,
+    steady_error_sum: f64,
+    late_error: SumOfSquares,
+    contact_lost: usize,
+    spread: Spread,
+    /// Last sample outside the settling band.
+    last_unsettled: Option<usize>,
+    /// First samples at 10 %, 63.2 % and 90 % of a step's f_d.
+    crossings: [Option<usize>; 3],
+    /// First sample of the largest |f|.
+    peak: (usize, f64),
+}
+
+/// The levels of `OnlineMetrics::crossings`, as fractions of f_d.
+const CROSSING_LEVELS: [f64; 3] = [0.1, 0.632, 0.9];
+
+impl OnlineMetrics {
+    pub fn new(config: &ScenarioConfig, frame: &TaskFrame) -> Self {
+        let period = config.period;
+        let samples = config.samples();
+        let end = samples.saturating_sub(1) as f64 * period;
+        let steady_start = first_index_at(end - STEADY_STATE_WINDOW, period);
+        let late_start = first_index_at(TRANSIENT_END, period);
+        Self {
+            period,
+            force_control: config.admittance.is_some(),
+            step: match config.force_reference {
+                Signal::Step { value, .. } => Some(value),
+                _ => None,
+            },
+            normal: frame.normal,
+            tangent: frame.tangent,
+            torque_limit: config.actuator.torque_limit.clone(),
+            steady_start,
+            late_start,
+            window_start: steady_start.max(late_start),
+            samples: 0,
+            force_peak: f64::NEG_INFINITY,
+            saturated: 0,
+            along_n: SumOfSquares::ZERO,
+            along_t: SumOfSquares::ZERO,
+            steady_error_sum: 0.0,
+            late_error: SumOfSquares::ZERO,
+            contact_lost: 0,
+            spread: Spread::ZERO,
+            last_unsettled: None,
+            crossings: [None; 3],
+            peak: (0, f64::NEG_INFINITY),
+        }
+    }
+
+    /// Back to no samples.
+    pub fn reset(&mut self) {
+        self.samples = 0;
+        self.force_peak = f64::NEG_INFINITY;
+        self.saturated = 0;
+        self.along_n = SumOfSquares::ZERO;
+        self.along_t = SumOfSquares::ZERO;
+        self.steady_error_sum = 0.0;
+        self.late_error = SumOfSquares::ZERO;
+        self.contact_lost = 0;
+        self.spread = Spread::ZERO;
+        self.last_unsettled = None;
+        self.crossings = [None; 3];
+        self.peak = (0, f64::NEG_INFINITY);
+    }
+
+    /// Samples taken so far.
+    pub fn samples(&self) -> usize {
+        self.samples
+    }
+
+    /// Takes sample k (they must come in order, from 0).
+    #[inline(always)]
+    pub fn push(&mut self, row: &Row) {
+        let k = self.samples;
+        self.samples += 1;
+        self.saturated += usize::from(self.any_saturated(row.tau));
+        let [xr, yr, zr] = row.reference;
+        let [x, y, z] = row.position;
+        let e = TaskVector::new(xr - x, yr - y, zr - z);
+        self.along_n.push(self.normal.dot(&e));
+        self.along_t.push(self.tangent.dot(&e));
+        if !self.force_control {
+            return;
+        }
+        let (f, f_d) = (row.f, row.f_d);
+        self.force_peak = self.force_peak.max(f);
+        if k >= self.steady_start {
+            self.steady_error_sum += f_d - f;
+        }
+        if k >= self.late_start {
+            self.late_error.push(f_d - f);
+            self.contact_lost += usize::from(f == 0.0);
+        }
+        if k >= self.window_start {
+            self.spread.push(f, f_d);
+        }
+        if let Some(target) = self.step {
+            if (f - target).abs() > SETTLING_BAND * target.abs() {
+                self.last_unsettled = Some(k);
+            }
+            let sign = target.signum();
+            for (first, level) in self.crossings.iter_mut().zip(CROSSING_LEVELS) {
+                if first.is_none() && sign * (f - level * target) >= 0.0 {
+                    *first = Some(k);
+                }
+            }
+            if f.abs() > self.peak.1 {
+                self.peak = (k, f.abs());
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn any_saturated(&self, tau: &[f64]) -> bool {
+        let Some(limits) = &self.torque_limit else {
+            return false;
+        };
+        let limit = |j: usize| {
+            if limits.len() == 1 {
+                limits[0]
+            } else {
+                limits[j]
+            }
+        };
+        tau.iter().enumerate().any(|(j, t)| t.abs() >= limit(j))
+    }
+
+    /// Pushes every sample of a recorded trace.
+    pub fn replay(&mut self, trace: &Trace) {
+        let joints = trace.joints();
+        let (mut q, mut qd) = (vec![0.0; joints], vec![0.0; joints]);
+        let (mut tau, mut tau_cmd) = (vec![0.0; joints], vec![0.0; joints]);
+        for i in 0..trace.len() {
+            for j in 0..joints {
+                q[j] = trace.q[j][i];
+                qd[j] = trace.qd[j][i];
+                tau[j] = trace.tau[j][i];
+                tau_cmd[j] = trace.tau_cmd[j][i];
+            }
+            self.push(&Row {
+                t: trace.t[i],
+                q: &q,
+                qd: &qd,
+                position: [trace.x[i], trace.y[i], trace.z[i]],
+                reference: [trace.x_ref[i], trace.y_ref[i], trace.z_ref[i]],
+                f: trace.f[i],
+                f_measured: trace.f_measured[i],
+                f_d: trace.f_d[i],
+                penetration: trace.penetration[i],
+                x_a: trace.x_a[i],
+                xa_dot: trace.xa_dot[i],
+                tau: &tau,
+                tau_cmd: &tau_cmd,
+            });
+        }
+    }
+
+    /// The time of sample k, as the loop computes it.
+    fn time(&self, k: usize) -> f64 {
+        k as f64 * self.period
+    }
+
+    /// The metrics of the samples so far, for a run that ended with `outcome`.
+    pub fn finish(&self, outcome: &Outcome) -> Metrics {
+        let diverged = outcome.is_diverged();
+        let len = self.samples;
+        let nan = f64::NAN;
+        let mut m = Metrics {
+            force_ss_error: nan,
+            force_rms_error: nan,
+            force_peak: if self.force_control {
+                self.force_peak
+            } else {
+                nan
+            },
+            overshoot_pct: nan,
+            settling_time: nan,
+            rise_time_63: nan,
+            rise_time_10_90: nan,
+            peak_time: nan,
+            z_rms_error: nan,
+            x_rms_error: nan,
+            contact_loss: nan,
+            force_oscillation: nan,
+            torque_saturation: match (&self.torque_limit, len) {
+                (None, _) => 0.0,
+                (Some(_), 0) => nan,
+                (Some(_), _) => self.saturated as f64 / len as f64,
+            },
+            diverged,
+            stable: !diverged,
+        };
+        if diverged || len == 0 {
+            return m;
+        }
+        m.x_rms_error = self.along_n.rms();
+        m.z_rms_error = self.along_t.rms();
+        if !self.force_control {
+            return m;
+        }
+        let steady = len.saturating_sub(self.steady_start.min(len));
+        m.force_ss_error = self.steady_error_sum / steady as f64;
+        m.force_rms_error = self.late_error.rms();
+        m.contact_loss = if self.late_start < len {
+            self.contact_lost as f64 / (len - self.late_start) as f64
+        } else {
+            nan
+        };
+        m.force_oscillation = self.spread.relative_std();
+        m.stable = within(m.force_oscillation, OSCILLATION_LIMIT)
+            && within(m.contact_loss, CONTACT_LOSS_LIMIT);
+        if let Some(value) = self.step {
+            // Relative to f_d: undefined (NaN) for f_d = 0.
+            m.overshoot_pct = if value == 0.0 {
+                nan
+            } else {
+                100.0 * (m.force_peak - value) / value
+            };
+            m.settling_time = match self.last_unsettled {
+                None => 0.0,
+                Some(i) if i + 1 < len => self.time(i + 1),
+                Some(_) => nan,
+            };
+            let at = |c: Option<usize>| c.map_or(nan, |i| self.time(i));
+            let [ten, rise, ninety] = self.crossings;
+            m.rise_time_63 = at(rise);
+            m.rise_time_10_90 = at(ninety) - at(ten);
+            m.peak_time = self.time(self.peak.0);
+        }
+        m
+    }
 }
 
 /// A stability criterion holds: the metric is at most `limit`, or NaN (not judged).
@@ -243,81 +466,116 @@ fn within(value: f64, limit: f64) -> bool {
     value.is_nan() || value <= limit
 }
 
-/// std(f − f_d) / mean|f_d| (NaN for an empty window or f_d ≡ 0).
-fn oscillation(f: &[f64], f_d: &[f64]) -> f64 {
-    if f.is_empty() {
-        return f64::NAN;
-    }
-    let n = f.len() as f64;
-    let scale = f_d.iter().map(|v| v.abs()).sum::<f64>() / n;
-    if scale == 0.0 {
-        return f64::NAN;
-    }
-    let mean = mean_difference(f, f_d);
-    let var = f
-        .iter()
-        .zip(f_d)
-        .map(|(a, b)| (a - b - mean) * (a - b - mean))
-        .sum::<f64>()
-        / n;
-    var.sqrt() / scale
-}
-
-/// First time the signal reaches `level` on the side of `target`'s sign (NaN if never).
-fn first_crossing(t: &[f64], y: &[f64], level: f64, target: f64) -> f64 {
-    let sign = target.signum();
-    y.iter()
-        .position(|v| sign * (v - level) >= 0.0)
-        .map_or(f64::NAN, |i| t[i])
-}
-
-/// First time after which |y − target| ≤ band·|target| to the end (NaN if the last sample
-/// is outside the band).
-fn settling_time(t: &[f64], y: &[f64], target: f64, band: f64) -> f64 {
-    let tol = band * target.abs();
-    match y.iter().rposition(|v| (v - target).abs() > tol) {
-        None => t[0],
-        Some(i) if i + 1 < t.len() => t[i + 1],
-        Some(_) => f64::NAN,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::control::filter::{AdmittanceParams, ForceControlParams};
 
-    #[test]
-    fn step_metrics_on_a_known_signal() {
-        // f rises linearly from 0 to 11 over 1.1 s, then sits at 10.
-        let t: Vec<f64> = (0..=3000).map(|k| k as f64 * 1e-3).collect();
-        let f: Vec<f64> = t
-            .iter()
-            .map(|&t| if t <= 1.1 { 10.0 * t } else { 10.0 })
-            .collect();
-        assert_eq!(settling_time(&t, &f, 10.0, 0.02), t[1101]);
-        assert!((first_crossing(&t, &f, 6.32, 10.0) - 0.632).abs() < 1e-12);
-        assert!(
-            (first_crossing(&t, &f, 9.0, 10.0) - first_crossing(&t, &f, 1.0, 10.0) - 0.8).abs()
-                < 1e-9
-        );
-        assert!(first_crossing(&t, &f, 20.0, 10.0).is_nan());
-        let never: Vec<f64> = t.iter().map(|_| 5.0).collect();
-        assert!(settling_time(&t, &never, 10.0, 0.02).is_nan());
+    /// A force-controlled 3-s scenario at T = 1 ms with a 10 N step: 3001 samples.
+    fn config() -> ScenarioConfig {
+        ScenarioConfig {
+            duration: 3.0,
+            admittance: Some(ForceControlParams::Admittance(AdmittanceParams::scheme2(
+                800.0, 0.1,
+            ))),
+            ..ScenarioConfig::default()
+        }
+    }
+
+    fn frame() -> TaskFrame {
+        TaskFrame::new(TaskVector::x(), TaskVector::zeros(), 0.0)
+    }
+
+    /// Metrics of a force signal f(t), with the tip on its reference.
+    fn metrics_of(config: &ScenarioConfig, force: impl Fn(usize) -> f64) -> Metrics {
+        let mut online = OnlineMetrics::new(config, &frame());
+        for k in 0..config.samples() {
+            online.push(&Row {
+                t: k as f64 * config.period,
+                q: &[0.0; 3],
+                qd: &[0.0; 3],
+                position: [0.0; 3],
+                reference: [0.0; 3],
+                f: force(k),
+                f_measured: force(k),
+                f_d: 10.0,
+                penetration: 0.0,
+                x_a: 0.0,
+                xa_dot: 0.0,
+                tau: &[0.0; 3],
+                tau_cmd: &[0.0; 3],
+            });
+        }
+        online.finish(&Outcome::Completed)
     }
 
     #[test]
-    fn oscillation_is_relative_std_about_the_reference() {
-        // f alternates 9 / 11 about f_d = 10: std 1, relative 0.1.
-        let f: Vec<f64> = (0..1000)
-            .map(|k| if k % 2 == 0 { 9.0 } else { 11.0 })
-            .collect();
-        let f_d = vec![10.0; 1000];
-        assert!((oscillation(&f, &f_d) - 0.1).abs() < 1e-12);
-        // Tracking a varying reference exactly is no oscillation.
-        let ramp: Vec<f64> = (0..1000).map(|k| 5.0 + k as f64 * 1e-2).collect();
-        assert_eq!(oscillation(&ramp, &ramp), 0.0);
-        assert!(oscillation(&[], &[]).is_nan());
-        assert!(oscillation(&[1.0], &[0.0]).is_nan());
+    fn step_metrics_on_a_known_signal() {
+        // f rises linearly from 0 to 11 over 0.55 s, then sits at 10.
+        let m = metrics_of(&config(), |k| {
+            let t = k as f64 * 1e-3;
+            if t <= 0.55 {
+                20.0 * t
+            } else {
+                10.0
+            }
+        });
+        assert_eq!(m.settling_time, 551.0 * 1e-3);
+        assert!((m.rise_time_63 - 0.316).abs() < 1e-12);
+        assert!((m.rise_time_10_90 - 0.4).abs() < 1e-9);
+        assert_eq!(m.peak_time, 550.0 * 1e-3);
+        assert!((m.overshoot_pct - 10.0).abs() < 1e-9);
+        assert!((m.force_peak - 11.0).abs() < 1e-12);
+        assert_eq!(
+            (m.force_ss_error, m.force_rms_error, m.force_oscillation),
+            (0.0, 0.0, 0.0)
+        );
+        assert_eq!(m.contact_loss, 0.0);
+        assert!(m.stable);
+        // 1 s ≤ t ≤ 1.1 s off by −0.1 N per 10 ms: mean and RMS over the 2001 samples.
+        let m = metrics_of(&config(), |k| {
+            10.0 + if (1000..=1100).contains(&k) {
+                0.01 * (k - 1000) as f64
+            } else {
+                0.0
+            }
+        });
+        assert!((m.force_ss_error + 0.01 * 5050.0 / 2001.0).abs() < 1e-12);
+        let squares: f64 = (0..=100).map(|i| (0.01 * i as f64).powi(2)).sum();
+        assert!((m.force_rms_error - (squares / 2001.0).sqrt()).abs() < 1e-12);
+        // A signal that never enters the band never settles.
+        assert!(metrics_of(&config(), |_| 5.0).settling_time.is_nan());
+        assert!(metrics_of(&config(), |_| 5.0).rise_time_63.is_nan());
+    }
+
+    #[test]
+    fn oscillation_is_relative_std_about_the_reference_in_the_last_2_s() {
+        // f alternates 9 / 11 about f_d = 10 (std 1, relative 0.1) in the last 2 s only.
+        // 1001 samples at 9 and 1000 at 11: mean error −1/2001.
+        let m = metrics_of(&config(), |k| match (k < 1000, k % 2 == 0) {
+            (true, _) => 0.0,
+            (false, true) => 9.0,
+            (false, false) => 11.0,
+        });
+        let expected = (1.0 - (1.0f64 / 2001.0).powi(2)).sqrt() / 10.0;
+        assert!(
+            (m.force_oscillation - expected).abs() < 1e-14,
+            "{}",
+            m.force_oscillation
+        );
+        assert!(m.stable);
+        // Large offset, tiny spread: Welford's update keeps it (a one-pass Σd² − n·mean²
+        // would lose it in cancellation).
+        let m = metrics_of(&config(), |k| 1e6 + if k % 2 == 0 { -1e-6 } else { 1e-6 });
+        assert!(
+            (m.force_oscillation - 1e-7).abs() < 1e-12,
+            "{}",
+            m.force_oscillation
+        );
+        // Contact lost in the last 2 s: 2000 of 2001 samples.
+        let m = metrics_of(&config(), |k| if k == 1000 { 10.0 } else { 0.0 });
+        assert_eq!(m.contact_loss, 2000.0 / 2001.0);
+        assert!(!m.stable);
     }
 
     #[test]
@@ -325,14 +583,68 @@ mod tests {
         assert_eq!(first_index_at(8.0, 1e-3), 8000);
         assert_eq!(first_index_at(1.0, 1e-3), 1000);
         assert_eq!(first_index_at(-1.0, 1e-3), 0);
-        assert!((rms_difference(&[1.0, -1.0], &[0.0, 0.0]) - 1.0).abs() < 1e-15);
-        assert_eq!(mean_difference(&[3.0, 5.0], &[1.0, 1.0]), 3.0);
+        let online = OnlineMetrics::new(&config(), &frame());
+        assert_eq!((online.steady_start, online.late_start), (1000, 1000));
+        let ten = ScenarioConfig {
+            duration: 10.0,
+            ..config()
+        };
+        let online = OnlineMetrics::new(&ten, &frame());
+        assert_eq!((online.steady_start, online.window_start), (8000, 8000));
     }
 
     #[test]
     fn rms_of_huge_errors_does_not_overflow() {
-        let v = [1e300, -1e300, 1e300, -1e300];
-        assert_eq!(rms(v.iter().copied(), 4), 1e300);
-        assert_eq!(rms_difference(&[3.0, 4.0], &[0.0, 0.0]), (12.5f64).sqrt());
+        let mut s = SumOfSquares::ZERO;
+        for x in [1e300, -1e300, 1e300, -1e300] {
+            s.push(x);
+        }
+        assert_eq!(s.rms(), 1e300);
+        let mut s = SumOfSquares::ZERO;
+        for x in [3.0, 4.0] {
+            s.push(x);
+        }
+        assert_eq!(s.rms(), (12.5f64).sqrt());
+        let mut s = SumOfSquares::ZERO;
+        for x in [0.0, 1e200, 3e200] {
+            s.push(x);
+        }
+        assert!((s.rms() / (1e200 * (10.0f64 / 3.0).sqrt()) - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn saturation_counts_samples_with_any_joint_at_its_limit() {
+        let cfg = ScenarioConfig {
+            actuator: crate::world::actuator::ActuatorParams {
+                torque_limit: Some(vec![1.0, 2.0, 3.0]),
+                ..Default::default()
+            },
+            ..config()
+        };
+        let mut online = OnlineMetrics::new(&cfg, &frame());
+        for tau in [
+            [0.5, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, -2.5, 0.0],
+            [0.0, 0.0, 2.9],
+        ] {
+            online.push(&Row {
+                t: 0.0,
+                q: &[0.0; 3],
+                qd: &[0.0; 3],
+                position: [0.0; 3],
+                reference: [0.0; 3],
+                f: 0.0,
+                f_measured: 0.0,
+                f_d: 10.0,
+                penetration: 0.0,
+                x_a: 0.0,
+                xa_dot: 0.0,
+                tau: &tau,
+                tau_cmd: &tau,
+            });
+        }
+        let m = online.finish(&Outcome::Completed);
+        assert_eq!(m.torque_saturation, 0.5);
     }
 }

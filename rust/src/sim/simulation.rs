@@ -14,7 +14,7 @@ use crate::control::reference::Sample;
 use crate::control::task::TaskFrame;
 use crate::error::{Error, Result};
 use crate::robot::{JointVector, RobotModel, TaskVector, ThreeLinkArm};
-use crate::sim::metrics::Metrics;
+use crate::sim::metrics::{Metrics, OnlineMetrics};
 pub use crate::sim::outcome::{Divergence, Outcome};
 use crate::sim::plant::{Plant, PlantState};
 pub use crate::sim::scenario::{ScenarioConfig, MAX_SAMPLES, MAX_SUBSTEPS};
@@ -47,7 +47,14 @@ pub struct Simulation<R: RobotModel<N>, const N: usize> {
     k: usize,
     /// Set once the last sample is recorded or the run diverged.
     outcome: Option<Outcome>,
+    /// Whether samples are kept in `trace` (sweeps judge runs without one).
+    recording: bool,
     trace: Trace,
+    /// The metrics so far, accumulated sample by sample.
+    metrics: OnlineMetrics,
+    /// `metrics` no longer matches the samples (a `set_state` moved the sample counter);
+    /// rebuilt from the trace when asked for.
+    metrics_stale: bool,
 }
 
 /// The paper's arm (SPEC §1).
@@ -104,9 +111,20 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             samples,
             k: 0,
             outcome: None,
+            recording: true,
             trace: Trace::new(N, samples),
+            metrics: OnlineMetrics::new(config, &frame),
+            metrics_stale: false,
             config: config.clone(),
         })
+    }
+
+    /// Keeps no trace: the run is judged by its online metrics alone (a sweep without
+    /// traces). A simulation without a trace cannot be moved back by `set_state`.
+    pub fn without_trace(mut self) -> Self {
+        self.recording = false;
+        self.trace = Trace::new(N, 0);
+        self
     }
 
     pub fn config(&self) -> &ScenarioConfig {
@@ -150,6 +168,8 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         self.k = 0;
         self.outcome = None;
         self.trace.truncate(0);
+        self.metrics.reset();
+        self.metrics_stale = false;
     }
 
     /// Runs from the initial state to the end (or to divergence) and computes the metrics.
@@ -157,13 +177,21 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         self.reset();
         // A whole run always ends within `samples` steps.
         let outcome = self.step(self.samples).unwrap_or(Outcome::Completed);
+        let metrics = self.metrics(&outcome);
         let trace = std::mem::replace(&mut self.trace, Trace::new(N, 0));
-        let metrics = Metrics::compute(&trace, &self.config, &outcome, &self.frame);
         RunResult {
             trace,
             outcome,
             metrics,
         }
+    }
+
+    /// The metrics of the samples taken so far, for a run that ended with `outcome`.
+    pub fn metrics(&self, outcome: &Outcome) -> Metrics {
+        if self.metrics_stale {
+            return Metrics::compute(&self.trace, &self.config, outcome, &self.frame);
+        }
+        self.metrics.finish(outcome)
     }
 
     /// Takes up to `n` samples (fewer if the run ends). Returns how the run stands: `None`
@@ -254,7 +282,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         self.controller.applied(&tau);
         // 8. record sample k
         let p = kin.position;
-        self.trace.push(&Row {
+        self.record(&Row {
             t,
             q: q.as_slice(),
             qd: qd.as_slice(),
@@ -282,6 +310,17 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         self.plant.advance_inlined(&tau);
         if let Some(cause) = self.check_state() {
             self.stop(self.k as f64 * self.config.period, cause);
+        }
+    }
+
+    /// Sample k into the metrics and, when recording, the trace.
+    #[inline(always)]
+    fn record(&mut self, row: &Row) {
+        if !self.metrics_stale {
+            self.metrics.push(row);
+        }
+        if self.recording {
+            self.trace.push(row);
         }
     }
 
@@ -352,6 +391,17 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             ));
         }
         let k = sample as usize;
+        if !self.recording && k != self.k {
+            return Err(Error::parameter(
+                "sample",
+                sample,
+                &format!(
+                    "{} (a run without a trace cannot move in time: its metrics cover \
+                     the samples it took)",
+                    self.k
+                ),
+            ));
+        }
         let mut at = 1;
         let q = JointVector::<N>::from_column_slice(&values[at..at + N]);
         let qd = JointVector::<N>::from_column_slice(&values[at + N..at + 2 * N]);
@@ -366,6 +416,8 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         self.k = k;
         self.outcome = None;
         self.trace.truncate(k);
+        // The online metrics hold samples 0..self.k: rebuilt from the trace on demand.
+        self.metrics_stale |= k != self.metrics.samples();
         Ok(())
     }
 }
@@ -510,6 +562,37 @@ mod tests {
         assert_eq!(sim.trace().len(), 123);
         sim.step(usize::MAX);
         assert_eq!(sim.trace(), &whole.trace);
+    }
+
+    /// A run without a trace is judged by the same numbers, and cannot move in time.
+    #[test]
+    fn a_run_without_trace_has_the_same_metrics() {
+        let cfg = ScenarioConfig {
+            duration: 2.5,
+            sensor: SensorParams {
+                noise_std: 0.2,
+                latency: 1,
+                ..SensorParams::default()
+            },
+            ..ScenarioConfig::default()
+        };
+        let recorded = simulate(&cfg).unwrap();
+        let mut sim = Simulation::new(&cfg).unwrap().without_trace();
+        let bare = sim.run();
+        assert!(bare.trace.is_empty());
+        assert_eq!(
+            format!("{:?}", bare.metrics),
+            format!("{:?}", recorded.metrics)
+        );
+        let replayed = Metrics::compute(&recorded.trace, &cfg, &recorded.outcome, sim.frame());
+        assert_eq!(format!("{replayed:?}"), format!("{:?}", recorded.metrics));
+        sim.reset();
+        sim.step(10);
+        let mut state = sim.state();
+        assert!(sim.set_state(&state).is_ok());
+        state[0] = 5.0;
+        let e = sim.set_state(&state).unwrap_err().to_string();
+        assert!(e.contains("cannot move in time"), "{e}");
     }
 
     #[test]

@@ -31,28 +31,37 @@ pub fn run_batch(
     threads: Option<usize>,
     keep_traces: bool,
 ) -> std::result::Result<Vec<RunSummary>, BatchError> {
-    let sims = configs
-        .iter()
-        .enumerate()
-        .map(|(index, c)| Simulation::new(c).map_err(|error| BatchError { index, error }))
-        .collect::<std::result::Result<Vec<_>, _>>()?;
-    let run_all = move || -> Vec<RunSummary> {
-        sims.into_par_iter()
-            .map(|mut sim| {
+    // Every config is checked before anything runs; the runs are then built one at a time
+    // inside the workers, so a large batch never holds more than one pipeline per thread.
+    for (index, c) in configs.iter().enumerate() {
+        Simulation::new(c).map_err(|error| BatchError { index, error })?;
+    }
+    let run_all = move || -> std::result::Result<Vec<RunSummary>, BatchError> {
+        configs
+            .par_iter()
+            .enumerate()
+            .map(|(index, c)| {
+                let sim = Simulation::new(c).map_err(|error| BatchError { index, error })?;
+                // Without traces a run keeps nothing but its online metrics.
+                let mut sim = if keep_traces {
+                    sim
+                } else {
+                    sim.without_trace()
+                };
                 let r = sim.run();
-                RunSummary {
+                Ok(RunSummary {
                     metrics: r.metrics,
                     outcome: r.outcome,
                     trace: keep_traces.then_some(r.trace),
-                }
+                })
             })
             .collect()
     };
     match threads {
-        None => Ok(run_all()),
+        None => run_all(),
         Some(n) => thread_pool(n)
-            .map(|pool| pool.install(run_all))
-            .map_err(|error| BatchError { index: 0, error }),
+            .map_err(|error| BatchError { index: 0, error })?
+            .install(run_all),
     }
 }
 

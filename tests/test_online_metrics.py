@@ -1,0 +1,159 @@
+"""Metrics are accumulated while a run advances (issue 12, part 3): a sweep without traces
+keeps no trace at all, and every number equals the definitions of docs/metrics.md applied to
+the recorded trace."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+import textwrap
+
+import admit_rs as ar
+import numpy as np
+import pytest
+
+WINDOW, TRANSIENT, BAND = 2.0, 1.0, 0.02
+
+
+def _frame(scenario: ar.Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """The wall normal n and the motion tangent t̂ of SPEC §10."""
+    n = np.array(scenario.wall.normal, dtype=float)
+    n /= np.linalg.norm(n)
+    ez = np.array([0.0, 0.0, 1.0])
+    t = ez - (ez @ n) * n
+    if np.linalg.norm(t) < 1e-12:
+        t = np.array([1.0, 0.0, 0.0])
+    return n, t / np.linalg.norm(t)
+
+
+def reference_metrics(scenario: ar.Scenario, res: ar.Result) -> dict[str, float]:
+    """docs/metrics.md, written again from the trace with NumPy (two-pass statistics)."""
+    tr = res.trace
+    t, f, fd = (tr[c].to_numpy() for c in ("t", "f", "f_d"))
+    n, tangent = _frame(scenario)
+    error = np.stack([tr[f"{c}_ref"].to_numpy() - tr[c].to_numpy() for c in "xyz"], axis=1)
+    out = {
+        "x_rms_error": float(np.sqrt(np.mean((error @ n) ** 2))),
+        "z_rms_error": float(np.sqrt(np.mean((error @ tangent) ** 2))),
+        "force_peak": float(f.max()),
+    }
+    end, period = t[-1], scenario.period
+    steady = t >= end - WINDOW - 1e-9 * period
+    late = t >= TRANSIENT - 1e-9 * period
+    out["force_ss_error"] = float(np.mean(fd[steady] - f[steady]))
+    out["force_rms_error"] = float(np.sqrt(np.mean((fd[late] - f[late]) ** 2)))
+    out["contact_loss"] = float(np.mean(f[late] == 0.0))
+    window = steady & late
+    out["force_oscillation"] = float(
+        np.std(f[window] - fd[window]) / np.mean(np.abs(fd[window]))
+    )
+    limit = scenario.actuator.torque_limit
+    if limit is None:
+        out["torque_saturation"] = 0.0
+    else:
+        tau = np.stack([tr[f"tau{j}"].to_numpy() for j in (1, 2, 3)], axis=1)
+        out["torque_saturation"] = float(np.mean(np.any(np.abs(tau) >= limit, axis=1)))
+    step = scenario.force_reference
+    if isinstance(step, ar.Step):
+        value = step.value
+        outside = np.nonzero(np.abs(f - value) > BAND * abs(value))[0]
+        if not len(outside):
+            out["settling_time"] = 0.0
+        elif outside[-1] + 1 < len(t):
+            out["settling_time"] = float(t[outside[-1] + 1])
+        else:
+            out["settling_time"] = math.nan  # outside the band at the end
+        out["rise_time_63"] = float(t[np.argmax(f >= 0.632 * value)])
+        first = {level: t[np.argmax(f >= level * value)] for level in (0.1, 0.9)}
+        out["rise_time_10_90"] = float(first[0.9] - first[0.1])
+        out["peak_time"] = float(t[np.argmax(np.abs(f))])
+        out["overshoot_pct"] = 100.0 * (out["force_peak"] - value) / value
+    return out
+
+
+def _scenarios() -> dict[str, ar.Scenario]:
+    fig14 = ar.paper.scenario("fig14").replace(duration=4.0)
+    return {
+        "fig14": fig14,
+        "scheme1_ct": ar.paper.scenario("fig10").replace(duration=3.0),
+        "sine_tdc": ar.paper.scenario("fig20").replace(duration=3.0),
+        "realistic_tilted": fig14.replace(
+            wall=ar.Wall(damping=50.0, normal=(1, 0, -0.5)),
+            sensor=ar.ForceSensor(noise_std=0.5, cutoff=30.0, latency=2),
+            actuator=ar.Actuator(torque_limit=(60.0, 60.0, 20.0)),
+            seed=3,
+        ),
+        "saturating": fig14.replace(actuator=ar.Actuator(torque_limit=(60.0, 40.0, 20.0))),
+    }
+
+
+@pytest.mark.parametrize("name", list(_scenarios()))
+def test_online_metrics_equal_the_definitions_on_the_trace(name):
+    scenario = _scenarios()[name]
+    res = ar.simulate(scenario)
+    assert not res.metrics["diverged"]
+    expected = reference_metrics(scenario, res)
+    for metric, value in expected.items():
+        got = res.metrics[metric]
+        assert got == pytest.approx(value, rel=1e-12, abs=1e-12, nan_ok=True), (metric, got)
+    # The saturating case is really there: its fraction is neither 0 nor 1.
+    if name == "saturating":
+        assert 0.5 < res.metrics["torque_saturation"] < 1.0
+
+
+def _same(a: float, b: float) -> bool:
+    return (math.isnan(a) and math.isnan(b)) or a == b
+
+
+def test_a_sweep_without_traces_gives_the_simulated_metrics_bit_for_bit():
+    base = ar.paper.scenario("fig19").replace(duration=2.5)
+    grid = {"wall.stiffness": [1e4, 3e4, 3e5], "controller.inertia": [0.1, 0.5]}
+    table = ar.sweep(base, grid=grid, progress=False)
+    assert table["diverged"].any() and not table["diverged"].all()
+    for row in table.iter_rows(named=True):
+        res = ar.simulate(
+            base.replace(**{p: row[p] for p in grid})
+        )
+        for name in ar.METRIC_NAMES:
+            assert _same(row[name], res.metrics[name]), (name, row[name], res.metrics[name])
+        assert row["stable"] == res.metrics["stable"]
+
+
+def test_stepping_back_recomputes_the_metrics_from_the_trace():
+    scenario = ar.paper.scenario("fig14").replace(duration=3.0)
+    whole = ar.simulate(scenario).metrics
+    sim = ar.Simulation(scenario)
+    sim.step(1500)
+    state = sim.state
+    sim.step(10_000)
+    first = sim.result().metrics
+    assert all(_same(first[name], whole[name]) for name in ar.METRIC_NAMES)
+    sim.set_state(state)  # back to sample 1500: samples 1500.. are taken again
+    sim.step(10_000)
+    again = sim.result().metrics
+    for name in ar.METRIC_NAMES:
+        assert _same(again[name], whole[name]), name
+
+
+def test_a_20000_run_sweep_without_traces_stays_under_50_mb():
+    # In a fresh process, so that ru_maxrss measures this sweep and nothing else.
+    script = textwrap.dedent(
+        """
+        import resource
+        import admit_rs as ar
+        sc = ar.paper.scenario("fig19").replace(duration=0.2)
+        vary = {"wall.stiffness": ar.LogUniform(1e4, 1e5)}
+        ar.sweep(sc, vary=vary, samples=64, seed=0, progress=False)
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        table = ar.sweep(sc, vary=vary, samples=20_000, seed=0, progress=False)
+        after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        assert table.height == 20_000 and table["stable"].all()
+        print((after - before) / 1024)
+        """
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=True
+    )
+    growth_mb = float(out.stdout.strip().splitlines()[-1])
+    assert growth_mb < 50.0, growth_mb
