@@ -322,84 +322,127 @@ def _accel(q1, q2, q3, w1, w2, w3, t1, t2, t3, p):
     return b1 / d11, (d33 * b2 - d23 * b3) / det, (d22 * b3 - d23 * b2) / det
 
 
-def _kernel(n, substeps, period, p, ctl, flt, ref, x0, wall_estimate, tau0, q0):
-    """The whole run: returns the (n, 20) trace (rows after a divergence are NaN)."""
+def _control(k, q1, q2, q3, w1, w2, w3, memory, period, p, ctl, flt, ref, x0, wall_estimate):
+    """Measure, references, filter and TDC eq. (18) at sample k: returns the applied torque,
+    the recorded quantities and the controller/filter memory for sample k + 1."""
     l1, l2, l3 = p[0], p[1], p[2]
     ke, xe = p[13], p[14]
-    ka, kd, kp, inertia, kt, vlim = ctl
+    ka, kd, kp, inertia, kt, _ = ctl
     ad00, ad01, ad10, ad11, bd0, bd1, fm, fb, fk, fka = flt
     f_d, z_off, z_amp, z_om, z_ph = ref
     x0x, x0y, x0z = x0
+    tp1, tp2, tp3, pw1, pw2, pw3, fs0, fs1 = memory
     gain = inertia * kt
+    t = k * period
+    # 1. measure
+    s1 = math.sin(q1)
+    c1 = math.cos(q1)
+    s2 = math.sin(q2)
+    c2 = math.cos(q2)
+    s3 = math.sin(q3)
+    c3 = math.cos(q3)
+    s23 = s2 * c3 + c2 * s3
+    c23 = c2 * c3 - s2 * s3
+    r = l2 * c2 + l3 * c23
+    hh = l2 * s2 + l3 * s23
+    px = c1 * r
+    py = s1 * r
+    pz = l1 + hh
+    j00 = -s1 * r
+    j01 = -c1 * hh
+    j02 = -c1 * l3 * s23
+    j10 = c1 * r
+    j11 = -s1 * hh
+    j12 = -s1 * l3 * s23
+    j20 = 0.0
+    j21 = r
+    j22 = l3 * c23
+    pen = px - xe
+    force = ke * pen if pen > 0.0 else 0.0
+    # 2. references
+    arg = z_om * t + z_ph
+    zs = math.sin(arg)
+    zc = math.cos(arg)
+    z_val = z_off + z_amp * zs
+    z_rate = z_amp * z_om * zc
+    z_acc = -z_amp * z_om * z_om * zs
+    # 3. admittance filter: output at t_k, then advance with e_f,k
+    ef = f_d - force
+    xa = fs0
+    xa_dot = fs1
+    xa_acc = (fka * ef - fb * xa_dot - fk * xa) / fm
+    fs0, fs1 = ad00 * xa + ad01 * xa_dot + bd0 * ef, ad10 * xa + ad11 * xa_dot + bd1 * ef
+    x_ref = wall_estimate + xa
+    dpz = x0z + z_val
+    # 4. eq. (39), then TDC eq. (18)
+    vx = j00 * w1 + j01 * w2 + j02 * w3
+    vy = j10 * w1 + j11 * w2 + j12 * w3
+    vz = j20 * w1 + j21 * w2 + j22 * w3
+    v1 = (xa_acc + ((xa_dot - vx) * kd + (x_ref - px) * kp)) / ka
+    v2 = (0.0 + ((0.0 - vy) * kd + (x0y - py) * kp)) / ka
+    v3 = (z_acc + ((z_rate - vz) * kd + (dpz - pz) * kp)) / ka
+    if k == 0:
+        a1 = a2 = a3 = 0.0
+    else:
+        a1 = (w1 - pw1) / period
+        a2 = (w2 - pw2) / period
+        a3 = (w3 - pw3) / period
+    tau1 = (j00 * v1 + j10 * v2 + j20 * v3) * gain + (tp1 - a1 * inertia)
+    tau2 = (j01 * v1 + j11 * v2 + j21 * v3) * gain + (tp2 - a2 * inertia)
+    tau3 = (j02 * v1 + j12 * v2 + j22 * v3) * gain + (tp3 - a3 * inertia)
+    record = (t, px, py, pz, x_ref, x0y, dpz, force, f_d, xa, xa_dot)
+    return (tau1, tau2, tau3), record, (tau1, tau2, tau3, w1, w2, w3, fs0, fs1)
+
+
+def _advance(q1, q2, q3, w1, w2, w3, tau1, tau2, tau3, p, substeps, period):
+    """RK4 over one period with τ held (``substeps`` steps); the contact force is evaluated
+    inside `_accel` at every stage."""
     h = period / substeps
     half = h / 2.0
     sixth = h / 6.0
+    for _ in range(substeps):
+        e1, e2, e3 = _accel(q1, q2, q3, w1, w2, w3, tau1, tau2, tau3, p)
+        bq1, bq2, bq3 = q1 + w1 * half, q2 + w2 * half, q3 + w3 * half
+        bw1, bw2, bw3 = w1 + e1 * half, w2 + e2 * half, w3 + e3 * half
+        f1, f2, f3 = _accel(bq1, bq2, bq3, bw1, bw2, bw3, tau1, tau2, tau3, p)
+        cq1, cq2, cq3 = q1 + bw1 * half, q2 + bw2 * half, q3 + bw3 * half
+        cw1, cw2, cw3 = w1 + f1 * half, w2 + f2 * half, w3 + f3 * half
+        g1, g2, g3 = _accel(cq1, cq2, cq3, cw1, cw2, cw3, tau1, tau2, tau3, p)
+        dq1, dq2, dq3 = q1 + cw1 * h, q2 + cw2 * h, q3 + cw3 * h
+        dw1, dw2, dw3 = w1 + g1 * h, w2 + g2 * h, w3 + g3 * h
+        k1, k2, k3 = _accel(dq1, dq2, dq3, dw1, dw2, dw3, tau1, tau2, tau3, p)
+        q1 += (w1 + (bw1 + cw1) * 2.0 + dw1) * sixth
+        q2 += (w2 + (bw2 + cw2) * 2.0 + dw2) * sixth
+        q3 += (w3 + (bw3 + cw3) * 2.0 + dw3) * sixth
+        w1 += (e1 + (f1 + g1) * 2.0 + k1) * sixth
+        w2 += (e2 + (f2 + g2) * 2.0 + k2) * sixth
+        w3 += (e3 + (f3 + g3) * 2.0 + k3) * sixth
+    return q1, q2, q3, w1, w2, w3
+
+
+def _diverged(q1, q2, q3, w1, w2, w3, vlim):
+    finite = (
+        math.isfinite(q1)
+        and math.isfinite(q2)
+        and math.isfinite(q3)
+        and math.isfinite(w1)
+        and math.isfinite(w2)
+        and math.isfinite(w3)
+    )
+    return not finite or abs(w1) >= vlim or abs(w2) >= vlim or abs(w3) >= vlim
+
+
+def _kernel(n, substeps, period, p, ctl, flt, ref, x0, wall_estimate, tau0, q0):
+    """The whole run: returns the (n, 20) trace (rows after a divergence are NaN)."""
     trace = np.full((n, 20), np.nan)
     q1, q2, q3 = q0
     w1 = w2 = w3 = 0.0
-    tp1, tp2, tp3 = tau0
-    pw1 = pw2 = pw3 = 0.0
-    fs0 = fs1 = 0.0
+    memory = (tau0[0], tau0[1], tau0[2], 0.0, 0.0, 0.0, 0.0, 0.0)
     for k in range(n):
-        t = k * period
-        # 1. measure
-        s1 = math.sin(q1)
-        c1 = math.cos(q1)
-        s2 = math.sin(q2)
-        c2 = math.cos(q2)
-        s3 = math.sin(q3)
-        c3 = math.cos(q3)
-        s23 = s2 * c3 + c2 * s3
-        c23 = c2 * c3 - s2 * s3
-        r = l2 * c2 + l3 * c23
-        hh = l2 * s2 + l3 * s23
-        px = c1 * r
-        py = s1 * r
-        pz = l1 + hh
-        j00 = -s1 * r
-        j01 = -c1 * hh
-        j02 = -c1 * l3 * s23
-        j10 = c1 * r
-        j11 = -s1 * hh
-        j12 = -s1 * l3 * s23
-        j20 = 0.0
-        j21 = r
-        j22 = l3 * c23
-        pen = px - xe
-        force = ke * pen if pen > 0.0 else 0.0
-        # 2. references
-        arg = z_om * t + z_ph
-        zs = math.sin(arg)
-        zc = math.cos(arg)
-        z_val = z_off + z_amp * zs
-        z_rate = z_amp * z_om * zc
-        z_acc = -z_amp * z_om * z_om * zs
-        # 3. admittance filter: output at t_k, then advance with e_f,k
-        ef = f_d - force
-        xa = fs0
-        xa_dot = fs1
-        xa_acc = (fka * ef - fb * xa_dot - fk * xa) / fm
-        fs0, fs1 = ad00 * xa + ad01 * xa_dot + bd0 * ef, ad10 * xa + ad11 * xa_dot + bd1 * ef
-        x_ref = wall_estimate + xa
-        dpz = x0z + z_val
-        # 4. eq. (39), then TDC eq. (18)
-        vx = j00 * w1 + j01 * w2 + j02 * w3
-        vy = j10 * w1 + j11 * w2 + j12 * w3
-        vz = j20 * w1 + j21 * w2 + j22 * w3
-        v1 = (xa_acc + ((xa_dot - vx) * kd + (x_ref - px) * kp)) / ka
-        v2 = (0.0 + ((0.0 - vy) * kd + (x0y - py) * kp)) / ka
-        v3 = (z_acc + ((z_rate - vz) * kd + (dpz - pz) * kp)) / ka
-        if k == 0:
-            a1 = a2 = a3 = 0.0
-        else:
-            a1 = (w1 - pw1) / period
-            a2 = (w2 - pw2) / period
-            a3 = (w3 - pw3) / period
-        tau1 = (j00 * v1 + j10 * v2 + j20 * v3) * gain + (tp1 - a1 * inertia)
-        tau2 = (j01 * v1 + j11 * v2 + j21 * v3) * gain + (tp2 - a2 * inertia)
-        tau3 = (j02 * v1 + j12 * v2 + j22 * v3) * gain + (tp3 - a3 * inertia)
-        tp1, tp2, tp3 = tau1, tau2, tau3
-        pw1, pw2, pw3 = w1, w2, w3
+        tau, rec, memory = _control(
+            k, q1, q2, q3, w1, w2, w3, memory, period, p, ctl, flt, ref, x0, wall_estimate
+        )
+        t, px, py, pz, x_ref, x0y, dpz, force, f_d, xa, xa_dot = rec
         # 5. record
         row = trace[k]
         row[0] = t
@@ -418,48 +461,45 @@ def _kernel(n, substeps, period, p, ctl, flt, ref, x0, wall_estimate, tau0, q0):
         row[13] = force
         row[14] = f_d
         row[15] = xa
-        row[16] = tau1
-        row[17] = tau2
-        row[18] = tau3
+        row[16] = tau[0]
+        row[17] = tau[1]
+        row[18] = tau[2]
         row[19] = xa_dot
         # 6. RK4 substeps with τ_k held
         if k + 1 < n:
-            for _ in range(substeps):
-                e1, e2, e3 = _accel(q1, q2, q3, w1, w2, w3, tau1, tau2, tau3, p)
-                bq1, bq2, bq3 = q1 + w1 * half, q2 + w2 * half, q3 + w3 * half
-                bw1, bw2, bw3 = w1 + e1 * half, w2 + e2 * half, w3 + e3 * half
-                f1, f2, f3 = _accel(bq1, bq2, bq3, bw1, bw2, bw3, tau1, tau2, tau3, p)
-                cq1, cq2, cq3 = q1 + bw1 * half, q2 + bw2 * half, q3 + bw3 * half
-                cw1, cw2, cw3 = w1 + f1 * half, w2 + f2 * half, w3 + f3 * half
-                g1, g2, g3 = _accel(cq1, cq2, cq3, cw1, cw2, cw3, tau1, tau2, tau3, p)
-                dq1, dq2, dq3 = q1 + cw1 * h, q2 + cw2 * h, q3 + cw3 * h
-                dw1, dw2, dw3 = w1 + g1 * h, w2 + g2 * h, w3 + g3 * h
-                k1, k2, k3 = _accel(dq1, dq2, dq3, dw1, dw2, dw3, tau1, tau2, tau3, p)
-                q1 += (w1 + (bw1 + cw1) * 2.0 + dw1) * sixth
-                q2 += (w2 + (bw2 + cw2) * 2.0 + dw2) * sixth
-                q3 += (w3 + (bw3 + cw3) * 2.0 + dw3) * sixth
-                w1 += (e1 + (f1 + g1) * 2.0 + k1) * sixth
-                w2 += (e2 + (f2 + g2) * 2.0 + k2) * sixth
-                w3 += (e3 + (f3 + g3) * 2.0 + k3) * sixth
-            finite = (
-                math.isfinite(q1)
-                and math.isfinite(q2)
-                and math.isfinite(q3)
-                and math.isfinite(w1)
-                and math.isfinite(w2)
-                and math.isfinite(w3)
+            q1, q2, q3, w1, w2, w3 = _advance(
+                q1, q2, q3, w1, w2, w3, tau[0], tau[1], tau[2], p, substeps, period
             )
-            if not finite or abs(w1) >= vlim or abs(w2) >= vlim or abs(w3) >= vlim:
+            if _diverged(q1, q2, q3, w1, w2, w3, ctl[5]):
                 break
     return trace
 
 
+def jit_kernel(kernel, **options):
+    """``kernel`` compiled with Numba, calling the compiled per-period functions."""
+    helpers = {
+        "_accel": _accel_jit,
+        "_control": _control_jit,
+        "_advance": _advance_jit,
+        "_diverged": _diverged_jit,
+    }
+    fresh = type(kernel)(kernel.__code__, {**kernel.__globals__, **helpers})
+    return numba.njit(**options)(fresh)
+
+
 if HAVE_NUMBA:
     _accel_jit = numba.njit(inline="always")(_accel)
-    # The kernel calls `_accel` by global name; compile a copy whose globals see the jitted one.
-    _kernel_jit = numba.njit(
-        type(_kernel)(_kernel.__code__, {**_kernel.__globals__, "_accel": _accel_jit})
-    )
+
+    def _jit_calling_accel(func):
+        # The functions call `_accel` by global name: compile copies whose globals see the
+        # jitted one.
+        fresh = type(func)(func.__code__, {**func.__globals__, "_accel": _accel_jit})
+        return numba.njit(inline="always")(fresh)
+
+    _control_jit = numba.njit(inline="always")(_control)
+    _advance_jit = _jit_calling_accel(_advance)
+    _diverged_jit = numba.njit(inline="always")(_diverged)
+    _kernel_jit = jit_kernel(_kernel)
 else:
     _kernel_jit = None
 
