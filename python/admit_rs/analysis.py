@@ -1,0 +1,439 @@
+"""Predict before you simulate (SPEC §12): the closed loop over one controller period,
+linearised about its steady contact equilibrium, and what it predicts.
+
+- :func:`linearize` → a python-control ``StateSpace(A, B, C, D, dt=T)`` on the full state
+  (plant, filter, controller memory, sensor, actuator), input δf_d, outputs δf, δx (along
+  the wall normal n) and δz (along the motion direction t̂).
+- :func:`predict` → the steady-state errors, step metrics, poles and a stable verdict.
+- :func:`stability_map` → :func:`predict` over a grid of two parameters, in Rust on all
+  cores, as a Polars table (draw it with :func:`admit_rs.plot.stability_map`).
+- :func:`tune` → the gains that minimise the worst-case predicted settling time over a box
+  of uncertain parameters, checked by simulating the box's corners and centre.
+
+How the linearisation is built and what it assumes: docs/analysis.md.
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import polars as pl
+
+from admit_rs import _core
+from admit_rs.config import Scenario, _check_path, _core_path
+from admit_rs.errors import AnalysisError, ParameterError
+
+__all__ = [
+    "PREDICTION_NAMES",
+    "AnalysisError",
+    "TuneResult",
+    "linearize",
+    "predict",
+    "stability_map",
+    "tune",
+]
+
+PREDICTION_NAMES = (
+    "force_ss_error",
+    "x_ss_error",
+    "overshoot_pct",
+    "rise_time_63",
+    "settling_time",
+    "spectral_radius",
+    "dominant_frequency",
+    "dominant_damping",
+    "stable",
+)
+"""Fields of :func:`predict`, in order."""
+
+
+def _check_scenario(scenario: Any, what: str) -> Scenario:
+    if not isinstance(scenario, Scenario):
+        raise TypeError(f"{what}() takes an admit_rs.Scenario, got {type(scenario).__name__}")
+    return scenario
+
+
+def linearize(scenario: Scenario, at: float | None = None) -> Any:
+    """The one-period closed-loop map x_{k+1} = Φ(x_k, f_d) linearised (SPEC §12).
+
+    About the steady contact equilibrium (f_d held at its final value — a sine's offset —,
+    the motion reference frozen at s(0), velocities zero; found by Newton on Φ(x) = x from a
+    short settling run), or about the state of the run at time ``at`` [s] (references held
+    at their values there; not a fixed point).
+
+    Returns a ``control.StateSpace(A, B, C, D, dt=T)`` with input ``f_d`` and outputs
+    ``f`` (true contact force), ``x`` (n·X) and ``z`` (t̂·X), states named as
+    :attr:`admit_rs.Simulation.state` (without ``sample``). Extra attributes:
+    ``operating_point`` (state label → value), ``operating_outputs`` (f, x, z there),
+    ``force_desired``, ``penetration``, ``equilibrium`` (bool), ``caveats`` (what the model
+    assumes, in words: contact kept, smoothed Coulomb friction as its slope at rest, noise
+    and resolution off, actuator limits inactive or saturated).
+
+    Raises :class:`admit_rs.errors.AnalysisError` (a ``ValueError``) when there is no
+    contact equilibrium (wall out of reach, f_d ≤ 0), when it is singular (a pole at 1,
+    e.g. ``admittance.ka = 0``) or without a wall or force loop.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> sys = ar.analysis.linearize(ar.paper.scenario("fig14"))
+        >>> sys.nstates, sys.dt, sys.output_labels
+        (18, 0.001, ['f', 'x', 'z'])
+    """
+    import control
+
+    scenario = _check_scenario(scenario, "linearize")
+    if at is not None and not (isinstance(at, int | float) and not isinstance(at, bool)):
+        raise TypeError(f"at must be a number of seconds or None, got {type(at).__name__}")
+    _check_friction(scenario)
+    raw = _core.linearize(scenario._to_core(), None if at is None else float(at))
+    sys = control.ss(
+        raw["a"], raw["b"], raw["c"], raw["d"], raw["period"],
+        inputs=["f_d"], outputs=["f", "x", "z"], states=list(raw["labels"]),
+        name=scenario.label or "closed_loop",
+    )  # fmt: skip
+    sys.operating_point = dict(zip(raw["labels"], map(float, raw["state"]), strict=True))
+    sys.operating_outputs = dict(zip(["f", "x", "z"], raw["outputs"], strict=True))
+    sys.force_desired = float(raw["force_desired"])
+    sys.reference_normal = float(raw["reference_normal"])
+    sys.penetration = float(raw["penetration"])
+    sys.equilibrium = bool(raw["equilibrium"])
+    sys.newton_iterations = int(raw["iterations"])
+    sys.caveats = tuple(raw["caveats"])
+    return sys
+
+
+def _check_friction(scenario: Scenario) -> None:
+    robot = scenario.robot
+    eps = getattr(robot, "friction_smoothing", 1.0)
+    coulomb = getattr(robot, "coulomb_friction", 0.0)
+    if eps is not None and eps <= 0 and np.any(np.asarray(coulomb) != 0):
+        raise AnalysisError(
+            "cannot linearise: exact Coulomb friction (robot.friction_smoothing <= 0) is not "
+            "differentiable at rest; use a smoothing > 0 (the default is 0.01 rad/s)"
+        )
+
+
+def _raise_if(error: str | None) -> None:
+    if error is not None:
+        raise AnalysisError(error)
+
+
+def predict(scenario: Scenario) -> dict[str, float | bool]:
+    """What the linear model predicts for ``scenario`` (SPEC §12).
+
+    ``force_ss_error`` (f_d − f) and ``x_ss_error`` (n·X_d − n·X) at the equilibrium;
+    ``overshoot_pct``, ``rise_time_63``, ``settling_time`` of the predicted step response
+    f = f_d·s(t) in the definitions of SPEC §7 (NaN when unstable; a small-signal
+    prediction: friction is linearised at rest, so large steps can differ);
+    ``spectral_radius`` ρ = max |eig A|, ``dominant_frequency`` [Hz] and
+    ``dominant_damping`` of that pole; ``stable`` (ρ < 1).
+
+    Example:
+        >>> import admit_rs as ar
+        >>> p = ar.analysis.predict(ar.paper.scenario("fig14"))
+        >>> p["stable"], round(p["spectral_radius"], 4)
+        (True, 0.9975)
+    """
+    scenario = _check_scenario(scenario, "predict")
+    _check_friction(scenario)
+    raw = _core.predict_batch([scenario._to_core()], None)
+    _raise_if(raw["error"][0])
+    return {
+        name: bool(raw[name][0]) if name == "stable" else float(raw[name][0])
+        for name in PREDICTION_NAMES
+    }
+
+
+def _numeric_axis(scenario: Scenario, spec: Any, axis: str) -> tuple[str, list[float]]:
+    if not isinstance(spec, Mapping) or len(spec) != 1:
+        raise TypeError(f"{axis} must be a dict with one dotted path: {{path: values}}")
+    ((path, values),) = spec.items()
+    if not isinstance(path, str):
+        raise TypeError(f"{axis}: the path must be a str, got {type(path).__name__}")
+    path = _check_path(scenario, path)
+    current = scenario
+    for part in path.split("."):
+        current = getattr(current, part)
+    if isinstance(current, bool) or not isinstance(current, int | float):
+        raise ParameterError(
+            f"{path} = {current!r} is invalid: must be a numeric parameter to map over "
+            f"(it is {type(current).__name__})"
+        )
+    try:
+        out = [float(v) for v in values]
+    except (TypeError, ValueError):
+        raise ParameterError(
+            f"{path} values are invalid: must be a sequence of numbers, got {values!r}"
+        ) from None
+    if not out:
+        raise ValueError(f"{axis}: no values for {path}")
+    if isinstance(current, int):
+        if any(v != round(v) for v in out):
+            raise ParameterError(f"{path} values are invalid: must be integers, got {out}")
+    return path, out
+
+
+def _cell_configs(
+    scenario: Scenario, points: Sequence[Mapping[str, float]]
+) -> list[dict[str, Any]]:
+    base = scenario._to_core()
+    ints = {p for p in points[0] if isinstance(_value_at(scenario, p), int)} if points else set()
+    out = []
+    for point in points:
+        config = copy.deepcopy(base)
+        for path, value in point.items():
+            node = config
+            *parents, leaf = _core_path(path).split(".")
+            for p in parents:
+                node = node[p]
+            node[leaf] = int(round(value)) if path in ints else value
+        out.append(config)
+    return out
+
+
+def _value_at(scenario: Scenario, path: str) -> Any:
+    current: Any = scenario
+    for part in path.split("."):
+        current = getattr(current, part)
+    return current
+
+
+def _predict_points(
+    scenario: Scenario, points: Sequence[Mapping[str, float]], threads: int | None = None
+) -> pl.DataFrame:
+    raw = _core.predict_batch(_cell_configs(scenario, points), threads)
+    columns: dict[str, Any] = {}
+    for path in points[0] if points else []:
+        columns[path] = [p[path] for p in points]
+    for name in PREDICTION_NAMES:
+        columns[name] = raw[name]
+    columns["error"] = pl.Series("error", raw["error"], dtype=pl.String)
+    return pl.DataFrame(columns)
+
+
+def stability_map(
+    scenario: Scenario,
+    x: Mapping[str, Sequence[float]],
+    y: Mapping[str, Sequence[float]],
+    threads: int | None = None,
+) -> pl.DataFrame:
+    """:func:`predict` on every cell of the grid ``x`` × ``y`` (``{dotted path: values}``
+    each), computed in Rust on all cores (or ``threads``).
+
+    One row per cell, x varying fastest: the two parameter columns, the fields of
+    :func:`predict` and ``error`` (None, or why the cell has no prediction, e.g. no contact
+    equilibrium: its fields are then NaN and ``stable`` False). Paths must name numeric
+    parameters (``ParameterError`` otherwise).
+
+    Example:
+        >>> import admit_rs as ar
+        >>> t = ar.analysis.stability_map(ar.paper.scenario("fig14"),
+        ...     x={"wall.stiffness": [1e4, 1e5]}, y={"admittance.b": [200, 800]})
+        >>> t.columns[:3], t.height
+        (['wall.stiffness', 'admittance.b', 'force_ss_error'], 4)
+    """
+    scenario = _check_scenario(scenario, "stability_map")
+    _check_friction(scenario)
+    xp, xs = _numeric_axis(scenario, x, "x")
+    yp, ys = _numeric_axis(scenario, y, "y")
+    if xp == yp:
+        raise ValueError(f"x and y are the same parameter {xp}")
+    points = [{xp: xv, yp: yv} for yv in ys for xv in xs]
+    # Validate one cell of each extreme through the Python blocks (clear messages).
+    for p in (points[0], points[-1]):
+        scenario.replace(**p)
+    return _predict_points(scenario, points, threads)
+
+
+@dataclass(frozen=True)
+class TuneResult:
+    """What :func:`tune` found and how the simulator judged it."""
+
+    gains: dict[str, float]
+    """The chosen values of the ``vary`` parameters."""
+    predicted: pl.DataFrame
+    """:func:`predict` at every ``over`` grid point with the chosen gains."""
+    verification: pl.DataFrame
+    """The box's corners and centre simulated with the chosen gains: the ``over``
+    parameters, predicted and simulated ``stable``, ``overshoot_pct``, ``settling_time``."""
+    worst_settling_time: float
+    """Predicted worst-case settling time over the box [s]."""
+    verified: bool
+    """Every verification run is stable and within the overshoot limit."""
+    max_overshoot_pct: float
+    stability_margin: float
+    evaluated: int
+    """Number of predictions made."""
+
+    def summary(self) -> str:
+        """A few lines of text: the gains, the predicted worst case, the verification."""
+        gains = ", ".join(f"{k} = {v:.4g}" for k, v in self.gains.items())
+        v = self.verification
+        lines = [
+            f"gains: {gains}",
+            f"predicted over the box: worst settling {self.worst_settling_time:.3f} s, "
+            f"worst overshoot {self.predicted['overshoot_pct'].max():.2f} %, "
+            f"max spectral radius {self.predicted['spectral_radius'].max():.5f}",
+            f"simulated at {v.height} points (corners and centre): "
+            f"{int(v['stable'].sum())} stable, worst overshoot "
+            f"{v['overshoot_pct'].max():.2f} % (limit {self.max_overshoot_pct} %), worst "
+            f"settling {v['settling_time'].max():.3f} s -> "
+            + ("verified" if self.verified else "NOT verified"),
+        ]
+        return "\n".join(lines)
+
+
+def _axis_points(lo: float, hi: float, n: int) -> list[float]:
+    if lo > 0 and hi / lo >= 4:
+        return [float(v) for v in np.geomspace(lo, hi, n)]
+    return [float(v) for v in np.linspace(lo, hi, n)]
+
+
+def _box(scenario: Scenario, spec: Any, name: str) -> dict[str, tuple[float, float]]:
+    if not isinstance(spec, Mapping) or not spec:
+        raise TypeError(f"{name} must be a non-empty dict {{path: (lo, hi)}}")
+    out = {}
+    for path, bounds in spec.items():
+        p, _ = _numeric_axis(scenario, {path: [0.0]}, name)
+        try:
+            lo, hi = (float(v) for v in bounds)
+        except (TypeError, ValueError):
+            raise ParameterError(
+                f"{name}[{path!r}] = {bounds!r} is invalid: must be a pair (lo, hi) of numbers"
+            ) from None
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+            raise ParameterError(f"{name}[{path!r}] = {bounds!r} is invalid: must be lo <= hi")
+        out[p] = (lo, hi)
+    return out
+
+
+def tune(
+    scenario: Scenario,
+    vary: Mapping[str, tuple[float, float]],
+    over: Mapping[str, tuple[float, float]],
+    max_overshoot_pct: float = 10.0,
+    stability_margin: float = 0.002,
+    grid: int = 9,
+    over_points: int = 4,
+    refine: int = 2,
+    verify: bool = True,
+    verify_duration: float | None = None,
+    threads: int | None = None,
+) -> TuneResult:
+    """Gains that minimise the worst-case predicted settling time over the ``over`` box
+    while every point of it is predicted stable with a margin (ρ ≤ 1 − ``stability_margin``)
+    and within ``max_overshoot_pct``; then verified by simulating the box's corners and
+    centre.
+
+    ``vary``: ``{path: (lo, hi)}`` of the gains to choose (e.g. ``admittance.b``,
+    ``admittance.ka``). ``over``: ``{path: (lo, hi)}`` of what is uncertain (e.g.
+    ``wall.stiffness``). The search is a ``grid``-point grid per gain (geometric when hi/lo
+    ≥ 4) refined ``refine`` times around the best cell; the box is sampled with
+    ``over_points`` values per parameter (its corners included). Each candidate's worst
+    case is taken over those points. Raises :class:`AnalysisError` if no candidate meets
+    the constraints.
+    """
+    scenario = _check_scenario(scenario, "tune")
+    _check_friction(scenario)
+    vbox = _box(scenario, vary, "vary")
+    obox = _box(scenario, over, "over")
+    if set(vbox) & set(obox):
+        raise ValueError(f"{sorted(set(vbox) & set(obox))} given in both vary and over")
+    over_grid = [
+        dict(zip(obox, combo, strict=True))
+        for combo in itertools.product(*(_axis_points(lo, hi, over_points)
+                                         for lo, hi in obox.values()))
+    ]  # fmt: skip
+    evaluated = 0
+    ranges = dict(vbox)
+    best: tuple[float, dict[str, float]] | None = None
+    for _ in range(refine + 1):
+        axes = {p: _axis_points(lo, hi, grid) for p, (lo, hi) in ranges.items()}
+        candidates = [dict(zip(axes, c, strict=True)) for c in itertools.product(*axes.values())]
+        points = [{**c, **o} for c in candidates for o in over_grid]
+        table = _predict_points(scenario, points, threads)
+        evaluated += table.height
+        m = len(over_grid)
+        rho = table["spectral_radius"].to_numpy().reshape(-1, m)
+        over_pct = table["overshoot_pct"].to_numpy().reshape(-1, m)
+        settle = table["settling_time"].to_numpy().reshape(-1, m)
+        with np.errstate(invalid="ignore"):
+            ok = (
+                np.all(rho <= 1 - stability_margin, axis=1)
+                & np.all(over_pct <= max_overshoot_pct, axis=1)
+                & np.all(np.isfinite(settle), axis=1)
+            )
+        worst = np.where(ok, np.max(np.where(np.isfinite(settle), settle, np.inf), axis=1),
+                         np.inf)  # fmt: skip
+        i = int(np.argmin(worst))
+        if np.isfinite(worst[i]) and (best is None or worst[i] <= best[0]):
+            best = (float(worst[i]), candidates[i])
+        if best is None:
+            raise AnalysisError(
+                f"no gains in {dict(vbox)} keep every point of {dict(obox)} predicted stable "
+                f"(margin {stability_margin}) within {max_overshoot_pct} % overshoot"
+            )
+        # Zoom in: one grid cell either side of the best, inside the original bounds.
+        new = {}
+        for p, (lo, hi) in ranges.items():
+            pts = axes[p]
+            j = pts.index(best[1][p]) if best[1][p] in pts else None
+            if j is None:
+                new[p] = (lo, hi)
+                continue
+            new[p] = (pts[max(j - 1, 0)], pts[min(j + 1, len(pts) - 1)])
+        ranges = new
+    assert best is not None
+    gains = best[1]
+    predicted = _predict_points(scenario, [{**gains, **o} for o in over_grid], threads)
+    evaluated += predicted.height
+    verification = _verify(scenario, gains, obox, verify_duration, threads) if verify else (
+        pl.DataFrame())  # fmt: skip
+    verified = bool(
+        verify
+        and verification.height > 0
+        and verification["stable"].all()
+        and (verification["overshoot_pct"] <= max_overshoot_pct).all()
+    )
+    return TuneResult(
+        gains=gains,
+        predicted=predicted,
+        verification=verification,
+        worst_settling_time=best[0],
+        verified=verified,
+        max_overshoot_pct=max_overshoot_pct,
+        stability_margin=stability_margin,
+        evaluated=evaluated,
+    )
+
+
+def _verify(
+    scenario: Scenario,
+    gains: Mapping[str, float],
+    obox: Mapping[str, tuple[float, float]],
+    duration: float | None,
+    threads: int | None,
+) -> pl.DataFrame:
+    corners = [dict(zip(obox, c, strict=True)) for c in itertools.product(*obox.values())]
+    centre = {p: (math.sqrt(lo * hi) if lo > 0 and hi / lo >= 4 else (lo + hi) / 2)
+              for p, (lo, hi) in obox.items()}  # fmt: skip
+    points = [*corners, centre]
+    base = scenario if duration is None else scenario.replace(duration=duration)
+    configs = _cell_configs(base, [{**gains, **p} for p in points])
+    sim = _core.simulate_batch(configs, threads, False)
+    pred = _predict_points(base, [{**gains, **p} for p in points], threads)
+    columns: dict[str, Any] = {p: [pt[p] for pt in points] for p in obox}
+    columns["point"] = ["corner"] * len(corners) + ["centre"]
+    columns["predicted_stable"] = pred["stable"]
+    columns["stable"] = sim["stable"]
+    columns["predicted_overshoot_pct"] = pred["overshoot_pct"]
+    columns["overshoot_pct"] = sim["metrics"]["overshoot_pct"]
+    columns["predicted_settling_time"] = pred["settling_time"]
+    columns["settling_time"] = sim["metrics"]["settling_time"]
+    return pl.DataFrame(columns)

@@ -1,0 +1,207 @@
+//! What the linear model predicts (SPEC §12): poles, steady state and the step response's
+//! metrics in the definitions of SPEC §7, and many predictions in parallel for maps.
+
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+
+use crate::analysis::linearize::{linearize, AnalysisError, AnalysisResult, Linearization};
+use crate::robot::RobotModel;
+use crate::sim::simulation::{ScenarioConfig, Simulation};
+
+/// Predicted behaviour of one scenario.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Prediction {
+    /// f_d − f at the equilibrium [N].
+    pub force_ss_error: f64,
+    /// n·X_d − n·X at the equilibrium [m] (what `x_rms_error` measures, in steady state).
+    pub x_ss_error: f64,
+    /// From the linear step response f = f_d s(t) (SPEC §7 definitions); NaN if unstable.
+    pub overshoot_pct: f64,
+    pub rise_time_63: f64,
+    pub settling_time: f64,
+    /// max |eig(A)|.
+    pub spectral_radius: f64,
+    /// |arg λ| / (2π T) of the pole of largest modulus [Hz].
+    pub dominant_frequency: f64,
+    /// ζ = −Re(s)/|s|, s = ln(λ)/T, of that pole.
+    pub dominant_damping: f64,
+    /// ρ < 1.
+    pub stable: bool,
+}
+
+/// Field names of `Prediction`, in the order of `values`.
+pub const PREDICTION_NAMES: [&str; 9] = [
+    "force_ss_error",
+    "x_ss_error",
+    "overshoot_pct",
+    "rise_time_63",
+    "settling_time",
+    "spectral_radius",
+    "dominant_frequency",
+    "dominant_damping",
+    "stable",
+];
+
+impl Prediction {
+    /// The fields as numbers (`stable` as 0/1), in `PREDICTION_NAMES` order.
+    pub fn values(&self) -> [f64; 9] {
+        [
+            self.force_ss_error,
+            self.x_ss_error,
+            self.overshoot_pct,
+            self.rise_time_63,
+            self.settling_time,
+            self.spectral_radius,
+            self.dominant_frequency,
+            self.dominant_damping,
+            if self.stable { 1.0 } else { 0.0 },
+        ]
+    }
+
+    /// A cell with no prediction (no equilibrium): NaN everywhere, not stable.
+    pub fn missing() -> Self {
+        Self {
+            force_ss_error: f64::NAN,
+            x_ss_error: f64::NAN,
+            overshoot_pct: f64::NAN,
+            rise_time_63: f64::NAN,
+            settling_time: f64::NAN,
+            spectral_radius: f64::NAN,
+            dominant_frequency: f64::NAN,
+            dominant_damping: f64::NAN,
+            stable: false,
+        }
+    }
+}
+
+/// The pole of largest modulus: (ρ, frequency [Hz], damping ratio).
+pub fn dominant_pole(a: &DMatrix<f64>, period: f64) -> (f64, f64, f64) {
+    let eig = a.complex_eigenvalues();
+    let Some(l) = eig
+        .iter()
+        .copied()
+        .max_by(|x, y| x.norm().total_cmp(&y.norm()))
+    else {
+        return (0.0, 0.0, 1.0);
+    };
+    let rho = l.norm();
+    let s = l.ln() / period;
+    let freq = s.im.abs() / (2.0 * std::f64::consts::PI);
+    let damping = if s.norm() > 0.0 {
+        -s.re / s.norm()
+    } else {
+        1.0
+    };
+    (rho, freq, damping)
+}
+
+/// Response of output `output` (0: f, 1: n·X, 2: t̂·X) to a unit step of δf_d from rest,
+/// over `samples` samples (sample 0 is the state before the step acts).
+pub fn step_response(lin: &Linearization, output: usize, samples: usize) -> Vec<f64> {
+    let n = lin.state.len();
+    // Row-major A for a cache-friendly matrix-vector product.
+    let a: Vec<f64> = (0..n)
+        .flat_map(|i| (0..n).map(move |j| (i, j)))
+        .map(|(i, j)| lin.a[(i, j)])
+        .collect();
+    let c: Vec<f64> = (0..n).map(|j| lin.c[(output, j)]).collect();
+    let b: Vec<f64> = lin.b.iter().copied().collect();
+    let d = lin.d[output];
+    let mut x = vec![0.0; n];
+    let mut next = vec![0.0; n];
+    let mut out = Vec::with_capacity(samples);
+    for _ in 0..samples {
+        out.push(c.iter().zip(&x).map(|(c, x)| c * x).sum::<f64>() + d);
+        for (i, nx) in next.iter_mut().enumerate() {
+            let row = &a[i * n..(i + 1) * n];
+            *nx = row.iter().zip(&x).map(|(a, x)| a * x).sum::<f64>() + b[i];
+        }
+        std::mem::swap(&mut x, &mut next);
+    }
+    out
+}
+
+/// Step metrics of f = f_d s in SPEC §7's definitions, normalised by f_d:
+/// (overshoot %, rise 63 %, 2 % settling) with the time of sample k = k T.
+pub fn step_metrics(s: &[f64], period: f64) -> (f64, f64, f64) {
+    let peak = s.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let overshoot = 100.0 * (peak - 1.0);
+    let rise = s
+        .iter()
+        .position(|v| *v >= 0.632)
+        .map_or(f64::NAN, |k| k as f64 * period);
+    let settling = match s.iter().rposition(|v| (v - 1.0).abs() > 0.02) {
+        None => 0.0,
+        Some(k) if k + 1 < s.len() => (k + 1) as f64 * period,
+        Some(_) => f64::NAN,
+    };
+    (overshoot, rise, settling)
+}
+
+/// Predicted metrics from a linearisation about the equilibrium; `horizon` caps the step
+/// response [samples] (the run's length, like the simulated metrics).
+pub fn predict_from(lin: &Linearization, horizon: usize) -> Prediction {
+    let (rho, freq, damping) = dominant_pole(&lin.a, lin.period);
+    let stable = rho < 1.0;
+    let (overshoot, rise, settling) = if stable {
+        // Long enough for the slowest mode to decay to 1e-4 of its start.
+        let decay = if rho > 0.0 {
+            (1e-4f64.ln() / rho.ln()).ceil()
+        } else {
+            1.0
+        };
+        let samples = (decay.max(200.0) as usize).min(horizon.max(2));
+        step_metrics(&step_response(lin, 0, samples), lin.period)
+    } else {
+        (f64::NAN, f64::NAN, f64::NAN)
+    };
+    Prediction {
+        force_ss_error: lin.force_desired - lin.outputs[0],
+        x_ss_error: lin.reference_normal - lin.outputs[1],
+        overshoot_pct: overshoot,
+        rise_time_63: rise,
+        settling_time: settling,
+        spectral_radius: rho,
+        dominant_frequency: freq,
+        dominant_damping: damping,
+        stable,
+    }
+}
+
+/// Linearises `config` about its equilibrium and predicts.
+pub fn predict<R, const N: usize>(
+    config: &ScenarioConfig,
+    build: impl Fn(&ScenarioConfig) -> crate::error::Result<Simulation<R, N>>,
+) -> AnalysisResult<Prediction>
+where
+    R: RobotModel<N>,
+{
+    let lin = linearize(config, None, build)?;
+    Ok(predict_from(&lin, config.samples()))
+}
+
+/// `predict` for every scenario on all cores (or `threads`), in order. One cell's error
+/// does not stop the others.
+pub fn predict_batch<R, const N: usize, F>(
+    configs: &[ScenarioConfig],
+    threads: Option<usize>,
+    build: F,
+) -> Vec<AnalysisResult<Prediction>>
+where
+    R: RobotModel<N>,
+    F: Fn(&ScenarioConfig) -> crate::error::Result<Simulation<R, N>> + Sync,
+{
+    let work = || {
+        configs
+            .par_iter()
+            .map(|c| predict(c, &build))
+            .collect::<Vec<_>>()
+    };
+    match threads {
+        Some(t) => match rayon::ThreadPoolBuilder::new().num_threads(t).build() {
+            Ok(pool) => pool.install(work),
+            Err(e) => vec![Err(AnalysisError::Unsupported(e.to_string())); configs.len()],
+        },
+        None => work(),
+    }
+}
