@@ -27,10 +27,16 @@ pub struct Prediction {
     pub dominant_damping: f64,
     /// ρ < 1.
     pub stable: bool,
+    /// Largest |q̇_j| of the linear response to the whole step 0 → f_d in its first
+    /// `PEAK_WINDOW` [rad/s] (the amplitude for a describing-function friction gain).
+    pub peak_joint_speed: f64,
 }
 
+/// Window of `peak_joint_speed` [s]: the transient of a step, not a slow divergence.
+pub const PEAK_WINDOW: f64 = 0.5;
+
 /// Field names of `Prediction`, in the order of `values`.
-pub const PREDICTION_NAMES: [&str; 9] = [
+pub const PREDICTION_NAMES: [&str; 10] = [
     "force_ss_error",
     "x_ss_error",
     "overshoot_pct",
@@ -40,11 +46,12 @@ pub const PREDICTION_NAMES: [&str; 9] = [
     "dominant_frequency",
     "dominant_damping",
     "stable",
+    "peak_joint_speed",
 ];
 
 impl Prediction {
     /// The fields as numbers (`stable` as 0/1), in `PREDICTION_NAMES` order.
-    pub fn values(&self) -> [f64; 9] {
+    pub fn values(&self) -> [f64; 10] {
         [
             self.force_ss_error,
             self.x_ss_error,
@@ -55,6 +62,7 @@ impl Prediction {
             self.dominant_frequency,
             self.dominant_damping,
             if self.stable { 1.0 } else { 0.0 },
+            self.peak_joint_speed,
         ]
     }
 
@@ -70,6 +78,7 @@ impl Prediction {
             dominant_frequency: f64::NAN,
             dominant_damping: f64::NAN,
             stable: false,
+            peak_joint_speed: f64::NAN,
         }
     }
 }
@@ -98,6 +107,17 @@ pub fn dominant_pole(a: &DMatrix<f64>, period: f64) -> (f64, f64, f64) {
 /// Response of output `output` (0: f, 1: n·X, 2: t̂·X) to a unit step of δf_d from rest,
 /// over `samples` samples (sample 0 is the state before the step acts).
 pub fn step_response(lin: &Linearization, output: usize, samples: usize) -> Vec<f64> {
+    step_response_with_peak(lin, output, samples, &[], 0).0
+}
+
+/// `step_response`, and the largest |x_i| over states `watch` in the first `peak_samples`.
+pub fn step_response_with_peak(
+    lin: &Linearization,
+    output: usize,
+    samples: usize,
+    watch: &[usize],
+    peak_samples: usize,
+) -> (Vec<f64>, f64) {
     let n = lin.state.len();
     // Row-major A for a cache-friendly matrix-vector product.
     let a: Vec<f64> = (0..n)
@@ -110,15 +130,21 @@ pub fn step_response(lin: &Linearization, output: usize, samples: usize) -> Vec<
     let mut x = vec![0.0; n];
     let mut next = vec![0.0; n];
     let mut out = Vec::with_capacity(samples);
-    for _ in 0..samples {
-        out.push(c.iter().zip(&x).map(|(c, x)| c * x).sum::<f64>() + d);
+    let mut peak: f64 = 0.0;
+    for k in 0..samples.max(peak_samples) {
+        if k < samples {
+            out.push(c.iter().zip(&x).map(|(c, x)| c * x).sum::<f64>() + d);
+        }
+        if k < peak_samples {
+            peak = watch.iter().fold(peak, |p, &i| p.max(x[i].abs()));
+        }
         for (i, nx) in next.iter_mut().enumerate() {
             let row = &a[i * n..(i + 1) * n];
             *nx = row.iter().zip(&x).map(|(a, x)| a * x).sum::<f64>() + b[i];
         }
         std::mem::swap(&mut x, &mut next);
     }
-    out
+    (out, peak)
 }
 
 /// Step metrics of f = f_d s in SPEC §7's definitions, normalised by f_d:
@@ -143,15 +169,28 @@ pub fn step_metrics(s: &[f64], period: f64) -> (f64, f64, f64) {
 pub fn predict_from(lin: &Linearization, horizon: usize) -> Prediction {
     let (rho, freq, damping) = dominant_pole(&lin.a, lin.period);
     let stable = rho < 1.0;
-    let (overshoot, rise, settling) = if stable {
-        // Long enough for the slowest mode to decay to 1e-4 of its start.
+    let watch: Vec<usize> = lin
+        .labels
+        .iter()
+        .enumerate()
+        .filter(|(_, l)| l.starts_with("plant.qd"))
+        .map(|(i, _)| i)
+        .collect();
+    let window = (PEAK_WINDOW / lin.period).round() as usize;
+    // Long enough for the slowest mode to decay to 1e-4 of its start.
+    let samples = if stable {
         let decay = if rho > 0.0 {
             (1e-4f64.ln() / rho.ln()).ceil()
         } else {
             1.0
         };
-        let samples = (decay.max(200.0) as usize).min(horizon.max(2));
-        step_metrics(&step_response(lin, 0, samples), lin.period)
+        (decay.max(200.0) as usize).min(horizon.max(2))
+    } else {
+        0
+    };
+    let (s, peak) = step_response_with_peak(lin, 0, samples, &watch, window);
+    let (overshoot, rise, settling) = if stable {
+        step_metrics(&s, lin.period)
     } else {
         (f64::NAN, f64::NAN, f64::NAN)
     };
@@ -165,6 +204,7 @@ pub fn predict_from(lin: &Linearization, horizon: usize) -> Prediction {
         dominant_frequency: freq,
         dominant_damping: damping,
         stable,
+        peak_joint_speed: peak * lin.force_desired.abs(),
     }
 }
 
