@@ -4,13 +4,12 @@ analysis (eqs. 25-28, 34-37), classic delay bounds, stability maps and tune."""
 import itertools
 import math
 
+import admit_rs as ar
 import control
 import numpy as np
 import polars as pl
 import pytest
 import scipy.linalg as sla
-
-import admit_rs as ar
 from admit_rs.config import Step
 
 HOLD = Step(value=0.0, time=0.0, initial=0.0)  # the motion frozen at s(0), as linearised

@@ -26,7 +26,7 @@ import numpy as np
 import polars as pl
 
 from admit_rs import _core
-from admit_rs.config import Scenario, _check_path, _core_path
+from admit_rs.config import Scenario, Step, _check_path, _core_path
 from admit_rs.errors import AnalysisError, ParameterError
 
 __all__ = [
@@ -385,11 +385,15 @@ class TuneResult:
         """A few lines of text: the gains, the predicted worst case, the verification."""
         gains = ", ".join(f"{k} = {v:.4g}" for k, v in self.gains.items())
         v = self.verification
+
+        def top(table: pl.DataFrame, name: str) -> float:
+            return float(table[name].max())  # type: ignore[arg-type]
+
         lines = [
             f"gains: {gains}",
             f"predicted over the box: worst settling {self.worst_settling_time:.3f} s, "
-            f"worst overshoot {self.predicted['overshoot_pct'].max():.2f} %, "
-            f"max spectral radius {self.predicted['spectral_radius'].max():.5f} "
+            f"worst overshoot {top(self.predicted, 'overshoot_pct'):.2f} %, "
+            f"max spectral radius {top(self.predicted, 'spectral_radius'):.5f} "
             f"(round {self.rounds}, predicted overshoot limit "
             f"{self.predicted_overshoot_limit:.3g} %)",
         ]
@@ -397,8 +401,8 @@ class TuneResult:
             lines.append(
                 f"simulated at {v.height} points (corners and centre, motion held): "
                 f"{int(v['stable'].sum())} stable, worst overshoot "
-                f"{v['overshoot_pct'].max():.2f} % (limit {self.max_overshoot_pct} %), worst "
-                f"settling {v['settling_time'].max():.3f} s; with the scenario's motion "
+                f"{top(v, 'overshoot_pct'):.2f} % (limit {self.max_overshoot_pct} %), worst "
+                f"settling {top(v, 'settling_time'):.3f} s; with the scenario's motion "
                 f"{int(v['stable_with_motion'].sum())} stable -> "
                 + ("verified" if self.verified else "NOT verified")
             )
@@ -431,20 +435,19 @@ def _box(scenario: Scenario, spec: Any, name: str) -> dict[str, tuple[float, flo
 
 def _held(scenario: Scenario) -> Scenario:
     """The scenario with its motion held at s(0), as the linearisation freezes it."""
-    from admit_rs.config import Step
-
     s0 = float(_core_signal_at(scenario, 0.0))
     return scenario.replace(z_reference=Step(value=s0, time=0.0, initial=s0))
 
 
 def _core_signal_at(scenario: Scenario, t: float) -> float:
+    from admit_rs.config import Sine
+
     z = scenario.z_reference
-    kind = type(z).__name__
-    if kind == "Step":
-        return float(z.value if t >= z.time else z.initial)  # type: ignore[attr-defined]
-    if kind == "Sine":
-        return float(z.offset + z.amplitude * math.sin(z.omega * t + z.phase))  # type: ignore[attr-defined]
-    return float(np.interp(t, z.times, z.values))  # type: ignore[attr-defined]
+    if isinstance(z, Step):
+        return float(z.value if t >= z.time else z.initial)
+    if isinstance(z, Sine):
+        return float(z.offset + z.amplitude * math.sin(z.omega * t + z.phase))
+    return float(np.interp(t, z.times, z.values))
 
 
 def _predict_both(
