@@ -313,6 +313,9 @@ fn newton<R: RobotModel<N>, const N: usize>(
     let mut e = map.eval(&x, force)?;
     let mut r: Vec<f64> = e.next.iter().zip(&x).map(|(n, x)| n - x).collect();
     let mut norm = residual_norm(&r, &x);
+    // Chord iterations: the Jacobian is kept while each step at least halves the residual
+    // (the map is nearly linear in contact), and recomputed at the current point otherwise.
+    let mut lu: Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>> = None;
     while norm > NEWTON_TOL {
         if iterations == NEWTON_MAX {
             return Err(AnalysisError::NoEquilibrium(format!(
@@ -322,13 +325,16 @@ fn newton<R: RobotModel<N>, const N: usize>(
             )));
         }
         iterations += 1;
-        let (a, ..) = map.jacobian(&x, force, NEWTON_STEP, false)?;
         let n = x.len();
-        let jac = a - DMatrix::<f64>::identity(n, n);
-        let Some(dx) = jac
-            .lu()
-            .solve(&DVector::from_iterator(n, r.iter().map(|v| -v)))
-        else {
+        let fresh = lu.is_none();
+        if fresh {
+            let (a, ..) = map.jacobian(&x, force, NEWTON_STEP, false)?;
+            lu = Some((a - DMatrix::<f64>::identity(n, n)).lu());
+        }
+        let solved = lu
+            .as_ref()
+            .and_then(|lu| lu.solve(&DVector::from_iterator(n, r.iter().map(|v| -v))));
+        let Some(dx) = solved else {
             return Err(if e.penetration > 0.0 {
                 AnalysisError::Singular(
                     "I − A is singular (an integrator without feedback, e.g. \
@@ -343,6 +349,24 @@ fn newton<R: RobotModel<N>, const N: usize>(
                 ))
             });
         };
+        if !fresh {
+            // A chord step that does not halve the residual: retry with a new Jacobian.
+            let trial: Vec<f64> = x.iter().zip(dx.iter()).map(|(x, d)| x + d).collect();
+            if let Ok(te) = map.eval(&trial, force) {
+                let tr: Vec<f64> = te.next.iter().zip(&trial).map(|(n, x)| n - x).collect();
+                let tn = residual_norm(&tr, &trial);
+                if tn <= 0.5 * norm {
+                    x = trial;
+                    e = te;
+                    r = tr;
+                    norm = tn;
+                    continue;
+                }
+            }
+            lu = None;
+            iterations -= 1;
+            continue;
+        }
         // Damped step: halve until the residual falls.
         let mut alpha = 1.0;
         loop {
