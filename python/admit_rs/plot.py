@@ -555,17 +555,18 @@ def stability_map(
         )  # fmt: skip
         if joined.height:
             agree = float((joined["_predicted"] == joined["_simulated"]).mean())  # type: ignore[arg-type]
-            subtitle = f"; simulated agrees in {agree:.0%} of {joined.height} cells"
+            subtitle = (f"\nsimulated (SPEC §7 verdict) agrees in {agree:.0%} of "
+                        f"{joined.height} cells")  # fmt: skip
     if logx:
         ax.set_xscale("log")
     if logy:
         ax.set_yscale("log")
     ax.set_xlim(xe[0], xe[-1])
     ax.set_ylim(ye[0], ye[-1])
-    ax.set_xlabel(_with_unit(x))
-    ax.set_ylabel(_with_unit(y))
+    ax.set_xlabel(_with_unit(x, {x: parameter_unit(x)}))
+    ax.set_ylabel(_with_unit(y, {y: parameter_unit(y)}))
     if handles:
         ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.0, -0.12), ncols=2,
                   fontsize=8, frameon=False)  # fmt: skip
-    ax.set_title(title or f"predicted stability over {x} × {y}{subtitle}")
+    ax.set_title(title or f"predicted stability over {x} × {y}{subtitle}", fontsize=11)
     return fig
