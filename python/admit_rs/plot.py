@@ -555,7 +555,7 @@ def stability_map(
         )  # fmt: skip
         if joined.height:
             agree = float((joined["_predicted"] == joined["_simulated"]).mean())  # type: ignore[arg-type]
-            subtitle = (f"\nsimulated (SPEC §7 verdict) agrees in {agree:.0%} of "
+            subtitle = (f"\nsimulated `stable` agrees in {agree:.0%} of "
                         f"{joined.height} cells")  # fmt: skip
     if logx:
         ax.set_xscale("log")
