@@ -320,3 +320,23 @@ def test_predict_fields_and_friction_options():
     assert ar.analysis.friction_gain(1.0, 0.01) == pytest.approx(4 * 0.01 / math.pi, rel=0.02)
     with pytest.raises(ValueError, match="friction"):
         ar.analysis.predict(sc, friction="sliding")
+
+
+def test_caveats_say_what_the_model_leaves_out():
+    sc = ar.paper.scenario("fig14").replace(
+        sensor=ar.ForceSensor(noise_std=0.5, resolution=0.01, cutoff=30.0, latency=2),
+        actuator=ar.Actuator(torque_limit=(200.0, 200.0, 200.0), rate_limit=1e4, delay=1),
+    )
+    sys = ar.analysis.linearize(sc)
+    text = " | ".join(sys.caveats)
+    assert "noise is off" in text and "resolution is not modelled" in text
+    assert "saturation is inactive" in text and "rate limit is inactive" in text
+    # Latency, the low-pass and the actuator delay are states of the model.
+    assert {"sensor.filtered", "sensor.in_flight2", "actuator.in_flight1_3"} <= set(
+        sys.state_labels)  # fmt: skip
+    assert ar.analysis.predict(sc)["stable"]
+    # About a running state (not a fixed point): references held at t.
+    at = ar.analysis.linearize(ar.paper.scenario("fig14"), at=0.05)
+    assert not at.equilibrium and at.nstates == 18
+    with pytest.raises(ar.ParameterError, match="at = 20"):
+        ar.analysis.linearize(ar.paper.scenario("fig14"), at=20.0)

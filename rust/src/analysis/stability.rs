@@ -245,3 +245,61 @@ where
         None => work(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::simulation::ThreeLinkSimulation;
+
+    /// SPEC §7's definitions on a known response: 1 − e^{−k/τ} with one overshoot.
+    #[test]
+    fn step_metrics_follow_the_definitions() {
+        let s: Vec<f64> = (0..1000)
+            .map(|k| 1.0 - (-(k as f64) / 100.0).exp())
+            .collect();
+        let (overshoot, rise, settling) = step_metrics(&s, 1e-3);
+        assert!(overshoot < 0.0);
+        // 63.2 % at k ≥ 100 τ ln(1/0.368) ≈ 100.
+        assert!((rise - 0.1).abs() <= 1e-3, "{rise}");
+        // |s − 1| ≤ 2 % from k = ceil(100 ln 50) = 392 on.
+        assert!((settling - 0.392).abs() <= 1e-3, "{settling}");
+        let never = vec![0.5; 10];
+        assert!(step_metrics(&never, 1e-3).2.is_nan());
+    }
+
+    /// A 2×2 rotation scaled by r: ρ = r, frequency θ/(2πT), ζ from ln(λ)/T.
+    #[test]
+    fn dominant_pole_of_a_known_matrix() {
+        let (r, th, t) = (0.99f64, 0.05f64, 1e-3);
+        let a = DMatrix::from_row_slice(
+            2,
+            2,
+            &[r * th.cos(), -r * th.sin(), r * th.sin(), r * th.cos()],
+        );
+        let (rho, f, zeta) = dominant_pole(&a, t);
+        assert!((rho - r).abs() < 1e-12);
+        assert!((f - th / (2.0 * std::f64::consts::PI * t)).abs() < 1e-9);
+        let (re, im) = (r.ln() / t, th / t);
+        assert!((zeta + re / (re * re + im * im).sqrt()).abs() < 1e-9);
+    }
+
+    /// The fig. 14 prediction and a batch of it agree, in order; a bad cell is its error.
+    #[test]
+    fn batch_equals_single_and_keeps_errors() {
+        let good = ScenarioConfig::default();
+        let mut far = ScenarioConfig::default();
+        if let Some(w) = &mut far.wall {
+            w.position = Some(3.0);
+        }
+        let one = predict(&good, ThreeLinkSimulation::new).unwrap();
+        assert!(one.stable && one.spectral_radius < 1.0 && one.force_ss_error.abs() < 1e-8);
+        let out = predict_batch(
+            &[good.clone(), far, good],
+            Some(2),
+            ThreeLinkSimulation::new,
+        );
+        assert_eq!(out[0].as_ref().unwrap(), &one);
+        assert!(matches!(out[1], Err(AnalysisError::NoEquilibrium(_))));
+        assert_eq!(out[2].as_ref().unwrap(), &one);
+    }
+}
