@@ -54,3 +54,23 @@ def test_help_documents_exit_codes(capsys):
     out = capsys.readouterr().out
     for code in ("0 ", "2 ", "3 ", "130"):
         assert f"\n  {code}" in out
+
+
+def test_tune_verb_reports_gains_and_verification(capsys):
+    argv = ["tune", "fig14", "--vary", "admittance.b=100:3000", "--vary", "admittance.ka=0.2:5",
+            "--over", "wall.stiffness=1e4:1e5", "--max-overshoot", "15",
+            "--verify-duration", "4", "--format", "json"]  # fmt: skip
+    assert cli.main(argv) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["verified"] is True
+    assert set(data["gains"]) == {"admittance.b", "admittance.ka"}
+    assert len(data["verification"]) == 3 and all(v["stable"] for v in data["verification"])
+
+
+def test_tune_verb_bad_input_exits_2(capsys):
+    with pytest.raises(SystemExit) as e:
+        cli.main(["tune", "fig14", "--vary", "admittance.b=100", "--over", "wall.stiffness=1:2"])
+    assert e.value.code == 2
+    assert cli.main(["tune", "fig14", "--vary", "admittance.bb=1:2",
+                     "--over", "wall.stiffness=1e4:1e5"]) == 2  # fmt: skip
+    assert "no such parameter" in capsys.readouterr().err

@@ -9,7 +9,7 @@ import pytest
 
 MODULES = ["admit_rs", "admit_rs.config", "admit_rs.errors", "admit_rs.export",
            "admit_rs.simulation", "admit_rs.sweep", "admit_rs.paper", "admit_rs.reproduction",
-           "admit_rs.metrics", "admit_rs.plot", "admit_rs._names"]  # fmt: skip
+           "admit_rs.metrics", "admit_rs.plot", "admit_rs._names", "admit_rs.analysis"]  # fmt: skip
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -112,3 +112,17 @@ def test_torque_spike_is_clipped_and_said():
     assert -20 < lo < 0 and 50 < hi < 80  # the −541 N·m spike at t = 0 is off scale
     assert "clipped: spike to -541 N·m at t = 0 s off scale" in ax.get_title()
     assert "clipped" not in ar.paper.figure(20).axes[5].get_title()
+
+
+def test_stability_map_plot_with_overlay():
+    sc = ar.paper.scenario("fig14").replace(duration=3.0)
+    ke, b = [1e4, 1e5, 1e6], [100.0, 800.0]
+    t = ar.analysis.stability_map(sc, x={"wall.stiffness": ke}, y={"admittance.b": b})
+    sw = ar.sweep(sc, grid={"wall.stiffness": ke, "admittance.b": b}, progress=False)
+    fig = ar.plot.stability_map(t, overlay=sw)
+    ax = fig.axes[0]
+    assert ax.get_xscale() == "log"
+    assert "agrees in" in ax.get_title()
+    labels = [h.get_label() for h in ax.get_legend().legend_handles]
+    assert any("boundary" in s for s in labels) and any("simulated" in s for s in labels)
+    assert np.isfinite(t["spectral_radius"].to_numpy()).all()

@@ -11,7 +11,7 @@ Example:
     (True, 10001, True)
 """
 
-from admit_rs import export, metrics, paper, plot
+from admit_rs import analysis, export, metrics, paper, plot
 from admit_rs._core import METRIC_NAMES, TRACE_COLUMNS, __version__
 from admit_rs._names import UnknownNameError
 from admit_rs.config import (
@@ -31,7 +31,13 @@ from admit_rs.config import (
     Wall,
     parameter_paths,
 )
-from admit_rs.errors import AdmitError, ExportError, ParameterError, UnknownParameterError
+from admit_rs.errors import (
+    AdmitError,
+    AnalysisError,
+    ExportError,
+    ParameterError,
+    UnknownParameterError,
+)
 from admit_rs.metrics import METRICS, Metric
 from admit_rs.simulation import Result, Simulation, simulate
 from admit_rs.sweep import (
@@ -52,6 +58,7 @@ __all__ = [
     "TRACE_COLUMNS",
     "Actuator",
     "AdmitError",
+    "AnalysisError",
     "AdmittanceFilter",
     "CheckpointMismatchError",
     "CheckpointWarning",
@@ -81,6 +88,7 @@ __all__ = [
     "UnknownParameterError",
     "Wall",
     "__version__",
+    "analysis",
     "export",
     "metrics",
     "paper",

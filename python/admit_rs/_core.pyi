@@ -74,6 +74,22 @@ def simulate_batch(
     An invalid scenario raises ``ParameterError`` (with ``index``) before anything runs.
     """
 
+def linearize(scenario: dict[str, Any], at: float | None = None) -> dict[str, Any]:
+    """The one-period closed loop linearised about its contact equilibrium (or the state
+    at time ``at``), GIL released: ``a`` (n×n), ``b`` (n×1), ``c`` (3×n), ``d`` (3×1)
+    as ndarrays, ``labels``, ``state`` (the operating point), ``force_desired``,
+    ``outputs`` ([f, n·X, t̂·X] there), ``reference_normal``, ``penetration``,
+    ``period``, ``equilibrium``, ``iterations``, ``caveats``. Raises
+    ``admit_rs.errors.AnalysisError`` without a contact equilibrium or a singular one."""
+
+def predict_batch(scenarios: list[dict[str, Any]], threads: int | None = None) -> dict[str, Any]:
+    """Linearise and predict every scenario on ``threads`` threads (None: all cores),
+    GIL released: one ndarray per prediction field (``force_ss_error``, ``x_ss_error``,
+    ``overshoot_pct``, ``rise_time_63``, ``settling_time``, ``spectral_radius``,
+    ``dominant_frequency``, ``dominant_damping``, ``stable`` (bool),
+    ``peak_joint_speed``) and ``error`` (list of None or why a scenario has no
+    prediction; its fields are then NaN)."""
+
 class Stepper:
     """The loop of one scenario, stepped (``admit_rs.Simulation`` wraps it)."""
 

@@ -3,6 +3,8 @@
 admit-rs paper --out paper-results          # every figure, metrics table, report
 admit-rs paper --figure 14 --out results    # one figure
 admit-rs run SCENARIO.toml [-o trace.parquet] [--plot run.png] [--format json|table]
+admit-rs tune fig14 --vary admittance.b=100:3000 --vary admittance.ka=0.2:5 \
+    --over wall.stiffness=1e4:1e5 --max-overshoot 15      # predict, search, verify
 
 Exit codes: 0 success, 2 invalid input, 3 run not stable, 130 interrupted.
 """
@@ -23,12 +25,13 @@ if sys.version_info >= (3, 11):
 else:  # Python 3.10: the same parser, from PyPI
     import tomli as tomllib
 
-from admit_rs.errors import ParameterError
+from admit_rs.errors import AnalysisError, ParameterError
 
 EXIT_CODES = """exit codes:
   0    success (run: the scenario is stable)
   2    invalid input: bad parameter, unknown key, unreadable TOML, missing file, bad usage
-  3    run: the scenario completed or diverged but is not stable (see "verdict")
+  3    run: the scenario completed or diverged but is not stable (see "verdict");
+       tune: the simulation did not verify the tuned gains
   130  interrupted (Ctrl-C); sweep writes the finished runs first"""
 
 
@@ -163,6 +166,52 @@ def _sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def _range(text: str) -> tuple[str, tuple[float, float]]:
+    """``path=lo:hi`` → (path, (lo, hi))."""
+    path, sep, bounds = text.partition("=")
+    lo, sep2, hi = bounds.partition(":")
+    if not (sep and sep2 and path):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected PATH=LO:HI")
+    try:
+        return path.strip(), (float(lo), float(hi))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: LO and HI must be numbers") from None
+
+
+def _tune(args: argparse.Namespace) -> int:
+    from admit_rs import paper
+    from admit_rs.analysis import tune
+    from admit_rs.config import Scenario
+
+    if Path(args.scenario).suffix == ".toml" or Path(args.scenario).exists():
+        with open(args.scenario, "rb") as fh:
+            data = tomllib.load(fh)
+        scenario = Scenario.from_dict(data.get("scenario", data))
+    else:
+        scenario = paper.scenario(args.scenario)
+    start = time.perf_counter()
+    result = tune(scenario, vary=dict(args.vary), over=dict(args.over),
+                  max_overshoot_pct=args.max_overshoot, stability_margin=args.margin,
+                  verify_duration=args.verify_duration)  # fmt: skip
+    elapsed = time.perf_counter() - start
+    if args.format == "table":
+        import polars as pl
+
+        print(result.summary())
+        with pl.Config(tbl_cols=-1, tbl_width_chars=200, tbl_hide_column_data_types=True):
+            print(result.verification)
+        print(f"({result.evaluated} predictions, {elapsed:.1f} s)")
+    else:
+        report = {"gains": result.gains, "verified": result.verified,
+                  "worst_predicted_settling_time": result.worst_settling_time,
+                  "rounds": result.rounds,
+                  "predicted": result.predicted.to_dicts(),
+                  "verification": result.verification.to_dicts(),
+                  "predictions": result.evaluated, "seconds": elapsed}  # fmt: skip
+        print(json.dumps(_json_safe(report), indent=2, allow_nan=False))
+    return 0 if result.verified else 3
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="admit-rs",
@@ -198,6 +247,22 @@ def _parser() -> argparse.ArgumentParser:
     sw.add_argument("--checkpoint", type=Path, help="folder for resumable chunk files")
     sw.add_argument("--no-progress", action="store_true", help="no progress bar")
     sw.set_defaults(func=_sweep)
+    tn = sub.add_parser(
+        "tune", epilog=EXIT_CODES, formatter_class=argparse.RawDescriptionHelpFormatter,
+        help="choose gains for the worst case of an uncertain box, predicted then simulated",
+    )  # fmt: skip
+    tn.add_argument("scenario", help="TOML file (Scenario.to_dict layout) or a paper figure "
+                                     "name such as fig14")  # fmt: skip
+    tn.add_argument("--vary", type=_range, action="append", required=True, metavar="PATH=LO:HI",
+                    help="a gain to choose, e.g. admittance.b=100:3000; repeat")  # fmt: skip
+    tn.add_argument("--over", type=_range, action="append", required=True, metavar="PATH=LO:HI",
+                    help="an uncertain parameter, e.g. wall.stiffness=1e4:1e5; repeat")  # fmt: skip
+    tn.add_argument("--max-overshoot", type=float, default=10.0, help="percent (default 10)")
+    tn.add_argument("--margin", type=float, default=0.001,
+                    help="spectral radius <= 1 - margin (default 0.001)")  # fmt: skip
+    tn.add_argument("--verify-duration", type=float, help="seconds per verification run")
+    tn.add_argument("--format", choices=("json", "table"), default="table")
+    tn.set_defaults(func=_tune)
     return p
 
 
@@ -206,7 +271,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args))
     except (
-        ParameterError, TypeError, ValueError, FileNotFoundError, tomllib.TOMLDecodeError
+        ParameterError, AnalysisError, TypeError, ValueError, FileNotFoundError,
+        tomllib.TOMLDecodeError, KeyError,
     ) as e:  # fmt: skip
         print(f"admit-rs: error: {e}", file=sys.stderr)
         return 2

@@ -10,6 +10,8 @@ would expect. (A value of the wrong type and a bad ``sweep()`` argument still ra
   ``value`` and ``allowed``).
 - :class:`UnknownParameterError` (also a ``TypeError``): a keyword, dotted path or TOML
   key that names no field, with the closest valid names (attribute ``suggestions``).
+- :class:`AnalysisError` (also a ``ValueError``): a scenario :mod:`admit_rs.analysis`
+  cannot linearise (no contact equilibrium, a singular one, no wall or force loop).
 - :class:`ExportError` (also a ``ValueError``): a scenario an export target cannot
   express faithfully (:mod:`admit_rs.export`).
 - ``DistributionError``, ``CheckpointMismatchError`` (also ``ValueError``) and
@@ -34,7 +36,13 @@ from __future__ import annotations
 import difflib
 from collections.abc import Iterable
 
-__all__ = ["AdmitError", "ExportError", "ParameterError", "UnknownParameterError"]
+__all__ = [
+    "AdmitError",
+    "AnalysisError",
+    "ExportError",
+    "ParameterError",
+    "UnknownParameterError",
+]
 
 
 class AdmitError(Exception):
@@ -58,6 +66,12 @@ class UnknownParameterError(AdmitError, TypeError):
         super().__init__(message)
         self.name = name
         self.suggestions = list(suggestions)
+
+
+class AnalysisError(AdmitError, ValueError):
+    """A scenario the linear analysis cannot handle: no contact equilibrium (the wall out of
+    reach, f_d ≤ 0), a singular equilibrium (a pole at 1, e.g. ``admittance.ka = 0``), or a
+    scenario without a wall or force loop. The message says which."""
 
 
 class ExportError(AdmitError, ValueError):

@@ -481,3 +481,92 @@ def _axis(
         return edges, np.searchsorted(distinct, values)
     edges = np.linspace(distinct[0], distinct[-1], bins + 1)
     return edges, np.clip(np.searchsorted(edges, values, side="right") - 1, 0, bins - 1)
+
+
+def stability_map(
+    table: pl.DataFrame,
+    overlay: pl.DataFrame | None = None,
+    *,
+    logx: bool | None = None,
+    logy: bool | None = None,
+    title: str | None = None,
+) -> Figure:
+    """A predicted stability map (:func:`admit_rs.analysis.stability_map`): the spectral
+    radius ρ per cell (blue below 1, red above), the predicted boundary ρ = 1 as a black
+    line, cells without an equilibrium in grey; with ``overlay`` (a sweep table with the
+    same two parameter columns) each simulated run as a green ○ (stable per SPEC §7) or a
+    red × (not), and the share of cells where prediction and simulation agree.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> t = ar.analysis.stability_map(ar.paper.scenario("fig14"),
+        ...     x={"wall.stiffness": [1e4, 1e5, 1e6]}, y={"admittance.b": [200.0, 800.0]})
+        >>> ar.plot.stability_map(t).axes[0].get_xscale()
+        'log'
+    """
+    from matplotlib.colors import TwoSlopeNorm
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+
+    x, y = table.columns[0], table.columns[1]
+    xv = np.unique(table[x].to_numpy().astype(float))
+    yv = np.unique(table[y].to_numpy().astype(float))
+    logx = _log_axis(xv) if logx is None else logx
+    logy = _log_axis(yv) if logy is None else logy
+    rho = np.full((yv.size, xv.size), np.nan)
+    xi = np.searchsorted(xv, table[x].to_numpy().astype(float))
+    yi = np.searchsorted(yv, table[y].to_numpy().astype(float))
+    rho[yi, xi] = table["spectral_radius"].to_numpy().astype(float)
+    xe, _ = _axis(np.log10(xv) if logx else xv, xv.size)
+    ye, _ = _axis(np.log10(yv) if logy else yv, yv.size)
+    xe, ye = (10.0**xe if logx else xe), (10.0**ye if logy else ye)
+    fig = Figure(figsize=(8.5, 6), layout="constrained")
+    ax = fig.subplots()
+    ax.set_facecolor("0.85")
+    finite = rho[np.isfinite(rho)]
+    lo = float(min(finite.min(), 0.99)) if finite.size else 0.99
+    hi = float(max(finite.max(), 1.01)) if finite.size else 1.01
+    mesh = ax.pcolormesh(xe, ye, rho, shading="flat", cmap="coolwarm",
+                         norm=TwoSlopeNorm(vcenter=1.0, vmin=lo, vmax=hi))  # fmt: skip
+    fig.colorbar(mesh, ax=ax, label="predicted spectral radius ρ")
+    handles: list[Any] = []
+    if finite.size and (finite < 1).any() and (finite > 1).any() and min(rho.shape) > 1:
+        ax.contour(xv, yv, np.nan_to_num(rho, nan=2.0), levels=[1.0], colors="k",
+                   linewidths=2)  # fmt: skip
+        handles.append(Line2D([], [], color="k", lw=2, label="predicted boundary ρ = 1"))
+    subtitle = ""
+    if overlay is not None:
+        from admit_rs._names import check_column
+
+        for name in (x, y, "stable"):
+            check_column(overlay.columns, name, "column")
+        ox = overlay[x].to_numpy().astype(float)
+        oy = overlay[y].to_numpy().astype(float)
+        ok = overlay["stable"].to_numpy().astype(bool)
+        handles.append(ax.scatter(ox[ok], oy[ok], marker="o", facecolors="none",
+                                  edgecolors="g", s=28, lw=1.2,
+                                  label=f"simulated stable ({ok.sum()})"))  # fmt: skip
+        handles.append(ax.scatter(ox[~ok], oy[~ok], marker="x", color="darkred", s=28,
+                                  lw=1.2, label=f"simulated unstable ({(~ok).sum()})"))  # fmt: skip
+        joined = table.select(x, y, pl.col("stable").alias("_predicted")).join(
+            overlay.select(pl.col(x).cast(table[x].dtype), pl.col(y).cast(table[y].dtype),
+                           pl.col("stable").alias("_simulated")),
+            on=[x, y],
+        )  # fmt: skip
+        if joined.height:
+            agree = float((joined["_predicted"] == joined["_simulated"]).mean())  # type: ignore[arg-type]
+            subtitle = (f"\nsimulated `stable` agrees in {agree:.0%} of "
+                        f"{joined.height} cells")  # fmt: skip
+    if logx:
+        ax.set_xscale("log")
+    if logy:
+        ax.set_yscale("log")
+    ax.set_xlim(xe[0], xe[-1])
+    ax.set_ylim(ye[0], ye[-1])
+    ax.set_xlabel(_with_unit(x, {x: parameter_unit(x)}))
+    ax.set_ylabel(_with_unit(y, {y: parameter_unit(y)}))
+    if handles:
+        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.0, -0.12), ncols=2,
+                  fontsize=8, frameon=False)  # fmt: skip
+    ax.set_title(title or f"predicted stability over {x} × {y}{subtitle}", fontsize=11)
+    return fig

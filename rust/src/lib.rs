@@ -6,6 +6,7 @@
 //! stage pipeline, metrics, sweeps) uses all three. The numerics know nothing of Python;
 //! the pyo3 layer lives in `python` behind the `python` feature, which maturin switches on.
 
+pub mod analysis;
 pub mod control;
 pub mod error;
 pub mod robot;

@@ -427,6 +427,14 @@ pub fn simulate(config: &ScenarioConfig) -> Result<RunResult> {
     Ok(Simulation::new(config)?.run())
 }
 
+impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
+    /// Replaces the desired force f_d(t) from here on (the analysis holds it at one value
+    /// and perturbs it; SPEC §12).
+    pub fn set_force_reference(&mut self, signal: crate::control::reference::Signal) {
+        self.config.force_reference = signal;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,0 +1,342 @@
+"""ar.analysis (SPEC §12): the linearised closed loop against the simulator, the paper's
+analysis (eqs. 25-28, 34-37), classic delay bounds, stability maps and tune."""
+
+import itertools
+import math
+
+import admit_rs as ar
+import control
+import numpy as np
+import polars as pl
+import pytest
+import scipy.linalg as sla
+from admit_rs.config import Step
+
+HOLD = Step(value=0.0, time=0.0, initial=0.0)  # the motion frozen at s(0), as linearised
+
+
+def fig14(**changes):
+    return ar.paper.scenario("fig14").replace(z_reference=HOLD, **changes)
+
+
+def ideal_loop(**changes):
+    """Computed torque with K_A = 1, stiff PD and contact compensation: the paper's ideal
+    inner loop as closely as a sampled controller gets."""
+    return ar.paper.scenario("fig8").replace(
+        z_reference=HOLD,
+        **{"controller.command_divisor": 1.0, "controller.kd": 200.0, "controller.kp": 1e4,
+           "controller.contact_compensation": True},
+        **changes,
+    )  # fmt: skip
+
+
+def test_linearize_returns_a_named_discrete_state_space():
+    sys = ar.analysis.linearize(ar.paper.scenario("fig14"))
+    assert isinstance(sys, control.StateSpace)
+    assert sys.dt == 1e-3
+    assert sys.input_labels == ["f_d"] and sys.output_labels == ["f", "x", "z"]
+    sim = ar.Simulation(ar.paper.scenario("fig14"))
+    assert sys.state_labels == list(sim.state)[1:]  # the flat state without `sample`
+    assert sys.equilibrium and sys.newton_iterations >= 1
+    assert sys.operating_outputs["f"] == pytest.approx(10.0, abs=1e-8)
+    assert any("contact is assumed kept" in c for c in sys.caveats)
+    assert any("slope" in c for c in sys.caveats)
+    # Latency adds states.
+    lat = ar.analysis.linearize(ar.paper.scenario("fig14").replace(**{"sensor.latency": 3}))
+    assert lat.nstates == sys.nstates + 3
+    assert "sensor.in_flight3" in lat.state_labels
+
+
+def sc_period(scenario):
+    return scenario.period
+
+
+def _step_from_equilibrium(scenario, samples, rel=0.01):
+    """Simulated and linear response of f, x, z to a step of rel·f_d from the equilibrium."""
+    sys = ar.analysis.linearize(scenario)
+    fd = sys.force_desired
+    stepped = scenario.replace(force_reference=Step(value=fd * (1 + rel), time=0.0,
+                                                    initial=fd * (1 + rel)))  # fmt: skip
+    sim = ar.Simulation(stepped)
+    sim.set_state({"sample": 1.0, **sys.operating_point})
+    sim.step(samples)
+    tr = sim.trace.filter(pl.col("t") >= 0.5 * sc_period(scenario)).head(samples)
+    lin = control.forced_response(sys, U=np.full(samples, fd * rel))
+    y0 = sys.operating_outputs
+    n = np.array([1.0, 0.0, 0.0])  # fig14's wall normal; t̂ = e_z
+    sim_y = {
+        "f": tr["f"].to_numpy() - y0["f"],
+        "x": tr["x"].to_numpy() * n[0] - y0["x"],
+        "z": tr["z"].to_numpy() - y0["z"],
+    }
+    return {k: (sim_y[k], lin.outputs[i]) for i, k in enumerate(["f", "x", "z"])}, fd * rel
+
+
+@pytest.mark.parametrize("label", ["fig14", "fig8 scheme 1"])
+def test_small_step_linear_matches_simulation(label):
+    sc = fig14() if label == "fig14" else ar.paper.scenarios("fig8")[0].replace(z_reference=HOLD)
+    out, step = _step_from_equilibrium(sc, 1500)
+    sim_f, lin_f = out["f"]
+    rms = np.sqrt(np.mean((sim_f - lin_f) ** 2))
+    assert rms <= 0.01 * step, f"RMS {rms / step:.2%} of the step"
+    assert np.max(np.abs(sim_f)) > 0.5 * step  # it did respond
+    sim_x, lin_x = out["x"]
+    dx = np.max(np.abs(lin_x))
+    assert np.sqrt(np.mean((sim_x - lin_x) ** 2)) <= 0.01 * dx
+
+
+CASES = [
+    ("fig14", 400.0, 1e4), ("fig14", 400.0, 3e4), ("fig14", 200.0, 1e5),
+    ("fig14", 0.0, 1e4), ("fig14", 0.0, 1e5),
+    ("fig8", 400.0, 1e4), ("fig8", 400.0, 3e4), ("fig8", 800.0, 1e5), ("fig8", 0.0, 3e4),
+]  # fmt: skip
+
+
+def test_steady_state_errors_match_simulation():
+    """Scheme 1 (k > 0) and Scheme 2 (k = 0), TDC (fig14) and computed torque (fig8): the
+    predicted f_d − f and n·X_d − n·X match the last 2 s of a 10-s run to 1 % (or 1e-3 N /
+    1e-7 m where they vanish)."""
+    scenarios = [
+        ar.paper.scenario(fig).replace(
+            z_reference=HOLD, **{"admittance.k": k, "wall.stiffness": ke}
+        )
+        for fig, k, ke in CASES
+    ]
+    for sc in scenarios:
+        p = ar.analysis.predict(sc)
+        r = ar.simulate(sc)
+        tail = r.trace.filter(pl.col("t") >= sc.duration - 2.0)
+        f_err = float((tail["f_d"] - tail["f"]).mean())
+        x_err = float((tail["x_ref"] - tail["x"]).mean())
+        assert abs(p["force_ss_error"] - f_err) <= max(0.01 * abs(f_err), 1e-3), (sc, p, f_err)
+        assert abs(p["x_ss_error"] - x_err) <= max(0.01 * abs(x_err), 1e-7), (sc, p, x_err)
+
+
+def test_scheme1_offset_of_the_real_inner_loop():
+    """Fig. 8's Scheme 1 (computed torque, K_A = 0.1): the offset the real inner loop leaves
+    (f = 7.35 N, where the ideal eq. 26 gives 8.82 N) is predicted."""
+    sc = ar.paper.scenarios("fig8")[0]
+    sys = ar.analysis.linearize(sc)
+    assert sys.operating_outputs["f"] == pytest.approx(7.35, abs=0.01)
+    sim = ar.simulate(sc.replace(z_reference=HOLD))
+    assert float(sim.trace["f"][-1]) == pytest.approx(sys.operating_outputs["f"], rel=1e-4)
+
+
+@pytest.mark.parametrize("k,ka", [(400.0, 0.1), (200.0, 1.0), (0.0, 0.1), (0.0, 1.0)])
+def test_paper_analysis_with_an_ideal_inner_loop(k, ka):
+    """Eqs. 25/34 (with k_a): f/f_d = k_a k_e / (m s² + b s + k + k_a k_e) at low
+    frequency; eqs. 26/35: f(∞) = f_d k_a k_e / (k + k_a k_e); eqs. 28/37: the wall
+    penetration (−ε) = f(∞)/k_e."""
+    ke, b, fd = 3e4, 800.0, 10.0
+    sys = ar.analysis.linearize(ideal_loop(**{"admittance.k": k, "admittance.ka": ka}))
+    f_inf = fd * ka * ke / (k + ka * ke)
+    assert sys.operating_outputs["f"] == pytest.approx(f_inf, rel=1e-8)
+    assert sys.penetration == pytest.approx(f_inf / ke, rel=1e-8)
+    dc = control.dcgain(sys)[0]
+    assert dc == pytest.approx(ka * ke / (k + ka * ke), rel=1e-6)
+    for hz in (0.1, 0.3, 1.0):
+        s = 2j * np.pi * hz
+        paper = ka * ke / (s * s + b * s + k + ka * ke)
+        model = sys(np.exp(s * sys.dt))[0, 0]
+        assert abs(model / paper - 1) < 0.01, (hz, model, paper)
+
+
+def _jury_stable(coeffs):
+    """Jury's (Schur-Cohn) test: are all roots of a_0 z^n + … + a_n strictly inside the
+    unit circle? With c the ascending coefficients, each step needs |c_0| < |c_n| and
+    reduces to q_i = c_n c_{i+1} − c_0 c_{n−1−i}."""
+    c = np.array(coeffs, dtype=float)[::-1]
+    while len(c) > 1:
+        if abs(c[0]) >= abs(c[-1]):
+            return False
+        n = len(c) - 1
+        c = np.array([c[-1] * c[i + 1] - c[0] * c[n - 1 - i] for i in range(n)])
+    return True
+
+
+def _sampled_loop(ke, b, ka, latency, kp=1e4, kd=200.0, period=1e-3):
+    """Scheme 2 with an ideal (exactly modelled) inner loop, written from scratch: the
+    ZOH filter, a task-space double integrator under computed torque with feed-forward
+    (X_{k+1} = X_k + T Ẋ_k + T²/2 V_k), f_k = k_e X_k, measured L samples late."""
+    E = sla.expm(np.array([[0, 1, 0], [0, -b, ka], [0, 0, 0]]) * period)
+    ad, bd = E[:2, :2], E[:2, 2]
+    n = 4 + latency
+    eye = np.eye(n)
+    e = -ke * eye[2] if latency == 0 else -eye[3 + latency]
+    xa, va, x, v = eye[0], eye[1], eye[2], eye[3]
+    acc = (ka * e - b * va) + kd * (va - v) + kp * (xa - x)
+    rows = [ad[0, 0] * xa + ad[0, 1] * va + bd[0] * e, ad[1, 0] * xa + ad[1, 1] * va + bd[1] * e,
+            x + period * v + period**2 / 2 * acc, v + period * acc]  # fmt: skip
+    if latency:
+        rows += [ke * x] + [eye[i - 1] for i in range(5, n)]
+    return np.array(rows)
+
+
+def _critical(stable, lo, hi):
+    assert stable(lo) and not stable(hi)
+    for _ in range(40):
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return math.sqrt(lo * hi)
+
+
+@pytest.mark.parametrize("b,ka,latency", [(50, 10, 1), (50, 10, 3), (100, 10, 2), (50, 5, 5),
+                                          (800, 100, 2)])  # fmt: skip
+def test_critical_stiffness_matches_jury(b, ka, latency):
+    """With an ideal inner loop, Scheme 2's critical stiffness under an L-sample
+    measurement delay: from the predicted spectral radius and from Jury's test on the
+    characteristic polynomial of the hand-written sampled loop, within 2 %."""
+    jury = _critical(lambda ke: _jury_stable(np.poly(_sampled_loop(ke, b, ka, latency))),
+                     10.0, 1e8)  # fmt: skip
+    sc = ideal_loop(**{"admittance.b": float(b), "admittance.ka": float(ka),
+                       "admittance.k": 0.0, "sensor.latency": latency,
+                       "robot.coulomb_friction": (0.0, 0.0, 0.0),
+                       "robot.viscous_friction": (0.0, 0.0, 0.0)})  # fmt: skip
+    rho = lambda ke: ar.analysis.predict(sc.replace(**{"wall.stiffness": ke}))["spectral_radius"]  # noqa: E731
+    predicted = _critical(lambda ke: rho(ke) < 1, jury / 3, jury * 3)
+    assert predicted == pytest.approx(jury, rel=0.02)
+    # The textbook bound that takes X ≡ x_a (no inner loop at all) is 2-6 % lower:
+    # the sampled inner loop is not transparent at the loop's crossover.
+
+
+def _agreement(scenario, x, y, duration=6.0):
+    sc = scenario.replace(duration=duration)
+    (xp, xs), (yp, ys) = next(iter(x.items())), next(iter(y.items()))
+    pred = ar.analysis.stability_map(sc, x=x, y=y, friction="step")
+    sims = ar.sweep(sc, grid={yp: ys, xp: xs}, progress=False)
+    joined = pred.join(sims.select(xp, yp, pl.col("stable").alias("simulated")), on=[xp, yp])
+    joined = joined.sort([yp, xp])
+    p = joined["stable"].to_numpy().reshape(len(ys), len(xs))
+    s = joined["simulated"].to_numpy().reshape(len(ys), len(xs))
+    return p, s
+
+
+def _check_map(p, s):
+    agree = float(np.mean(p == s))
+    assert agree >= 0.95, f"{agree:.1%} of cells agree"
+    rows, cols = p.shape
+    for i, j in zip(*np.nonzero(p != s), strict=True):
+        near = {p[a, c] for a, c in itertools.product(range(max(i - 1, 0), min(i + 2, rows)),
+                                                      range(max(j - 1, 0), min(j + 2, cols)))}
+        assert near == {True, False}, f"cell ({i}, {j}) disagrees away from the boundary"
+    return agree
+
+
+KE = [float(v) for v in np.geomspace(1e4, 1e6, 12)]
+
+
+def test_stability_map_agrees_with_simulation_ke_b():
+    b = [float(v) for v in np.geomspace(50, 2000, 12)]
+    p, s = _agreement(fig14(), {"wall.stiffness": KE}, {"admittance.b": b})
+    _check_map(p, s)
+    assert p.any() and not p.all()  # the grid crosses the boundary
+
+
+def test_stability_map_agrees_with_simulation_ke_latency():
+    p, s = _agreement(fig14(), {"wall.stiffness": KE}, {"sensor.latency": list(range(12))})
+    _check_map(p, s)
+    assert p.any() and not p.all()
+
+
+def test_stability_map_table():
+    t = ar.analysis.stability_map(ar.paper.scenario("fig14"), x={"wall.stiffness": [1e4, 2e6]},
+                                  y={"sensor.latency": [0, 2, 4]})  # fmt: skip
+    assert t.height == 6
+    assert t.columns[:2] == ["wall.stiffness", "sensor.latency"]
+    assert t["sensor.latency"].dtype == pl.Int64
+    assert set(ar.analysis.PREDICTION_NAMES) <= set(t.columns)
+    assert t["stable"].dtype == pl.Boolean
+    assert t.filter(pl.col("wall.stiffness") == 2e6)["stable"].sum() == 0
+    # A cell with no equilibrium is a row with its error, not an exception.
+    far = ar.analysis.stability_map(ar.paper.scenario("fig14"),
+                                    x={"wall.position": [0.7340560, 3.0]},
+                                    y={"admittance.b": [800.0]})  # fmt: skip
+    assert far["error"][0] is None and "no contact equilibrium" in far["error"][1]
+    assert not far["stable"][1] and math.isnan(far["spectral_radius"][1])
+
+
+def test_tune_is_verified_by_simulation():
+    res = ar.analysis.tune(
+        ar.paper.scenario("fig14"),
+        vary={"admittance.b": (100.0, 3000.0), "admittance.ka": (0.2, 5.0)},
+        over={"wall.stiffness": (1e4, 1e5)},
+        max_overshoot_pct=15.0, grid=7, refine=1, verify_duration=6.0,
+    )  # fmt: skip
+    assert set(res.gains) == {"admittance.b", "admittance.ka"}
+    assert 100 <= res.gains["admittance.b"] <= 3000 and 0.2 <= res.gains["admittance.ka"] <= 5
+    assert res.predicted["stable"].all()
+    assert (res.predicted["spectral_radius"] <= 1 - res.stability_margin).all()
+    assert (res.predicted["overshoot_pct"] <= 15.0).all()
+    v = res.verification
+    assert v["point"].to_list() == ["corner", "corner", "centre"]
+    assert v["stable"].all() and (v["overshoot_pct"] <= 15.0).all()
+    assert v["stable_with_motion"].all()
+    assert res.verified and "-> verified" in res.summary()
+    # Checked independently of tune: the gains at both corners, simulated here.
+    for ke in (1e4, 1e5):
+        r = ar.simulate(ar.paper.scenario("fig14").replace(
+            z_reference=HOLD, duration=6.0, **res.gains, **{"wall.stiffness": ke}))  # fmt: skip
+        assert r.stable and r.metrics["overshoot_pct"] <= 15.0
+
+
+def test_bad_input_gives_clear_errors():
+    with pytest.raises(ar.AnalysisError, match="no contact equilibrium"):
+        ar.analysis.predict(ar.paper.scenario("fig14").replace(**{"wall.position": 3.0}))
+    with pytest.raises(ar.AnalysisError, match="singular"):
+        ar.analysis.linearize(ideal_loop(**{"admittance.ka": 0.0, "admittance.k": 0.0,
+                                            "wall.position_error": 1e-3}))  # fmt: skip
+    with pytest.raises(ar.AnalysisError, match="no wall"):
+        ar.analysis.linearize(ar.paper.scenario("fig5"))
+    with pytest.raises(ar.AnalysisError, match="Coulomb"):
+        ar.analysis.linearize(ar.paper.scenario("fig14").replace(
+            **{"robot.friction_smoothing": 0.0}))  # fmt: skip
+    with pytest.raises(ar.ParameterError, match="numeric parameter"):
+        ar.analysis.stability_map(ar.paper.scenario("fig14"), x={"wall.model": [1, 2]},
+                                  y={"admittance.b": [800.0]})  # fmt: skip
+    with pytest.raises(ar.ParameterError, match="sequence of numbers"):
+        ar.analysis.stability_map(ar.paper.scenario("fig14"), x={"wall.stiffness": ["a"]},
+                                  y={"admittance.b": [800.0]})  # fmt: skip
+    with pytest.raises(TypeError, match="no such parameter"):
+        ar.analysis.stability_map(ar.paper.scenario("fig14"), x={"wall.stifness": [1e4]},
+                                  y={"admittance.b": [800.0]})  # fmt: skip
+    with pytest.raises(ar.ParameterError, match="lo <= hi"):
+        ar.analysis.tune(ar.paper.scenario("fig14"), vary={"admittance.b": (900.0, 100.0)},
+                         over={"wall.stiffness": (1e4, 1e5)})  # fmt: skip
+    with pytest.raises(TypeError):
+        ar.analysis.predict("fig14")
+
+
+def test_predict_fields_and_friction_options():
+    sc = ar.paper.scenario("fig14")
+    rest = ar.analysis.predict(sc)
+    assert list(rest) == list(ar.analysis.PREDICTION_NAMES)
+    assert rest["stable"] and rest["spectral_radius"] < 1
+    assert rest["rise_time_63"] > 0 and rest["settling_time"] > rest["rise_time_63"]
+    step = ar.analysis.predict(sc, friction="step")
+    # The peak joint speed of the step transient, well above ε = 0.01 rad/s.
+    assert 0.02 < step["friction_amplitude"] < 0.2
+    assert step["stable"] and step["overshoot_pct"] != rest["overshoot_pct"]
+    assert ar.analysis.friction_gain(1e-9, 0.01) == pytest.approx(1.0)
+    assert ar.analysis.friction_gain(1.0, 0.01) == pytest.approx(4 * 0.01 / math.pi, rel=0.02)
+    with pytest.raises(ValueError, match="friction"):
+        ar.analysis.predict(sc, friction="sliding")
+
+
+def test_caveats_say_what_the_model_leaves_out():
+    sc = ar.paper.scenario("fig14").replace(
+        sensor=ar.ForceSensor(noise_std=0.5, resolution=0.01, cutoff=30.0, latency=2),
+        actuator=ar.Actuator(torque_limit=(200.0, 200.0, 200.0), rate_limit=1e4, delay=1),
+    )
+    sys = ar.analysis.linearize(sc)
+    text = " | ".join(sys.caveats)
+    assert "noise is off" in text and "resolution is not modelled" in text
+    assert "saturation is inactive" in text and "rate limit is inactive" in text
+    # Latency, the low-pass and the actuator delay are states of the model.
+    assert {"sensor.filtered", "sensor.in_flight2", "actuator.in_flight1_3"} <= set(
+        sys.state_labels)  # fmt: skip
+    assert ar.analysis.predict(sc)["stable"]
+    # About a running state (not a fixed point): references held at t.
+    at = ar.analysis.linearize(ar.paper.scenario("fig14"), at=0.05)
+    assert not at.equilibrium and at.nstates == 18
+    with pytest.raises(ar.ParameterError, match="at = 20"):
+        ar.analysis.linearize(ar.paper.scenario("fig14"), at=20.0)
