@@ -8,6 +8,7 @@
 
 use nalgebra::{DMatrix, DVector, SMatrix, SVector, Vector3};
 
+pub mod chain;
 pub mod three_link;
 
 pub use three_link::{MassModel, RobotParams, ThreeLinkArm};
@@ -25,6 +26,15 @@ pub type Jacobian<const N: usize> = SMatrix<f64, 3, N>;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Kinematics<const N: usize> {
     pub position: TaskVector,
+    pub jacobian: Jacobian<N>,
+    pub jdot_qd: TaskVector,
+}
+
+/// The tip's orientation terms for a pose task (SPEC §11): rotation R (tip axes in the
+/// world), the angular Jacobian (3×N, world frame) and its J̇q̇ (angular acceleration at q̈ = 0).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Orientation<const N: usize> {
+    pub rotation: nalgebra::Matrix3<f64>,
     pub jacobian: Jacobian<N>,
     pub jdot_qd: TaskVector,
 }
@@ -123,4 +133,16 @@ pub trait RobotModel<const N: usize>: Clone + Send + Sync {
 
     /// The initial joint positions q0.
     fn initial_position(&self) -> JointVector<N>;
+
+    /// The orientation terms when the arm's task includes the tip orientation (SPEC §11
+    /// `task = "pose"`); `None` for a position task (the three-link arm).
+    #[inline(always)]
+    fn orientation(&self, _c: &Self::Config, _qd: &JointVector<N>) -> Option<Orientation<N>> {
+        None
+    }
+
+    /// Joint position limits (lower, upper), if the arm has any.
+    fn position_limits(&self) -> Option<(JointVector<N>, JointVector<N>)> {
+        None
+    }
 }

@@ -1,0 +1,316 @@
+//! [`UrdfArm`]: a serial chain loaded from a URDF as a [`RobotModel`] of `N` joints
+//! (SPEC §11). Friction and gravity are the block's parameters (as for the three-link arm);
+//! geometry, inertias and limits come from the URDF.
+
+use nalgebra::{Matrix3, SVector, Vector3};
+
+use super::kinematics::Frames;
+use super::model::{ChainModel, SerialChain};
+use super::urdf;
+use crate::error::{check, Error, Result};
+use crate::robot::three_link::smooth_sign;
+use crate::robot::{Dynamics, JointVector, Kinematics, Orientation, RobotModel, TaskVector};
+
+/// What the task space holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TaskKind {
+    /// The tip position (3-D).
+    Position,
+    /// Tip position and orientation (6-D); the orientation is held at its start value.
+    Pose,
+}
+
+/// The parameters of `ar.UrdfArm`. Defaults: no friction, g = 9.81, q0 = 0 clipped into the
+/// limits, `task` by joint count (position below 6 joints, pose from 6).
+#[derive(Debug, Clone, PartialEq)]
+pub struct UrdfArmParams {
+    /// The URDF document itself (not a path: a scenario carries it to other processes).
+    pub urdf: String,
+    /// The link whose origin is the tip.
+    pub tip_link: String,
+    /// The chain's base; `None`: the URDF's root link.
+    pub base_link: Option<String>,
+    /// Initial joint positions [rad or m]; `None`: zero, clipped into the position limits.
+    pub q0: Option<Vec<f64>>,
+    /// Viscous friction [N·m·s/rad], one value for every joint or one per joint. Default 0.
+    pub viscous_friction: Vec<f64>,
+    /// Coulomb friction [N·m], one value or one per joint. Default 0.
+    pub coulomb_friction: Vec<f64>,
+    /// ε [rad/s] of sgn(q̇) ≈ tanh(q̇/ε); ε ≤ 0: the exact sign. Default 0.01.
+    pub friction_smoothing: f64,
+    /// Gravity along −z of the base [m/s²]. Default 9.81.
+    pub gravity: f64,
+    /// `None`: position for fewer than 6 joints, pose otherwise.
+    pub task: Option<TaskKind>,
+}
+
+impl Default for UrdfArmParams {
+    fn default() -> Self {
+        Self {
+            urdf: String::new(),
+            tip_link: String::new(),
+            base_link: None,
+            q0: None,
+            viscous_friction: vec![0.0],
+            coulomb_friction: vec![0.0],
+            friction_smoothing: 0.01,
+            gravity: 9.81,
+            task: None,
+        }
+    }
+}
+
+/// One value per joint from a list of 1 or `n` values.
+fn per_joint(field: &str, v: &[f64], n: usize) -> Result<Vec<f64>> {
+    match v.len() {
+        1 => Ok(vec![v[0]; n]),
+        len if len == n => Ok(v.to_vec()),
+        len => Err(Error::parameter(
+            field,
+            format!("{len} values"),
+            &format!("one value or {n} (one per joint)"),
+        )),
+    }
+}
+
+impl UrdfArmParams {
+    /// Parses the URDF and checks every field; returns the chain.
+    pub fn load(&self) -> Result<ChainModel> {
+        check::non_negative("gravity", self.gravity)?;
+        check::finite("friction_smoothing", self.friction_smoothing)?;
+        let model = urdf::parse(&self.urdf, self.base_link.as_deref(), &self.tip_link)?;
+        let n = model.dof();
+        for (field, v) in [
+            ("viscous_friction", &self.viscous_friction),
+            ("coulomb_friction", &self.coulomb_friction),
+        ] {
+            for (i, x) in per_joint(field, v, n)?.iter().enumerate() {
+                check::non_negative(&format!("{field}[{i}]"), *x)?;
+            }
+        }
+        if let Some(q0) = &self.q0 {
+            if q0.len() != n {
+                return Err(Error::parameter(
+                    "q0",
+                    format!("{} values", q0.len()),
+                    &format!(
+                        "{n} values, one per joint from '{}' to '{}'",
+                        model.base_link, model.tip_link
+                    ),
+                ));
+            }
+            for (i, x) in q0.iter().enumerate() {
+                check::finite(&format!("q0[{i}]"), *x)?;
+            }
+        }
+        Ok(model)
+    }
+
+    /// The joint count, parsing the URDF.
+    pub fn dof(&self) -> Result<usize> {
+        Ok(self.load()?.dof())
+    }
+
+    pub fn with_model_error(&self, friction_scale: f64) -> Self {
+        let mut p = self.clone();
+        p.viscous_friction
+            .iter_mut()
+            .for_each(|f| *f *= friction_scale);
+        p.coulomb_friction
+            .iter_mut()
+            .for_each(|f| *f *= friction_scale);
+        p
+    }
+}
+
+/// A URDF chain of `N` joints as a [`RobotModel`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct UrdfArm<const N: usize> {
+    pub chain: SerialChain<f64, N>,
+    pub fv: JointVector<N>,
+    pub fc: JointVector<N>,
+    eps: f64,
+    q0: JointVector<N>,
+    pub task: TaskKind,
+    /// Position limits [rad or m] (±∞ where none) and effort limits (∞ where none).
+    pub lower: JointVector<N>,
+    pub upper: JointVector<N>,
+    pub effort: JointVector<N>,
+    pub joint_names: Vec<String>,
+}
+
+impl<const N: usize> UrdfArm<N> {
+    /// The arm of `params`, whose chain must have `N` joints (see [`UrdfArmParams::dof`]).
+    pub fn new(params: &UrdfArmParams) -> Result<Self> {
+        let model = params.load()?;
+        Self::from_model(params, &model)
+    }
+
+    pub fn from_model(params: &UrdfArmParams, model: &ChainModel) -> Result<Self> {
+        if model.dof() != N {
+            return Err(Error::parameter(
+                "tip_link",
+                format!("'{}' ({} joints)", params.tip_link, model.dof()),
+                &format!("a chain of {N} joints"),
+            ));
+        }
+        let v = |f: fn(&crate::robot::chain::JointSpec) -> f64| {
+            JointVector::<N>::from_fn(|i, _| f(&model.joints[i]))
+        };
+        let (lower, upper) = (v(|j| j.lower), v(|j| j.upper));
+        let q0 = match &params.q0 {
+            Some(q) => JointVector::<N>::from_column_slice(q),
+            None => JointVector::<N>::from_fn(|i, _| 0f64.clamp(lower[i], upper[i])),
+        };
+        let fv = per_joint("viscous_friction", &params.viscous_friction, N)?;
+        let fc = per_joint("coulomb_friction", &params.coulomb_friction, N)?;
+        Ok(Self {
+            chain: SerialChain::from_model(model, params.gravity),
+            fv: JointVector::<N>::from_column_slice(&fv),
+            fc: JointVector::<N>::from_column_slice(&fc),
+            eps: params.friction_smoothing,
+            q0,
+            task: params.task.unwrap_or(if N >= 6 {
+                TaskKind::Pose
+            } else {
+                TaskKind::Position
+            }),
+            lower,
+            upper,
+            effort: v(|j| j.effort),
+            joint_names: model.joints.iter().map(|j| j.name.clone()).collect(),
+        })
+    }
+
+    #[inline(always)]
+    fn sign(&self, v: f64) -> f64 {
+        if self.eps > 0.0 {
+            smooth_sign(v / self.eps)
+        } else if v > 0.0 {
+            1.0
+        } else if v < 0.0 {
+            -1.0
+        } else {
+            0.0
+        }
+    }
+
+    /// The 6×N Jacobian and 6-D J̇q̇ (rows 0–2 linear, 3–5 angular).
+    pub fn jacobian6(
+        &self,
+        c: &Frames<f64, N>,
+        qd: &JointVector<N>,
+    ) -> (nalgebra::SMatrix<f64, 6, N>, SVector<f64, 6>) {
+        self.chain.jacobian(c, qd)
+    }
+
+    /// The largest excursion of `q` beyond the position limits (0 if within).
+    pub fn limit_excursion(&self, q: &[f64]) -> f64 {
+        q.iter()
+            .enumerate()
+            .map(|(i, &v)| (self.lower[i] - v).max(v - self.upper[i]).max(0.0))
+            .fold(0.0, f64::max)
+    }
+}
+
+impl<const N: usize> RobotModel<N> for UrdfArm<N> {
+    type Config = Frames<f64, N>;
+
+    #[inline(always)]
+    fn configure(&self, q: &JointVector<N>) -> Frames<f64, N> {
+        self.chain.frames(q)
+    }
+
+    #[inline(always)]
+    fn tip_position(&self, c: &Frames<f64, N>) -> TaskVector {
+        c.tip.pos
+    }
+
+    fn kinematics(&self, c: &Frames<f64, N>, qd: &JointVector<N>) -> Kinematics<N> {
+        let (j, jdq) = self.chain.jacobian(c, qd);
+        Kinematics {
+            position: c.tip.pos,
+            jacobian: j.fixed_rows::<3>(0).into_owned(),
+            jdot_qd: jdq.fixed_rows::<3>(0).into_owned(),
+        }
+    }
+
+    fn dynamics(&self, c: &Frames<f64, N>, qd: &JointVector<N>) -> Dynamics<N> {
+        let (coriolis, gravity) = self.chain.bias(c, qd);
+        Dynamics {
+            inertia: self.chain.crba(c),
+            coriolis,
+            gravity,
+        }
+    }
+
+    #[inline(always)]
+    fn friction(&self, qd: &JointVector<N>) -> JointVector<N> {
+        JointVector::<N>::from_fn(|i, _| self.fv[i] * qd[i] + self.fc[i] * self.sign(qd[i]))
+    }
+
+    /// ABA (Featherstone Table 7.1) with the tip force as a wrench on the last body.
+    #[inline(always)]
+    fn forward_dynamics(
+        &self,
+        c: &Frames<f64, N>,
+        qd: &JointVector<N>,
+        tau: &JointVector<N>,
+        tip_force: &TaskVector,
+    ) -> JointVector<N> {
+        let wrench = self.chain.tip_wrench(c, tip_force);
+        self.chain.aba(c, qd, &(tau - self.friction(qd)), &wrench)
+    }
+
+    #[inline(always)]
+    fn accelerate(
+        &self,
+        c: &Frames<f64, N>,
+        qd: &JointVector<N>,
+        tau: &JointVector<N>,
+        contact: &impl Fn(f64, f64) -> f64,
+        normal: &TaskVector,
+        needs_rate: bool,
+    ) -> (JointVector<N>, f64) {
+        let rate = if needs_rate {
+            normal.dot(&self.chain.tip_velocity(c, qd))
+        } else {
+            0.0
+        };
+        let f = contact(normal.dot(&c.tip.pos), rate);
+        (self.forward_dynamics(c, qd, tau, &(normal * -f)), f)
+    }
+
+    fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {
+        let mut a = self.clone();
+        a.chain = self.chain.with_mass_scale(mass_scale);
+        a.fv *= friction_scale;
+        a.fc *= friction_scale;
+        a
+    }
+
+    fn initial_position(&self) -> JointVector<N> {
+        self.q0
+    }
+
+    fn orientation(&self, c: &Frames<f64, N>, qd: &JointVector<N>) -> Option<Orientation<N>> {
+        if self.task != TaskKind::Pose {
+            return None;
+        }
+        let (j, jdq) = self.chain.jacobian(c, qd);
+        Some(Orientation {
+            rotation: c.tip.rot,
+            jacobian: j.fixed_rows::<3>(3).into_owned(),
+            jdot_qd: jdq.fixed_rows::<3>(3).into_owned(),
+        })
+    }
+
+    fn position_limits(&self) -> Option<(JointVector<N>, JointVector<N>)> {
+        Some((self.lower, self.upper))
+    }
+}
+
+/// The rotation vector of a rotation matrix (log map), for orientation errors.
+pub fn rotation_vector(r: &Matrix3<f64>) -> Vector3<f64> {
+    nalgebra::Rotation3::from_matrix_unchecked(*r).scaled_axis()
+}
