@@ -2,11 +2,11 @@
 //! delay estimate) and time-delayed control (eqs. 17 and 18), all driven by the Cartesian
 //! command V of eq. (39). Each is a state machine with `reset()` and `step()`.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, Matrix6, SMatrix, SVector, Vector3};
 
 use crate::control::task::Desired;
 use crate::error::{check, Result};
-use crate::robot::{Jacobian, JointVector, Kinematics, RobotModel, TaskVector};
+use crate::robot::{Jacobian, JointMatrix, JointVector, Kinematics, RobotModel, TaskVector};
 
 /// Gains of eq. (39): V = K_A⁻¹ (Ẍ_d + K_D (Ẋ_d − Ẋ) + K_P (X_d − X)), each a scalar times I.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -204,6 +204,35 @@ pub struct Measurement<'a, const N: usize> {
     pub force: f64,
     /// The wall normal n (the force direction).
     pub normal: &'a TaskVector,
+    /// A pose task's orientation terms (SPEC §11); `None` for a position task.
+    pub orientation: Option<OrientationTask<N>>,
+    /// q0 of the null-space posture term, when the arm has more joints than the task has
+    /// dimensions; `None` otherwise.
+    pub posture: Option<&'a JointVector<N>>,
+}
+
+/// The orientation part of a pose task: the error e_o = log(R0 Rᵀ) as a rotation vector
+/// (the orientation is held at its start R0), the angular Jacobian and its J̇q̇.
+#[derive(Debug, Clone, Copy)]
+pub struct OrientationTask<const N: usize> {
+    pub error: TaskVector,
+    pub jacobian: Jacobian<N>,
+    pub jdot_qd: TaskVector,
+}
+
+/// The damped pseudo-inverse J⁺ = Jᵀ (J Jᵀ + λ² I)⁻¹ of a 6×N task Jacobian (SPEC §11).
+#[inline]
+fn damped_pseudo_inverse<const N: usize>(
+    j: &SMatrix<f64, 6, N>,
+) -> std::result::Result<SMatrix<f64, N, 6>, ControlFailure> {
+    let a = j * j.transpose() + Matrix6::identity() * PSEUDO_INVERSE_DAMPING.powi(2);
+    let chol = a.cholesky().ok_or(ControlFailure::SingularJacobian)?;
+    let pinv = chol.solve(j).transpose();
+    if pinv.iter().all(|v| v.is_finite()) {
+        Ok(pinv)
+    } else {
+        Err(ControlFailure::SingularJacobian)
+    }
 }
 
 /// Why a control law could not produce a torque.
@@ -324,6 +353,9 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
         let k = m.kinematics;
         let velocity = k.jacobian * m.qd;
         let v = self.gains().command(desired, &k.position, &velocity);
+        if m.orientation.is_some() || m.posture.is_some() {
+            return self.step_task(m, &v);
+        }
         match self {
             Controller::ComputedTorque { params, model } => {
                 // eq. (7) mapped to joint space with eq. (4).
@@ -356,6 +388,76 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
                     TdcLaw::InverseJacobian => {
                         solve_jacobian(&k.jacobian, &(v - k.jdot_qd))? * params.inertia
                     }
+                };
+                let tau = u + h_hat;
+                *tau_prev = tau;
+                *qd_prev = Some(*m.qd);
+                Ok(tau)
+            }
+        }
+    }
+
+    /// The laws over a general task (SPEC §11): the tip position, with the orientation for
+    /// a pose task (6-D: rows 0–2 linear, 3–5 angular; the angular rows are zero for a
+    /// position task, which the damped J⁺ then ignores), and a null-space posture term
+    /// a_n = (I − J⁺J) K_A⁻¹ (K_P (q0 − q) − K_D q̇) when the arm is redundant. Eq. 7 and
+    /// eq. 17 use J⁺ (V − J̇q̇) + a_n; eq. 18 and model-free use K_t Jᵀ V plus a_n, both
+    /// times D̄.
+    fn step_task(
+        &mut self,
+        m: &Measurement<N>,
+        v_position: &TaskVector,
+    ) -> std::result::Result<JointVector<N>, ControlFailure> {
+        let k = m.kinematics;
+        let gains = *self.gains();
+        let mut j = SMatrix::<f64, 6, N>::zeros();
+        let mut v = SVector::<f64, 6>::zeros();
+        let mut jdot_qd = SVector::<f64, 6>::zeros();
+        j.fixed_rows_mut::<3>(0).copy_from(&k.jacobian);
+        v.fixed_rows_mut::<3>(0).copy_from(v_position);
+        jdot_qd.fixed_rows_mut::<3>(0).copy_from(&k.jdot_qd);
+        if let Some(o) = &m.orientation {
+            // eq. (39) for the orientation, held at R0: no feed-forward, Ẋ_d = 0.
+            let omega = o.jacobian * m.qd;
+            let v_o = (o.error * gains.kp - omega * gains.kd) / gains.ka;
+            j.fixed_rows_mut::<3>(3).copy_from(&o.jacobian);
+            v.fixed_rows_mut::<3>(3).copy_from(&v_o);
+            jdot_qd.fixed_rows_mut::<3>(3).copy_from(&o.jdot_qd);
+        }
+        let pinv = damped_pseudo_inverse(&j)?;
+        let null = match m.posture {
+            Some(q0) => {
+                let projector = JointMatrix::<N>::identity() - pinv * j;
+                projector * ((q0 - m.q) * gains.kp - m.qd * gains.kd) / gains.ka
+            }
+            None => JointVector::<N>::zeros(),
+        };
+        let inverse = || pinv * (v - jdot_qd) + null;
+        match self {
+            Controller::ComputedTorque { params, model } => {
+                let d = model.dynamics(&model.configure(m.q), m.qd);
+                let mut tau =
+                    d.inertia * inverse() + d.coriolis + d.gravity + model.friction(m.qd);
+                if params.contact_compensation {
+                    tau += k.jacobian.transpose() * m.normal * m.force;
+                }
+                Ok(tau)
+            }
+            Controller::ModelFree(p) => Ok((j.transpose() * v * p.torque_constant + null) * p.inertia),
+            Controller::TimeDelay {
+                params,
+                period,
+                tau_prev,
+                qd_prev,
+                ..
+            } => {
+                let qdd_prev = qd_prev.map_or_else(JointVector::zeros, |p| (m.qd - p) / *period);
+                let h_hat = *tau_prev - qdd_prev * params.inertia;
+                let u = match params.law {
+                    TdcLaw::JacobianTranspose => {
+                        (j.transpose() * v * params.torque_constant + null) * params.inertia
+                    }
+                    TdcLaw::InverseJacobian => inverse() * params.inertia,
                 };
                 let tau = u + h_hat;
                 *tau_prev = tau;
@@ -442,6 +544,8 @@ mod tests {
             kinematics: k,
             force: 0.0,
             normal: &X,
+            orientation: None,
+            posture: None,
         }
     }
 

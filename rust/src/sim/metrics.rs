@@ -51,6 +51,9 @@ pub struct Metrics {
     pub force_oscillation: f64,
     /// Fraction of samples with any joint's applied torque at its limit (0 without limits).
     pub torque_saturation: f64,
+    /// Largest excursion of any joint beyond its URDF position limit [rad or m]; 0 if none
+    /// (and for arms without limits, such as the three-link arm).
+    pub joint_limit_violation: f64,
     /// The run stopped early (non-finite state or the velocity limit).
     pub diverged: bool,
     /// Not diverged and, for force-controlled runs, `force_oscillation` ≤ 0.1 and
@@ -59,7 +62,7 @@ pub struct Metrics {
 }
 
 /// Metric names in the order of `Metrics::values`.
-pub const METRIC_NAMES: [&str; 13] = [
+pub const METRIC_NAMES: [&str; 14] = [
     "force_ss_error",
     "force_rms_error",
     "force_peak",
@@ -73,6 +76,7 @@ pub const METRIC_NAMES: [&str; 13] = [
     "contact_loss",
     "force_oscillation",
     "torque_saturation",
+    "joint_limit_violation",
 ];
 
 impl Metrics {
@@ -91,6 +95,7 @@ impl Metrics {
             self.contact_loss,
             self.force_oscillation,
             self.torque_saturation,
+            self.joint_limit_violation,
         ]
     }
 
@@ -120,6 +125,7 @@ impl Metrics {
             contact_loss: nan,
             force_oscillation: nan,
             torque_saturation: torque_saturation(trace, config),
+            joint_limit_violation: 0.0,
             diverged,
             stable: !diverged,
         };
@@ -167,6 +173,16 @@ impl Metrics {
         }
         m
     }
+}
+
+/// The largest excursion of the recorded joint positions beyond [lower, upper] (0 if none).
+pub fn joint_limit_violation(trace: &Trace, lower: &[f64], upper: &[f64]) -> f64 {
+    trace
+        .q
+        .iter()
+        .zip(lower.iter().zip(upper))
+        .flat_map(|(q, (lo, hi))| q.iter().map(move |v| (lo - v).max(v - hi).max(0.0)))
+        .fold(0.0, f64::max)
 }
 
 /// Index of the first sample with time ≥ `time` (sample k is at k·T).

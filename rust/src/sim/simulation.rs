@@ -8,13 +8,16 @@
 //! `Simulation` all go through the same code. The state is explicit: [`Simulation::state`]
 //! and [`Simulation::set_state`] read and write it as one flat labelled vector.
 
-use crate::control::controller::{ControlFailure, Controller, Measurement};
+use nalgebra::Matrix3;
+
+use crate::control::controller::{ControlFailure, Controller, Measurement, OrientationTask};
+use crate::robot::chain::arm::rotation_vector;
 use crate::control::filter::ForceControl;
 use crate::control::reference::Sample;
 use crate::control::task::TaskFrame;
 use crate::error::{Error, Result};
 use crate::robot::{JointVector, RobotModel, TaskVector, ThreeLinkArm};
-use crate::sim::metrics::Metrics;
+use crate::sim::metrics::{joint_limit_violation, Metrics};
 pub use crate::sim::outcome::{Divergence, Outcome};
 use crate::sim::plant::{Plant, PlantState};
 pub use crate::sim::scenario::{ScenarioConfig, MAX_SAMPLES, MAX_SUBSTEPS};
@@ -42,6 +45,10 @@ pub struct Simulation<R: RobotModel<N>, const N: usize> {
     controller: Controller<R, N>,
     actuator: Actuator<N>,
     frame: TaskFrame,
+    /// The tip orientation R0 a pose task holds; `None` for a position task.
+    start_rotation: Option<Matrix3<f64>>,
+    /// q0 for the null-space posture term of a redundant arm; `None` otherwise.
+    posture: Option<JointVector<N>>,
     samples: usize,
     /// The next sample to take.
     k: usize,
@@ -54,10 +61,18 @@ pub struct Simulation<R: RobotModel<N>, const N: usize> {
 pub type ThreeLinkSimulation = Simulation<ThreeLinkArm, 3>;
 
 impl Simulation<ThreeLinkArm, 3> {
-    /// Validates `config` and builds the pipeline for its three-link arm.
+    /// Validates `config` and builds the pipeline for its three-link arm (an error if the
+    /// scenario's arm is a URDF chain: use [`crate::sim::dispatch::AnySimulation`]).
     pub fn new(config: &ScenarioConfig) -> Result<Self> {
         config.validate()?;
-        Self::with_robot(config, ThreeLinkArm::new(&config.robot))
+        match config.robot.three_link() {
+            Some(p) => Self::with_robot(config, ThreeLinkArm::new(p)),
+            None => Err(Error::parameter(
+                "robot",
+                "a URDF arm",
+                "the three-link arm for ThreeLinkSimulation (AnySimulation runs any arm)",
+            )),
+        }
     }
 }
 
@@ -71,6 +86,11 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             .map_err(|e| e.within("actuator"))?;
         let q0 = robot.initial_position();
         let start = robot.tip_position(&robot.configure(&q0));
+        let start_rotation = robot
+            .orientation(&robot.configure(&q0), &JointVector::zeros())
+            .map(|o| o.rotation);
+        let task_dimension = if start_rotation.is_some() { 6 } else { 3 };
+        let posture = (N > task_dimension).then_some(q0);
         let wall = config
             .wall
             .as_ref()
@@ -101,6 +121,8 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
                 .map(|a| ForceControl::new(a, config.period)),
             actuator: Actuator::new(&config.actuator, config.period),
             frame,
+            start_rotation,
+            posture,
             samples,
             k: 0,
             outcome: None,
@@ -158,12 +180,22 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         // A whole run always ends within `samples` steps.
         let outcome = self.step(self.samples).unwrap_or(Outcome::Completed);
         let trace = std::mem::replace(&mut self.trace, Trace::new(N, 0));
-        let metrics = Metrics::compute(&trace, &self.config, &outcome, &self.frame);
+        let metrics = self.metrics(&trace, &outcome);
         RunResult {
             trace,
             outcome,
             metrics,
         }
+    }
+
+    /// The metrics of `trace` (this simulation's, or the one `run` returned).
+    pub fn metrics(&self, trace: &Trace, outcome: &Outcome) -> Metrics {
+        let mut metrics = Metrics::compute(trace, &self.config, outcome, &self.frame);
+        if let Some((lower, upper)) = self.plant.arm().position_limits() {
+            metrics.joint_limit_violation =
+                joint_limit_violation(trace, lower.as_slice(), upper.as_slice());
+        }
+        metrics
     }
 
     /// Takes up to `n` samples (fewer if the run ends). Returns how the run stands: `None`
@@ -241,6 +273,14 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             kinematics: &kin,
             force: measured,
             normal: &self.frame.normal,
+            orientation: self.start_rotation.and_then(|r0| {
+                self.plant.orientation().map(|o| OrientationTask {
+                    error: rotation_vector(&(r0 * o.rotation.transpose())),
+                    jacobian: o.jacobian,
+                    jdot_qd: o.jdot_qd,
+                })
+            }),
+            posture: self.posture.as_ref(),
         };
         let command = match self.controller.step(&measurement, &desired) {
             Ok(tau) if tau.iter().all(|v| v.is_finite()) => tau,
@@ -372,7 +412,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
 
 /// Validates, builds and runs one scenario.
 pub fn simulate(config: &ScenarioConfig) -> Result<RunResult> {
-    Ok(Simulation::new(config)?.run())
+    Ok(crate::sim::dispatch::AnySimulation::new(config)?.run())
 }
 
 #[cfg(test)]

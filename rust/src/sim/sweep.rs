@@ -5,7 +5,8 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::sim::metrics::Metrics;
-use crate::sim::simulation::{Outcome, ScenarioConfig, Simulation};
+use crate::sim::dispatch::AnySimulation;
+use crate::sim::simulation::{Outcome, ScenarioConfig};
 use crate::sim::trace::Trace;
 
 /// What a batch keeps of one run.
@@ -34,7 +35,7 @@ pub fn run_batch(
     let sims = configs
         .iter()
         .enumerate()
-        .map(|(index, c)| Simulation::new(c).map_err(|error| BatchError { index, error }))
+        .map(|(index, c)| AnySimulation::new(c).map_err(|error| BatchError { index, error }))
         .collect::<std::result::Result<Vec<_>, _>>()?;
     let run_all = move || -> Vec<RunSummary> {
         sims.into_par_iter()

@@ -314,3 +314,125 @@ impl<const N: usize> RobotModel<N> for UrdfArm<N> {
 pub fn rotation_vector(r: &Matrix3<f64>) -> Vector3<f64> {
     nalgebra::Rotation3::from_matrix_unchecked(*r).scaled_axis()
 }
+
+/// Every term of a URDF arm at one state, in plain vectors (row-major matrices): for the
+/// Python layer and tests, at any joint count.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChainTerms {
+    pub joints: usize,
+    /// D, n×n.
+    pub inertia: Vec<f64>,
+    pub coriolis: Vec<f64>,
+    pub gravity: Vec<f64>,
+    /// The 6×n tip Jacobian (rows 0–2 linear).
+    pub jacobian: Vec<f64>,
+    pub jdot_qd: Vec<f64>,
+    pub position: Vec<f64>,
+    /// The tip rotation, 3×3.
+    pub rotation: Vec<f64>,
+    pub friction: Vec<f64>,
+    /// q̈ for the given torque and tip force (ABA), when asked for.
+    pub acceleration: Option<Vec<f64>>,
+}
+
+/// The chain's static description: joint names, limits, the default q0 and the task.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChainInfo {
+    pub joint_names: Vec<String>,
+    pub lower: Vec<f64>,
+    pub upper: Vec<f64>,
+    pub effort: Vec<f64>,
+    pub q0: Vec<f64>,
+    pub task: TaskKind,
+}
+
+fn row_major<const R: usize, const C: usize>(m: &nalgebra::SMatrix<f64, R, C>) -> Vec<f64> {
+    m.transpose().as_slice().to_vec()
+}
+
+fn terms_n<const N: usize>(
+    p: &UrdfArmParams,
+    model: &ChainModel,
+    q: &[f64],
+    qd: &[f64],
+    forward: Option<(&[f64], [f64; 3])>,
+) -> Result<ChainTerms> {
+    let arm = UrdfArm::<N>::from_model(p, model)?;
+    for (name, v) in [("q", q), ("qd", qd)] {
+        if v.len() != N {
+            return Err(Error::parameter(name, format!("{} values", v.len()), &format!("{N} values, one per joint")));
+        }
+    }
+    let q = JointVector::<N>::from_column_slice(q);
+    let qd = JointVector::<N>::from_column_slice(qd);
+    let c = arm.configure(&q);
+    let d = arm.dynamics(&c, &qd);
+    let (j, jdq) = arm.jacobian6(&c, &qd);
+    let acceleration = match forward {
+        Some((tau, force)) => {
+            if tau.len() != N {
+                return Err(Error::parameter("tau", format!("{} values", tau.len()), &format!("{N} values, one per joint")));
+            }
+            let tau = JointVector::<N>::from_column_slice(tau);
+            Some(arm.forward_dynamics(&c, &qd, &tau, &Vector3::from(force)).as_slice().to_vec())
+        }
+        None => None,
+    };
+    Ok(ChainTerms {
+        joints: N,
+        inertia: row_major(&d.inertia),
+        coriolis: d.coriolis.as_slice().to_vec(),
+        gravity: d.gravity.as_slice().to_vec(),
+        jacobian: row_major(&j),
+        jdot_qd: jdq.as_slice().to_vec(),
+        position: c.tip.pos.as_slice().to_vec(),
+        rotation: row_major(&c.tip.rot),
+        friction: arm.friction(&qd).as_slice().to_vec(),
+        acceleration,
+    })
+}
+
+fn info_n<const N: usize>(p: &UrdfArmParams, model: &ChainModel) -> Result<ChainInfo> {
+    let arm = UrdfArm::<N>::from_model(p, model)?;
+    Ok(ChainInfo {
+        joint_names: arm.joint_names.clone(),
+        lower: arm.lower.as_slice().to_vec(),
+        upper: arm.upper.as_slice().to_vec(),
+        effort: arm.effort.as_slice().to_vec(),
+        q0: arm.q0.as_slice().to_vec(),
+        task: arm.task,
+    })
+}
+
+/// Calls `$f::<N>($args)` for the chain's joint count N (1 to 8).
+macro_rules! by_joints {
+    ($n:expr, $f:ident($($arg:expr),*)) => {
+        match $n {
+            1 => $f::<1>($($arg),*),
+            2 => $f::<2>($($arg),*),
+            3 => $f::<3>($($arg),*),
+            4 => $f::<4>($($arg),*),
+            5 => $f::<5>($($arg),*),
+            6 => $f::<6>($($arg),*),
+            7 => $f::<7>($($arg),*),
+            _ => $f::<8>($($arg),*),
+        }
+    };
+}
+
+/// D, C q̇, G, J, J̇q̇, tip pose, friction (and q̈ with `forward` = (τ, tip force)) at (q, q̇).
+pub fn chain_terms(
+    p: &UrdfArmParams,
+    q: &[f64],
+    qd: &[f64],
+    forward: Option<(&[f64], [f64; 3])>,
+) -> Result<ChainTerms> {
+    let model = p.load()?;
+    by_joints!(model.dof(), terms_n(p, &model, q, qd, forward))
+}
+
+/// Joint names, limits, q0 and task of the chain of `p`.
+pub fn chain_info(p: &UrdfArmParams) -> Result<ChainInfo> {
+    let model = p.load()?;
+    by_joints!(model.dof(), info_n(p, &model))
+}

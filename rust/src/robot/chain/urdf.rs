@@ -55,18 +55,17 @@ fn link_inertia(link: &urdf_rs::Link) -> Result<RigidInertia<f64>> {
     if !(m.is_finite() && m >= 0.0) || tensor.iter().any(|v| !v.is_finite()) {
         return Err(Error::parameter(&field, values, "finite, with mass >= 0"));
     }
-    let smallest = tensor.symmetric_eigenvalues().min();
-    let scale = tensor.norm().max(f64::MIN_POSITIVE);
-    let definite = if m > 0.0 {
-        smallest > 1e-12 * scale
-    } else {
-        smallest >= -1e-12 * scale
-    };
-    if !definite {
+    // Physically valid: positive semi-definite principal moments that satisfy the triangle
+    // inequality (a thin rod, axial moment 0, is allowed: SPEC §1's links are rods).
+    let mut moments: Vec<f64> = tensor.symmetric_eigenvalues().iter().copied().collect();
+    moments.sort_by(f64::total_cmp);
+    let tol = 1e-12 * tensor.norm().max(f64::MIN_POSITIVE);
+    let valid = moments[0] >= -tol && moments[0] + moments[1] >= moments[2] - tol;
+    if !valid {
         return Err(Error::parameter(
             &field,
             values,
-            "a positive definite inertia tensor (positive semi-definite for a massless link)",
+            "a positive (semi-)definite inertia tensor whose principal moments satisfy the triangle inequality",
         ));
     }
     let frame = pose_of(&i.origin);
