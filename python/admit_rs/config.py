@@ -561,10 +561,21 @@ class _ConstantInertiaLaw(_Controller):
     """K_P of eq. (39) [1/s²]."""
     scale_feedforward: bool = True
     """See :attr:`ComputedTorque.scale_feedforward`."""
-    inertia: float = 0.1
-    """Constant inertia D̄ = α I [kg·m²]."""
+    inertia: float | tuple[float, ...] | tuple[tuple[float, ...], ...] = 0.1
+    """Constant inertia D̄ [kg·m²]: one number (D̄ = α I, the paper's), one per joint
+    (D̄ = diag(...)) or an n×n symmetric positive definite matrix (rows), for URDF arms
+    whose inertias differ by orders of magnitude between shoulder and wrist."""
     torque_constant: float = 200.0
     """Torque constant K_t (eq. 18)."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.inertia, int | float) or isinstance(self.inertia, bool):
+            arr = np.asarray(self.inertia, dtype=float)
+            if arr.ndim == 2:
+                self._set("inertia", tuple(tuple(float(v) for v in row) for row in arr))
+            else:
+                self._set("inertia", _numbers("inertia", self.inertia))
+        super().__post_init__()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -588,6 +599,31 @@ class TimeDelayControl(_ConstantInertiaLaw):
     """Used only for the initial torque τ_{−1} = Ĝ(q0)."""
 
     _kind: ClassVar[str] = "time_delay"
+
+    @classmethod
+    def for_arm(
+        cls,
+        arm: UrdfArm,
+        *,
+        inertia_fraction: float = 0.8,
+        torque_constant: float = 50.0,
+        kp: float = 600.0,
+        kd: float = 50.0,
+        **kwargs: Any,
+    ) -> TimeDelayControl:
+        """TDC tuned for a URDF arm (docs/arms.md): D̄ = ``inertia_fraction``·D(q0) (the
+        full matrix: TDC needs the spectral radius of I − D⁻¹D̄ below 1, which a scalar D̄
+        cannot give an arm whose wrist is 100× lighter than its shoulder), a smaller K_t
+        and stiffer K_P, K_D (eq. 18's loop gain grows with the eigenvalues of J Jᵀ, about 3
+        for a 6-D pose task against 1 for the paper's arm)."""
+        dbar = inertia_fraction * arm.dynamics(arm.initial_position)["inertia"]
+        return cls(
+            inertia=tuple(tuple(float(v) for v in row) for row in dbar),
+            torque_constant=torque_constant,
+            kp=kp,
+            kd=kd,
+            **kwargs,
+        )
 
 
 Controller: TypeAlias = ComputedTorque | ModelFree | TimeDelayControl

@@ -9,8 +9,8 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::control::controller::{
-    ComputedTorqueParams, ControllerParams, ModelError, ModelFreeParams, PositionGains, TdcLaw,
-    TimeDelayParams,
+    ComputedTorqueParams, ControllerParams, ModelError, ModelFreeParams, PerJoint, PositionGains,
+    TdcLaw, TimeDelayParams,
 };
 use crate::control::filter::{
     AdmittanceFilter, AdmittanceParams, ForceControlParams, ImpedanceParams,
@@ -307,6 +307,29 @@ fn model_from(b: &Block) -> PyResult<ModelError> {
     })
 }
 
+/// `inertia`: one number (D̄ = α I), one per joint (D̄ = diag) or rows of a matrix.
+fn inertia_from(b: &Block) -> PyResult<(f64, Option<PerJoint>)> {
+    let item = b.item("inertia")?;
+    let v = match item.extract::<Vec<Vec<f64>>>() {
+        Ok(rows) if !rows.is_empty() && rows.iter().all(|r| r.len() == rows.len()) => {
+            rows.concat()
+        }
+        _ => numbers(b, "inertia")?,
+    };
+    match v.as_slice() {
+        [one] => Ok((*one, None)),
+        many => match PerJoint::from_slice(many) {
+            Some(p) if !many.is_empty() => Ok((many[0], Some(p))),
+            _ => Err(parameter_error(
+                b.dict.py(),
+                &b.field_path("inertia"),
+                &format!("{many:?}"),
+                &format!("one number, one per joint or an n×n matrix (n ≤ {MAX_JOINTS})"),
+            )),
+        },
+    }
+}
+
 fn controller_from(b: &Block) -> PyResult<ControllerParams> {
     let kind = b.choice("kind", &["computed_torque", "model_free", "time_delay"])?;
     Ok(match kind.as_str() {
@@ -317,12 +340,14 @@ fn controller_from(b: &Block) -> PyResult<ControllerParams> {
         }),
         "model_free" => ControllerParams::ModelFree(ModelFreeParams {
             gains: gains_from(b)?,
-            inertia: b.f64("inertia")?,
+            inertia: inertia_from(b)?.0,
+            joint_inertia: inertia_from(b)?.1,
             torque_constant: b.f64("torque_constant")?,
         }),
         _ => ControllerParams::TimeDelay(TimeDelayParams {
             gains: gains_from(b)?,
-            inertia: b.f64("inertia")?,
+            inertia: inertia_from(b)?.0,
+            joint_inertia: inertia_from(b)?.1,
             torque_constant: b.f64("torque_constant")?,
             law: match b
                 .choice("law", &["jacobian_transpose", "inverse_jacobian"])?

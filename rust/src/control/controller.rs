@@ -115,6 +115,90 @@ impl Default for ComputedTorqueParams {
     }
 }
 
+/// The most joints a per-joint parameter can describe.
+pub const MAX_JOINTS: usize = 8;
+
+/// A constant inertia D̄ given per joint: n values (D̄ = diag) or n² values (a full
+/// symmetric positive definite D̄, row-major), stored inline so parameter blocks stay `Copy`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PerJoint {
+    values: [f64; MAX_JOINTS * MAX_JOINTS],
+    len: usize,
+}
+
+impl PerJoint {
+    /// `None` when `values` has more than 64 entries.
+    pub fn from_slice(values: &[f64]) -> Option<Self> {
+        (values.len() <= MAX_JOINTS * MAX_JOINTS).then(|| {
+            let mut v = [0.0; MAX_JOINTS * MAX_JOINTS];
+            v[..values.len()].copy_from_slice(values);
+            Self {
+                values: v,
+                len: values.len(),
+            }
+        })
+    }
+
+    pub fn as_slice(&self) -> &[f64] {
+        &self.values[..self.len]
+    }
+
+    /// Whether it describes an `n`-joint arm (n values or n² values).
+    pub fn fits(&self, n: usize) -> bool {
+        self.len == n || self.len == n * n
+    }
+
+    /// D̄ as a matrix (the caller has checked `fits(N)`).
+    pub fn matrix<const N: usize>(&self) -> JointMatrix<N> {
+        if self.len == N {
+            JointMatrix::<N>::from_diagonal(&JointVector::<N>::from_fn(|i, _| self.values[i]))
+        } else {
+            JointMatrix::<N>::from_fn(|i, j| self.values[i * N + j])
+        }
+    }
+}
+
+/// D̄ of eqs. 17/18: `inertia`·I, or the per-joint D̄ when given (a URDF arm whose wrist
+/// inertias are far below its shoulder's needs one: TDC is stable only while the spectral
+/// radius of I − D⁻¹D̄ stays below 1).
+fn constant_inertia<const N: usize>(inertia: f64, joint: &Option<PerJoint>) -> JointMatrix<N> {
+    joint.map_or_else(
+        || JointMatrix::<N>::identity() * inertia,
+        |p| p.matrix::<N>(),
+    )
+}
+
+fn check_joint_inertia(p: &Option<PerJoint>) -> Result<()> {
+    if let Some(p) = p {
+        for (i, v) in p.as_slice().iter().enumerate() {
+            check::finite(&format!("inertia[{i}]"), *v)?;
+        }
+    }
+    Ok(())
+}
+
+/// Checks a per-joint D̄ against the arm's joint count: n positive values, or an n×n
+/// symmetric positive definite matrix.
+pub fn check_inertia_for<const N: usize>(p: &PerJoint) -> Result<()> {
+    let shown = || format!("{:?}", p.as_slice());
+    if !p.fits(N) {
+        return Err(crate::error::Error::parameter(
+            "inertia",
+            shown(),
+            &format!("one number, {N} numbers (diagonal) or {N}x{N} (a matrix)"),
+        ));
+    }
+    let m = p.matrix::<N>();
+    if (m - m.transpose()).abs().max() > 1e-12 * m.abs().max() || m.cholesky().is_none() {
+        return Err(crate::error::Error::parameter(
+            "inertia",
+            shown(),
+            "positive values, or a symmetric positive definite matrix",
+        ));
+    }
+    Ok(())
+}
+
 /// Model-free ("nonmodel") control: eq. (18) without the delay estimate, τ = D̄ K_t Jᵀ V.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ModelFreeParams {
@@ -122,6 +206,8 @@ pub struct ModelFreeParams {
     pub gains: PositionGains,
     /// Constant inertia D̄ = α I [kg·m²]. Default 0.1.
     pub inertia: f64,
+    /// D̄ = diag(values), one per joint, instead of `inertia`·I. Default `None`.
+    pub joint_inertia: Option<PerJoint>,
     /// Torque constant K_t. Default 200.
     pub torque_constant: f64,
 }
@@ -131,6 +217,7 @@ impl Default for ModelFreeParams {
         Self {
             gains: PositionGains::new(5.0, 20.0, 100.0),
             inertia: 0.1,
+            joint_inertia: None,
             torque_constant: 200.0,
         }
     }
@@ -143,6 +230,8 @@ pub struct TimeDelayParams {
     pub gains: PositionGains,
     /// Constant inertia D̄ [kg·m²]. Default 0.1.
     pub inertia: f64,
+    /// D̄ = diag(values), one per joint, instead of `inertia`·I. Default `None`.
+    pub joint_inertia: Option<PerJoint>,
     /// Torque constant K_t (eq. 18 only). Default 200.
     pub torque_constant: f64,
     pub law: TdcLaw,
@@ -156,6 +245,7 @@ impl Default for TimeDelayParams {
         Self {
             gains: mf.gains,
             inertia: mf.inertia,
+            joint_inertia: None,
             torque_constant: mf.torque_constant,
             law: TdcLaw::JacobianTranspose,
             model: ModelError::default(),
@@ -181,11 +271,13 @@ impl ControllerParams {
             ControllerParams::ModelFree(p) => {
                 gains(&p.gains)?;
                 check::positive("inertia", p.inertia)?;
+                check_joint_inertia(&p.joint_inertia)?;
                 check::positive("torque_constant", p.torque_constant)
             }
             ControllerParams::TimeDelay(p) => {
                 gains(&p.gains)?;
                 check::positive("inertia", p.inertia)?;
+                check_joint_inertia(&p.joint_inertia)?;
                 check::positive("torque_constant", p.torque_constant)?;
                 p.model.validate().map_err(|e| e.within("model"))
             }
@@ -322,6 +414,15 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
         }
     }
 
+    /// D̄ per joint, when given.
+    pub fn joint_inertia(&self) -> Option<&PerJoint> {
+        match self {
+            Controller::ComputedTorque { .. } => None,
+            Controller::ModelFree(p) => p.joint_inertia.as_ref(),
+            Controller::TimeDelay { params, .. } => params.joint_inertia.as_ref(),
+        }
+    }
+
     pub fn gains(&self) -> &PositionGains {
         match self {
             Controller::ComputedTorque { params, .. } => &params.gains,
@@ -353,7 +454,7 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
         let k = m.kinematics;
         let velocity = k.jacobian * m.qd;
         let v = self.gains().command(desired, &k.position, &velocity);
-        if m.orientation.is_some() || m.posture.is_some() {
+        if m.orientation.is_some() || m.posture.is_some() || self.joint_inertia().is_some() {
             return self.step_task(m, &v);
         }
         match self {
@@ -443,7 +544,10 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
                 }
                 Ok(tau)
             }
-            Controller::ModelFree(p) => Ok((j.transpose() * v * p.torque_constant + null) * p.inertia),
+            Controller::ModelFree(p) => {
+                let dbar = constant_inertia::<N>(p.inertia, &p.joint_inertia);
+                Ok(dbar * (j.transpose() * v * p.torque_constant + null))
+            }
             Controller::TimeDelay {
                 params,
                 period,
@@ -452,12 +556,13 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
                 ..
             } => {
                 let qdd_prev = qd_prev.map_or_else(JointVector::zeros, |p| (m.qd - p) / *period);
-                let h_hat = *tau_prev - qdd_prev * params.inertia;
+                let dbar = constant_inertia::<N>(params.inertia, &params.joint_inertia);
+                let h_hat = *tau_prev - dbar * qdd_prev;
                 let u = match params.law {
                     TdcLaw::JacobianTranspose => {
-                        (j.transpose() * v * params.torque_constant + null) * params.inertia
+                        dbar * (j.transpose() * v * params.torque_constant + null)
                     }
-                    TdcLaw::InverseJacobian => inverse() * params.inertia,
+                    TdcLaw::InverseJacobian => dbar * inverse(),
                 };
                 let tau = u + h_hat;
                 *tau_prev = tau;

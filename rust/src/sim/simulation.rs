@@ -10,7 +10,9 @@
 
 use nalgebra::Matrix3;
 
-use crate::control::controller::{ControlFailure, Controller, Measurement, OrientationTask};
+use crate::control::controller::{
+    check_inertia_for, ControlFailure, Controller, Measurement, OrientationTask,
+};
 use crate::robot::chain::arm::rotation_vector;
 use crate::control::filter::ForceControl;
 use crate::control::reference::Sample;
@@ -84,6 +86,10 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             .actuator
             .validate(N)
             .map_err(|e| e.within("actuator"))?;
+        let controller = Controller::new(&config.controller, &robot, config.period);
+        if let Some(p) = controller.joint_inertia() {
+            check_inertia_for::<N>(p).map_err(|e| e.within("controller"))?;
+        }
         let q0 = robot.initial_position();
         let start = robot.tip_position(&robot.configure(&q0));
         let start_rotation = robot
@@ -103,7 +109,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         };
         let samples = config.samples();
         Ok(Self {
-            controller: Controller::new(&config.controller, &robot, config.period),
+            controller,
             plant: Plant::new(
                 robot,
                 wall,
