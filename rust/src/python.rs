@@ -17,13 +17,13 @@ use crate::control::filter::{
 };
 use crate::control::reference::Signal;
 use crate::error::Error;
-use crate::robot::three_link::{Mat3, Vec3};
-use crate::robot::{MassModel, RobotModel, RobotParams, ThreeLinkArm};
-use crate::sim::metrics::{Metrics, METRIC_NAMES};
 use crate::robot::chain::arm::{chain_info, chain_terms};
 use crate::robot::chain::urdf::MAX_JOINTS;
 use crate::robot::chain::{TaskKind, UrdfArmParams};
+use crate::robot::three_link::{Mat3, Vec3};
+use crate::robot::{MassModel, RobotModel, RobotParams, ThreeLinkArm};
 use crate::sim::dispatch::AnySimulation;
+use crate::sim::metrics::{Metrics, METRIC_NAMES};
 use crate::sim::scenario::RobotConfig;
 use crate::sim::simulation::{Outcome, RunResult, ScenarioConfig, MAX_SUBSTEPS};
 use crate::sim::trace::{trace_columns, Trace};
@@ -216,7 +216,11 @@ fn urdf_arm_from(b: &Block) -> PyResult<UrdfArmParams> {
         urdf: b.string("urdf")?,
         tip_link: b.string("tip_link")?,
         base_link: b.typed("base_link", "a str or None")?,
-        q0: if q0.is_none() { None } else { Some(b.vec("q0")?) },
+        q0: if q0.is_none() {
+            None
+        } else {
+            Some(b.vec("q0")?)
+        },
         viscous_friction: numbers(b, "viscous_friction")?,
         coulomb_friction: numbers(b, "coulomb_friction")?,
         friction_smoothing: b.f64("friction_smoothing")?,
@@ -311,9 +315,7 @@ fn model_from(b: &Block) -> PyResult<ModelError> {
 fn inertia_from(b: &Block) -> PyResult<(f64, Option<PerJoint>)> {
     let item = b.item("inertia")?;
     let v = match item.extract::<Vec<Vec<f64>>>() {
-        Ok(rows) if !rows.is_empty() && rows.iter().all(|r| r.len() == rows.len()) => {
-            rows.concat()
-        }
+        Ok(rows) if !rows.is_empty() && rows.iter().all(|r| r.len() == rows.len()) => rows.concat(),
         _ => numbers(b, "inertia")?,
     };
     match v.as_slice() {

@@ -537,8 +537,7 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
         match self {
             Controller::ComputedTorque { params, model } => {
                 let d = model.dynamics(&model.configure(m.q), m.qd);
-                let mut tau =
-                    d.inertia * inverse() + d.coriolis + d.gravity + model.friction(m.qd);
+                let mut tau = d.inertia * inverse() + d.coriolis + d.gravity + model.friction(m.qd);
                 if params.contact_compensation {
                     tau += k.jacobian.transpose() * m.normal * m.force;
                 }

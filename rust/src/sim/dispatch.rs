@@ -43,7 +43,10 @@ macro_rules! dispatch {
     };
 }
 
-fn chain<const N: usize>(config: &ScenarioConfig, p: &UrdfArmParams) -> Result<Simulation<UrdfArm<N>, N>> {
+fn chain<const N: usize>(
+    config: &ScenarioConfig,
+    p: &UrdfArmParams,
+) -> Result<Simulation<UrdfArm<N>, N>> {
     let arm = UrdfArm::<N>::new(p).map_err(|e| e.within("robot"))?;
     Simulation::with_robot(config, arm)
 }

@@ -13,11 +13,11 @@ use nalgebra::Matrix3;
 use crate::control::controller::{
     check_inertia_for, ControlFailure, Controller, Measurement, OrientationTask,
 };
-use crate::robot::chain::arm::rotation_vector;
 use crate::control::filter::ForceControl;
 use crate::control::reference::Sample;
 use crate::control::task::TaskFrame;
 use crate::error::{Error, Result};
+use crate::robot::chain::arm::rotation_vector;
 use crate::robot::{JointVector, RobotModel, TaskVector, ThreeLinkArm};
 use crate::sim::metrics::{joint_limit_violation, Metrics};
 pub use crate::sim::outcome::{Divergence, Outcome};

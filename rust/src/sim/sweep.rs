@@ -4,8 +4,8 @@
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::sim::metrics::Metrics;
 use crate::sim::dispatch::AnySimulation;
+use crate::sim::metrics::Metrics;
 use crate::sim::simulation::{Outcome, ScenarioConfig};
 use crate::sim::trace::Trace;
 
