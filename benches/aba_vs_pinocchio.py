@@ -94,7 +94,7 @@ def main() -> None:
         total, plain, overhead = pinocchio_aba(file, tip, args.repeats)
         ours = criterion_ns(name)
 
-        def ratio(t: float) -> str:
+        def ratio(t: float, ours: float | None = ours, overhead: float = overhead) -> str:
             return f"{ours / ((t - overhead) * 1e9):.2f}" if ours is not None else "–"
 
         ours_s = f"{ours:.0f}" if ours is not None else "(run cargo bench first)"

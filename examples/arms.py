@@ -14,11 +14,10 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import admit_rs as ar
 import numpy as np
 import polars as pl
 from matplotlib.figure import Figure
-
-import admit_rs as ar
 
 DATA = Path(__file__).resolve().parent / "data"
 ARMS = {

@@ -7,11 +7,10 @@ import math
 import pickle
 from pathlib import Path
 
+import admit_rs as ar
 import numpy as np
 import pinocchio as pin
 import pytest
-
-import admit_rs as ar
 
 DATA = Path(__file__).resolve().parent.parent / "examples" / "data"
 UR5_Q0 = (0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0)
@@ -69,7 +68,7 @@ def test_tdc_scheme2_tracks_force_on_real_arms(make, wall_error):
     assert abs(m["force_ss_error"]) < 0.05, m["force_ss_error"]
     assert orientation_error(arm, r) < 1e-3
     assert m["joint_limit_violation"] == 0.0
-    assert r.trace.width > ar.simulate(ar.paper.scenario("fig14").replace(duration=0.01)).trace.width
+    assert f"q{arm.dof}" in r.trace.columns and f"tau{arm.dof}" in r.trace.columns
 
 
 def test_pose_is_the_default_task_from_six_joints():

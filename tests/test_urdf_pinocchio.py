@@ -5,15 +5,19 @@ continuous and fixed joints) and on the UR5 and Panda files."""
 
 from pathlib import Path
 
+import admit_rs as ar
 import numpy as np
 import pinocchio as pin
 import pytest
 
-import admit_rs as ar
-
 DATA = Path(__file__).resolve().parent.parent / "examples" / "data"
 TOL = 1e-9
 STATES = 50
+
+
+def vec(v):
+    """Three numbers as URDF text, exactly."""
+    return " ".join(repr(float(x)) for x in v)
 
 
 def _inertia_xml(rng):
@@ -29,8 +33,8 @@ def _inertia_xml(rng):
     r_in = pin.rpy.rpyToMatrix(*rpy)
     t = r_in.T @ tensor @ r_in
     return (
-        f'<inertial><origin xyz="{float(com[0])!r} {float(com[1])!r} {float(com[2])!r}" '
-        f'rpy="{float(rpy[0])!r} {float(rpy[1])!r} {float(rpy[2])!r}"/><mass value="{float(mass)!r}"/>'
+        f'<inertial><origin xyz="{vec(com)}" '
+        f'rpy="{vec(rpy)}"/><mass value="{float(mass)!r}"/>'
         f'<inertia ixx="{float(t[0, 0])!r}" ixy="{float(t[0, 1])!r}" ixz="{float(t[0, 2])!r}" '
         f'iyy="{float(t[1, 1])!r}" iyz="{float(t[1, 2])!r}" izz="{float(t[2, 2])!r}"/></inertial>'
     )
@@ -45,7 +49,8 @@ def random_chain(n, seed):
     k = 0
     while moving < n:
         k += 1
-        kind = rng.choice(["revolute", "continuous", "prismatic", "fixed"], p=[0.45, 0.15, 0.2, 0.2])
+        kinds = ["revolute", "continuous", "prismatic", "fixed"]
+        kind = rng.choice(kinds, p=[0.45, 0.15, 0.2, 0.2])
         if kind != "fixed":
             moving += 1
         child = f"l{k}"
@@ -57,12 +62,12 @@ def random_chain(n, seed):
         unit = axis / np.linalg.norm(axis)
         head = (
             f'<joint name="j{k}" type="{kind}"><parent link="{parent}"/>'
-            f'<child link="{child}"/><origin xyz="{float(xyz[0])!r} {float(xyz[1])!r} {float(xyz[2])!r}" '
-            f'rpy="{float(rpy[0])!r} {float(rpy[1])!r} {float(rpy[2])!r}"/>'
+            f'<child link="{child}"/><origin xyz="{vec(xyz)}" '
+            f'rpy="{vec(rpy)}"/>'
         )
         limit = '<limit lower="-3" upper="3" effort="50" velocity="5"/>'
-        ours.append(head + f'<axis xyz="{float(axis[0])!r} {float(axis[1])!r} {float(axis[2])!r}"/>{limit}</joint>')
-        theirs.append(head + f'<axis xyz="{float(unit[0])!r} {float(unit[1])!r} {float(unit[2])!r}"/>{limit}</joint>')
+        ours.append(head + f'<axis xyz="{vec(axis)}"/>{limit}</joint>')
+        theirs.append(head + f'<axis xyz="{vec(unit)}"/>{limit}</joint>')
         links.append(f'<link name="{child}">{_inertia_xml(rng)}</link>')
         parent = child
     # A fixed tool frame at the end.

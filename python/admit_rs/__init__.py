@@ -23,12 +23,12 @@ from admit_rs.config import (
     ModelError,
     ModelFree,
     Robot,
-    UrdfArm,
     Sampled,
     Scenario,
     Sine,
     Step,
     TimeDelayControl,
+    UrdfArm,
     Wall,
     parameter_paths,
 )

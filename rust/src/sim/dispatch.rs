@@ -15,15 +15,15 @@ use crate::sim::trace::Trace;
 /// A simulation of any supported arm.
 #[derive(Debug, Clone)]
 pub enum AnySimulation {
-    ThreeLink(Simulation<ThreeLinkArm, 3>),
-    Chain1(Simulation<UrdfArm<1>, 1>),
-    Chain2(Simulation<UrdfArm<2>, 2>),
-    Chain3(Simulation<UrdfArm<3>, 3>),
-    Chain4(Simulation<UrdfArm<4>, 4>),
-    Chain5(Simulation<UrdfArm<5>, 5>),
-    Chain6(Simulation<UrdfArm<6>, 6>),
-    Chain7(Simulation<UrdfArm<7>, 7>),
-    Chain8(Simulation<UrdfArm<8>, 8>),
+    ThreeLink(Box<Simulation<ThreeLinkArm, 3>>),
+    Chain1(Box<Simulation<UrdfArm<1>, 1>>),
+    Chain2(Box<Simulation<UrdfArm<2>, 2>>),
+    Chain3(Box<Simulation<UrdfArm<3>, 3>>),
+    Chain4(Box<Simulation<UrdfArm<4>, 4>>),
+    Chain5(Box<Simulation<UrdfArm<5>, 5>>),
+    Chain6(Box<Simulation<UrdfArm<6>, 6>>),
+    Chain7(Box<Simulation<UrdfArm<7>, 7>>),
+    Chain8(Box<Simulation<UrdfArm<8>, 8>>),
 }
 
 /// Runs `$body` with `$s` bound to the typed simulation inside `$sim`.
@@ -43,12 +43,14 @@ macro_rules! dispatch {
     };
 }
 
+/// A chain's simulation, boxed (as the three-link one): the variants differ in size by
+/// kilobytes, and a simulation is built once per run, so the indirection costs nothing.
 fn chain<const N: usize>(
     config: &ScenarioConfig,
     p: &UrdfArmParams,
-) -> Result<Simulation<UrdfArm<N>, N>> {
+) -> Result<Box<Simulation<UrdfArm<N>, N>>> {
     let arm = UrdfArm::<N>::new(p).map_err(|e| e.within("robot"))?;
-    Simulation::with_robot(config, arm)
+    Simulation::with_robot(config, arm).map(Box::new)
 }
 
 impl AnySimulation {
@@ -56,7 +58,9 @@ impl AnySimulation {
     pub fn new(config: &ScenarioConfig) -> Result<Self> {
         config.validate()?;
         Ok(match &config.robot {
-            RobotConfig::ThreeLink(_) => AnySimulation::ThreeLink(Simulation::new(config)?),
+            RobotConfig::ThreeLink(_) => {
+                AnySimulation::ThreeLink(Box::new(Simulation::new(config)?))
+            }
             RobotConfig::Urdf(p) => {
                 let n = p.dof().map_err(|e| e.within("robot"))?;
                 match n {
