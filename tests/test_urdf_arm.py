@@ -228,3 +228,31 @@ def test_tip_not_below_base_and_wrong_q0_are_errors():
     with pytest.raises(ar.ParameterError, match=r"inertia = .* one number, 7 numbers"):
         ar.simulate(ar.paper.scenario("fig14").replace(
             robot=panda(), controller=ar.TimeDelayControl(inertia=(0.1, 0.2))))
+
+
+def test_orientation_gains_and_damping_are_used():
+    def run(**kw):
+        arm = panda(**kw)
+        sc = ar.paper.scenario("fig14").replace(
+            robot=arm, controller=ar.TimeDelayControl.for_arm(arm), duration=2.0
+        )
+        return arm, ar.simulate(sc)
+
+    arm, own = run()  # the controller's K_P = 600, K_D = 50
+    soft_arm, soft = run(orientation_gains=(100.0, 20.0))
+    assert own.stable and soft.stable
+    assert orientation_error(soft_arm, soft) > 2 * orientation_error(arm, own)
+    # Same gains given explicitly: the same run.
+    same_arm, same = run(orientation_gains=(600.0, 50.0))
+    assert same.trace.equals(own.trace)
+    # λ of J⁺ = Jᵀ(J Jᵀ + λ² I)⁻¹ changes an eq. 17 run.
+    a = panda()
+    law17 = ar.TimeDelayControl.for_arm(a, law="inverse_jacobian")
+    base = ar.paper.scenario("fig14").replace(robot=a, controller=law17, duration=0.5)
+    r1 = ar.simulate(base)
+    r2 = ar.simulate(base.replace(**{"robot.damping": 0.05}))
+    assert not r1.trace["f"].equals(r2.trace["f"])
+    with pytest.raises(ar.ParameterError, match="orientation_gains"):
+        panda(orientation_gains=(1.0, 2.0, 3.0))
+    with pytest.raises(ar.ParameterError, match="damping = -1"):
+        panda(damping=-1.0)

@@ -271,6 +271,11 @@ class UrdfArm(_Block):
     task: Literal["position", "pose"] | None = None
     """Task space: ``"position"`` (tip position) or ``"pose"`` (position and orientation,
     held at its start); ``None``: position below 6 joints, pose from 6."""
+    orientation_gains: tuple[float, float] | None = None
+    """(K_P [1/s²], K_D [1/s]) of the orientation in a pose task; ``None``: the controller's
+    kp, kd (both divided by its command_divisor K_A, as in eq. 39)."""
+    damping: float = 1e-3
+    """λ of the damped pseudo-inverse J⁺ = Jᵀ(J Jᵀ + λ² I)⁻¹ of eqs. 7 and 17."""
     urdf: str = field(default="", repr=False, compare=True)
     """The URDF document (read from ``path`` when not given)."""
 
@@ -305,6 +310,23 @@ class UrdfArm(_Block):
                 self._set("q0", (self.q0,))
         for name in ("viscous_friction", "coulomb_friction"):
             self._set(name, _numbers(name, getattr(self, name)))
+        if self.orientation_gains is not None:
+            gains = _numbers("orientation_gains", self.orientation_gains)
+            if isinstance(gains, float) or len(gains) != 2:
+                err = ParameterError(
+                    f"orientation_gains = {self.orientation_gains!r} is invalid: must be two "
+                    "numbers (K_P, K_D) or None"
+                )
+                err.field, err.value = "orientation_gains", repr(self.orientation_gains)
+                err.allowed = "two numbers (K_P, K_D) or None"
+                raise err
+            self._set("orientation_gains", gains)
+        if self.base_link is not None and not isinstance(self.base_link, str):
+            err = ParameterError(
+                f"base_link = {self.base_link!r} is invalid: must be a link name (str) or None"
+            )
+            err.field, err.value, err.allowed = "base_link", repr(self.base_link), "a str or None"
+            raise err
         if self.task not in (None, "position", "pose"):
             err = ParameterError(
                 f"task = {self.task!r} is invalid: must be one of 'position', 'pose' or None"

@@ -225,6 +225,26 @@ fn urdf_arm_from(b: &Block) -> PyResult<UrdfArmParams> {
         coulomb_friction: numbers(b, "coulomb_friction")?,
         friction_smoothing: b.f64("friction_smoothing")?,
         gravity: b.f64("gravity")?,
+        orientation_gains: {
+            let g = b.item("orientation_gains")?;
+            if g.is_none() {
+                None
+            } else {
+                let v = b.vec("orientation_gains")?;
+                match v.as_slice() {
+                    [kp, kd] => Some((*kp, *kd)),
+                    _ => {
+                        return Err(parameter_error(
+                            b.dict.py(),
+                            &b.field_path("orientation_gains"),
+                            &format!("{v:?}"),
+                            "two numbers (K_P, K_D) or None",
+                        ))
+                    }
+                }
+            }
+        },
+        damping: b.f64("damping")?,
         task: match b.item("task")?.is_none() {
             true => None,
             false => Some(match b.choice("task", &["position", "pose"])?.as_str() {

@@ -6,7 +6,9 @@ use nalgebra::{Matrix3, Matrix6, SMatrix, SVector, Vector3};
 
 use crate::control::task::Desired;
 use crate::error::{check, Result};
-use crate::robot::{Jacobian, JointMatrix, JointVector, Kinematics, RobotModel, TaskVector};
+use crate::robot::{
+    Jacobian, JointMatrix, JointVector, Kinematics, RobotModel, TaskOptions, TaskVector,
+};
 
 /// Gains of eq. (39): V = K_A⁻¹ (Ẍ_d + K_D (Ẋ_d − Ẋ) + K_P (X_d − X)), each a scalar times I.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -301,6 +303,8 @@ pub struct Measurement<'a, const N: usize> {
     /// q0 of the null-space posture term, when the arm has more joints than the task has
     /// dimensions; `None` otherwise.
     pub posture: Option<&'a JointVector<N>>,
+    /// J⁺'s damping and the orientation gains (general task path only).
+    pub options: TaskOptions,
 }
 
 /// The orientation part of a pose task: the error e_o = log(R0 Rᵀ) as a rotation vector
@@ -316,8 +320,9 @@ pub struct OrientationTask<const N: usize> {
 #[inline]
 fn damped_pseudo_inverse<const N: usize>(
     j: &SMatrix<f64, 6, N>,
+    damping: f64,
 ) -> std::result::Result<SMatrix<f64, N, 6>, ControlFailure> {
-    let a = j * j.transpose() + Matrix6::identity() * PSEUDO_INVERSE_DAMPING.powi(2);
+    let a = j * j.transpose() + Matrix6::identity() * (damping * damping);
     let chol = a.cholesky().ok_or(ControlFailure::SingularJacobian)?;
     let pinv = chol.solve(j).transpose();
     if pinv.iter().all(|v| v.is_finite()) {
@@ -454,7 +459,13 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
         let k = m.kinematics;
         let velocity = k.jacobian * m.qd;
         let v = self.gains().command(desired, &k.position, &velocity);
-        if m.orientation.is_some() || m.posture.is_some() || self.joint_inertia().is_some() {
+        // The paper's square 3×3 path (J⁻¹) stays as it was; every other task goes through
+        // the general one (J⁺ with the arm's damping).
+        if N != 3
+            || m.orientation.is_some()
+            || m.posture.is_some()
+            || self.joint_inertia().is_some()
+        {
             return self.step_task(m, &v);
         }
         match self {
@@ -520,12 +531,13 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
         if let Some(o) = &m.orientation {
             // eq. (39) for the orientation, held at R0: no feed-forward, Ẋ_d = 0.
             let omega = o.jacobian * m.qd;
-            let v_o = (o.error * gains.kp - omega * gains.kd) / gains.ka;
+            let (kp, kd) = m.options.orientation_gains.unwrap_or((gains.kp, gains.kd));
+            let v_o = (o.error * kp - omega * kd) / gains.ka;
             j.fixed_rows_mut::<3>(3).copy_from(&o.jacobian);
             v.fixed_rows_mut::<3>(3).copy_from(&v_o);
             jdot_qd.fixed_rows_mut::<3>(3).copy_from(&o.jdot_qd);
         }
-        let pinv = damped_pseudo_inverse(&j)?;
+        let pinv = damped_pseudo_inverse(&j, m.options.damping)?;
         let null = match m.posture {
             Some(q0) => {
                 let projector = JointMatrix::<N>::identity() - pinv * j;
@@ -650,6 +662,7 @@ mod tests {
             normal: &X,
             orientation: None,
             posture: None,
+            options: TaskOptions::default(),
         }
     }
 

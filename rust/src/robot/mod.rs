@@ -30,6 +30,23 @@ pub struct Kinematics<const N: usize> {
     pub jdot_qd: TaskVector,
 }
 
+/// How a general arm's task is solved (SPEC §11): the damping λ of J⁺ = Jᵀ(J Jᵀ + λ² I)⁻¹
+/// and, for a pose task, (K_P, K_D) of the orientation (`None`: the controller's).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TaskOptions {
+    pub orientation_gains: Option<(f64, f64)>,
+    pub damping: f64,
+}
+
+impl Default for TaskOptions {
+    fn default() -> Self {
+        Self {
+            orientation_gains: None,
+            damping: 1e-3,
+        }
+    }
+}
+
 /// The tip's orientation terms for a pose task (SPEC §11): rotation R (tip axes in the
 /// world), the angular Jacobian (3×N, world frame) and its J̇q̇ (angular acceleration at q̈ = 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -139,6 +156,11 @@ pub trait RobotModel<const N: usize>: Clone + Send + Sync {
     #[inline(always)]
     fn orientation(&self, _c: &Self::Config, _qd: &JointVector<N>) -> Option<Orientation<N>> {
         None
+    }
+
+    /// J⁺'s damping and the orientation gains.
+    fn task_options(&self) -> TaskOptions {
+        TaskOptions::default()
     }
 
     /// Joint position limits (lower, upper), if the arm has any.

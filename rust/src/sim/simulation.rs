@@ -18,7 +18,7 @@ use crate::control::reference::Sample;
 use crate::control::task::TaskFrame;
 use crate::error::{Error, Result};
 use crate::robot::chain::arm::rotation_vector;
-use crate::robot::{JointVector, RobotModel, TaskVector, ThreeLinkArm};
+use crate::robot::{JointVector, RobotModel, TaskOptions, TaskVector, ThreeLinkArm};
 use crate::sim::metrics::{joint_limit_violation, Metrics};
 pub use crate::sim::outcome::{Divergence, Outcome};
 use crate::sim::plant::{Plant, PlantState};
@@ -51,6 +51,8 @@ pub struct Simulation<R: RobotModel<N>, const N: usize> {
     start_rotation: Option<Matrix3<f64>>,
     /// q0 for the null-space posture term of a redundant arm; `None` otherwise.
     posture: Option<JointVector<N>>,
+    /// J⁺'s damping and the orientation gains of the arm's task.
+    task_options: TaskOptions,
     samples: usize,
     /// The next sample to take.
     k: usize,
@@ -108,6 +110,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             None => TaskFrame::new(TaskVector::x(), start, start[0]),
         };
         let samples = config.samples();
+        let task_options = robot.task_options();
         Ok(Self {
             controller,
             plant: Plant::new(
@@ -129,6 +132,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             frame,
             start_rotation,
             posture,
+            task_options,
             samples,
             k: 0,
             outcome: None,
@@ -287,6 +291,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
                 })
             }),
             posture: self.posture.as_ref(),
+            options: self.task_options,
         };
         let command = match self.controller.step(&measurement, &desired) {
             Ok(tau) if tau.iter().all(|v| v.is_finite()) => tau,

@@ -42,6 +42,10 @@ pub struct UrdfArmParams {
     pub gravity: f64,
     /// `None`: position for fewer than 6 joints, pose otherwise.
     pub task: Option<TaskKind>,
+    /// (K_P, K_D) of the orientation in a pose task; `None`: the controller's. Default `None`.
+    pub orientation_gains: Option<(f64, f64)>,
+    /// λ of the damped pseudo-inverse J⁺ = Jᵀ(J Jᵀ + λ² I)⁻¹. Default 1e-3.
+    pub damping: f64,
 }
 
 impl Default for UrdfArmParams {
@@ -56,6 +60,8 @@ impl Default for UrdfArmParams {
             friction_smoothing: 0.01,
             gravity: 9.81,
             task: None,
+            orientation_gains: None,
+            damping: 1e-3,
         }
     }
 }
@@ -78,6 +84,11 @@ impl UrdfArmParams {
     pub fn load(&self) -> Result<ChainModel> {
         check::non_negative("gravity", self.gravity)?;
         check::finite("friction_smoothing", self.friction_smoothing)?;
+        check::non_negative("damping", self.damping)?;
+        if let Some((kp, kd)) = self.orientation_gains {
+            check::non_negative("orientation_gains[0]", kp)?;
+            check::non_negative("orientation_gains[1]", kd)?;
+        }
         let model = urdf::parse(&self.urdf, self.base_link.as_deref(), &self.tip_link)?;
         let n = model.dof();
         for (field, v) in [
@@ -132,6 +143,7 @@ pub struct UrdfArm<const N: usize> {
     eps: f64,
     q0: JointVector<N>,
     pub task: TaskKind,
+    pub options: crate::robot::TaskOptions,
     /// Position limits [rad or m] (±∞ where none) and effort limits (∞ where none).
     pub lower: JointVector<N>,
     pub upper: JointVector<N>,
@@ -175,6 +187,10 @@ impl<const N: usize> UrdfArm<N> {
             } else {
                 TaskKind::Position
             }),
+            options: crate::robot::TaskOptions {
+                orientation_gains: params.orientation_gains,
+                damping: params.damping,
+            },
             lower,
             upper,
             effort: v(|j| j.effort),
@@ -307,6 +323,10 @@ impl<const N: usize> RobotModel<N> for UrdfArm<N> {
 
     fn position_limits(&self) -> Option<(JointVector<N>, JointVector<N>)> {
         Some((self.lower, self.upper))
+    }
+
+    fn task_options(&self) -> crate::robot::TaskOptions {
+        self.options
     }
 }
 
