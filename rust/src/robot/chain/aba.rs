@@ -102,3 +102,100 @@ mod tests {
         assert!(free.norm() == 0.0);
     }
 }
+
+#[cfg(test)]
+mod lanes {
+    use crate::robot::chain::kinematics::tests::{chain4, state};
+    use crate::robot::chain::model::{Body, SerialChain};
+    use crate::robot::chain::spatial::{Pose, RigidInertia, SVec};
+    use nalgebra::{Matrix3, SVector, Vector3};
+    use simba::simd::{SimdValue, WideF64x4};
+
+    type W = WideF64x4;
+
+    fn splat(v: f64) -> W {
+        <W as SimdValue>::splat(v)
+    }
+
+    fn v3(v: &Vector3<f64>) -> Vector3<W> {
+        v.map(splat)
+    }
+
+    fn m3(m: &Matrix3<f64>) -> Matrix3<W> {
+        m.map(splat)
+    }
+
+    /// The same chain with every number in all four lanes.
+    fn wide(c: &SerialChain<f64, 4>) -> SerialChain<W, 4> {
+        SerialChain {
+            bodies: std::array::from_fn(|i| {
+                let b = &c.bodies[i];
+                Body {
+                    kind: b.kind,
+                    axis: v3(&b.axis),
+                    tree: Pose {
+                        rot: m3(&b.tree.rot),
+                        pos: v3(&b.tree.pos),
+                    },
+                    inertia: RigidInertia {
+                        mass: splat(b.inertia.mass),
+                        h: v3(&b.inertia.h),
+                        ibar: m3(&b.inertia.ibar),
+                    },
+                }
+            }),
+            tip: Pose {
+                rot: m3(&c.tip.rot),
+                pos: v3(&c.tip.pos),
+            },
+            gravity: splat(c.gravity),
+        }
+    }
+
+    /// The algorithms are one source for scalars and SIMD lanes: four different states in
+    /// the four lanes of simba's `WideF64x4` give each lane's scalar result (to rounding:
+    /// the lanes' sin/cos is not glibc's).
+    #[test]
+    fn four_lanes_match_four_scalar_runs() {
+        let c = chain4();
+        let w = wide(&c);
+        let (q, qd) = state();
+        let shift = |k: usize| 0.3 * k as f64;
+        let lane = |v: &SVector<f64, 4>| {
+            SVector::<W, 4>::from_fn(|i, _| {
+                W::from_arr([
+                    v[i] + shift(0),
+                    v[i] + shift(1),
+                    v[i] + shift(2),
+                    v[i] + shift(3),
+                ])
+            })
+        };
+        let tau = SVector::<f64, 4>::new(1.5, -2.0, 3.0, 0.7);
+        let (wq, wqd) = (lane(&q), lane(&qd));
+        let wtau = SVector::<W, 4>::from_fn(|i, _| splat(tau[i]));
+        let wf = w.frames(&wq);
+        let force = Vector3::new(3.0, -1.0, 2.0);
+        let wqdd = w.aba(&wf, &wqd, &wtau, &w.tip_wrench(&wf, &v3(&force)));
+        let wd = w.crba(&wf);
+        let (wj, _) = w.jacobian(&wf, &wqd);
+        for k in 0..4 {
+            let s = SVector::<f64, 4>::repeat(shift(k));
+            let f = c.frames(&(q + s));
+            let qdd = c.aba(&f, &(qd + s), &tau, &c.tip_wrench(&f, &force));
+            let d = c.crba(&f);
+            let (j, _) = c.jacobian(&f, &(qd + s));
+            let pick = |x: W| x.extract(k);
+            for i in 0..4 {
+                assert!((pick(wqdd[i]) - qdd[i]).abs() < 1e-9 * (1.0 + qdd[i].abs()));
+                for r in 0..4 {
+                    assert!((pick(wd[(r, i)]) - d[(r, i)]).abs() < 1e-12);
+                }
+                for r in 0..6 {
+                    assert!((pick(wj[(r, i)]) - j[(r, i)]).abs() < 1e-12);
+                }
+            }
+        }
+        let _ = SVec::<W>::zero();
+    }
+}
