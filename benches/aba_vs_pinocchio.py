@@ -10,13 +10,22 @@ more than the algorithm, so ABA without external forces (a lower bound on Pinocc
 for our problem) is timed too, and the ratio against it is the conservative one. Prints a
 Markdown table.
 
-    python benches/aba_vs_pinocchio.py [--repeats 7]
+    python benches/aba_vs_pinocchio.py [--repeats 7] [--cpp]
+
+``--cpp`` also compiles ``benches/pinocchio_aba.cpp`` against the `pin` wheel's headers and
+libraries (it needs Eigen 3.4 headers, e.g. Debian's ``libeigen3-dev``, the urdfdom headers,
+``liburdfdom-headers-dev``, and g++) and times Pinocchio's ABA in C++, with no binding in
+the way. Both sides are then built for baseline x86-64 (the wheel's libraries fix
+Pinocchio's Eigen ABI, so no -march=native; Criterion times admit_rs's baseline code too).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import subprocess
+import sys
+import sysconfig
 import time
 from pathlib import Path
 
@@ -82,10 +91,45 @@ def criterion_ns(name: str) -> float | None:
     return float(json.loads(path.read_text())["median"]["point_estimate"])
 
 
+def cpp_aba() -> dict[str, float]:
+    """Compiles and runs benches/pinocchio_aba.cpp: ns per call of C++ pinocchio::aba."""
+    prefix = Path(sysconfig.get_paths()["purelib"]) / "cmeel.prefix"
+    exe = ROOT / "target" / "pinocchio_aba"
+    defines = ["-DBOOST_MPL_LIMIT_LIST_SIZE=30", "-DBOOST_MPL_LIMIT_VECTOR_SIZE=30",
+               "-DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", "-DBOOST_FUSION_INVOKE_MAX_ARITY=12",
+               "-DPINOCCHIO_WITH_URDFDOM"]  # fmt: skip
+    subprocess.run(
+        ["g++", "-O3", "-DNDEBUG", "-std=c++17", *defines, f"-I{prefix / 'include'}",
+         "-I/usr/include/eigen3", str(ROOT / "benches" / "pinocchio_aba.cpp"), "-o", str(exe),
+         f"-L{prefix / 'lib'}", "-lpinocchio_default", "-lpinocchio_parsers",
+         "-lurdfdom_model", f"-Wl,-rpath,{prefix / 'lib'}"],
+        check=True,
+    )  # fmt: skip
+    args = [str(exe)]
+    for _, file, tip in ARMS:
+        args += [str(ROOT / "examples" / "data" / file), tip]
+    out = subprocess.run(args, check=True, capture_output=True, text=True).stdout
+    times = {}
+    for line, (name, _, _) in zip(out.splitlines(), ARMS, strict=True):
+        times[name] = float(line.split()[1])
+    return times
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--cpp", action="store_true", help="also time pinocchio::aba in C++")
     args = parser.parse_args()
+    if args.cpp:
+        cpp = cpp_aba()
+        print("| arm | admit_rs ABA [ns] | pinocchio::aba in C++ [ns] | ratio admit_rs / C++ |")
+        print("|---|---|---|---|")
+        for name, _, _ in ARMS:
+            ours = criterion_ns(name)
+            ratio = f"{ours / cpp[name]:.2f}" if ours is not None else "–"
+            shown = f"{ours:.0f}" if ours is not None else "–"
+            print(f"| {name} | {shown} | {cpp[name]:.0f} | {ratio} |")
+        print(file=sys.stderr)
     print("| arm | admit_rs ABA with tip wrench [ns] | pin.aba with fext [ns] "
           "| pin.aba without fext [ns] | trivial call [ns] "
           "| ratio vs (fext − trivial) | ratio vs (no fext − trivial) |")
