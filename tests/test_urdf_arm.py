@@ -256,3 +256,8 @@ def test_orientation_gains_and_damping_are_used():
         panda(orientation_gains=(1.0, 2.0, 3.0))
     with pytest.raises(ar.ParameterError, match="damping = -1"):
         panda(damping=-1.0)
+
+
+def test_a_seven_link_robot_points_to_urdf_arm():
+    with pytest.raises(TypeError, match=r"lengths must have 3 elements, got 7 .*ar.UrdfArm"):
+        ar.Robot(lengths=[0.4] * 7)

@@ -189,7 +189,13 @@ class Robot(_Block):
 
     def __post_init__(self) -> None:
         for name in ("lengths", "masses", "viscous_friction", "coulomb_friction", "q0"):
-            self._set(name, _vec3(name, getattr(self, name)))
+            try:
+                self._set(name, _vec3(name, getattr(self, name)))
+            except TypeError as e:
+                raise TypeError(
+                    f"{e} (ar.Robot is the paper's three-link arm; load any other serial arm "
+                    "from its URDF with ar.UrdfArm(path, tip_link), see docs/arms.md)"
+                ) from None
         self._validate()
 
     def dynamics(
@@ -250,8 +256,8 @@ class UrdfArm(_Block):
         (7, 'pose')
     """
 
-    path: str = ""
-    """The URDF file it was read from (its text is read once, into ``urdf``)."""
+    path: str | Path = ""
+    """The URDF file it was read from (its text is read once, into ``urdf``; kept as a str)."""
     tip_link: str = ""
     """The link whose origin is the tip (contact point and task frame)."""
     _: dataclasses.KW_ONLY
