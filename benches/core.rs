@@ -64,7 +64,7 @@ impl Replay {
 }
 
 fn arm_and_wall(cfg: &ScenarioConfig) -> (ThreeLinkArm, Wall) {
-    let arm = ThreeLinkArm::new(&cfg.robot);
+    let arm = ThreeLinkArm::new(cfg.robot.three_link().expect("the paper's arm"));
     let x0 = arm.forward_kinematics(&arm.initial_position());
     let wall = Wall::new(cfg.wall.as_ref().expect("fig14 has a wall"), &x0).expect("valid");
     (arm, wall)

@@ -74,3 +74,20 @@ def test_tune_verb_bad_input_exits_2(capsys):
     assert cli.main(["tune", "fig14", "--vary", "admittance.bb=1:2",
                      "--over", "wall.stiffness=1e4:1e5"]) == 2  # fmt: skip
     assert "no such parameter" in capsys.readouterr().err
+
+
+def test_run_a_urdf_arm_with_a_path_relative_to_the_toml(tmp_path, capsys):
+    from pathlib import Path
+
+    data = Path(__file__).resolve().parent.parent / "examples" / "data"
+    (tmp_path / "arms").mkdir()
+    (tmp_path / "arms" / "three_link.urdf").write_text((data / "three_link.urdf").read_text())
+    toml = tmp_path / "sc.toml"
+    toml.write_text(
+        'duration = 1.0\n[robot]\nkind = "urdf"\npath = "arms/three_link.urdf"\n'
+        'tip_link = "tip"\nviscous_friction = 3.0\ncoulomb_friction = 5.0\n'
+        "q0 = [0.0, 0.7853981633974483, -0.7853981633974483]\n"
+    )
+    assert cli.main(["run", str(toml)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["stable"] and out["metrics"]["joint_limit_violation"] == 0.0

@@ -227,9 +227,10 @@ def test_block_docstrings_give_units_and_defaults():
     assert "    b (float, default 800.0)\n        Damping [N·s/m]." in ar.AdmittanceFilter.__doc__
     assert "    omega (float, default 1.0)\n        Angular frequency [rad/s]." in ar.Sine.__doc__
     # Inherited fields take their base class's text.
-    assert "    inertia (float, default 0.1)\n        Constant inertia D̄ = α I [kg·m²]." in (
-        ar.ModelFree.__doc__
-    )
+    assert (
+        "    inertia (float | tuple[float, ...] | tuple[tuple[float, ...], ...], default 0.1)\n"
+        "        Constant inertia D̄ [kg·m²]: one number (D̄ = α I, the paper's)"
+    ) in ar.ModelFree.__doc__
     assert "command_divisor (float, default 0.1)\n        K_A of eq. (39)" in (
         ar.ComputedTorque.__doc__
     )

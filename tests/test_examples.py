@@ -24,3 +24,21 @@ def test_realism_example(tmp_path):
     assert (tmp_path / "realism.png").stat().st_size > 10_000
     # The committed table is this table.
     assert (tmp_path / "realism.md").read_text() == (ROOT / "docs/realism/realism.md").read_text()
+
+
+def test_arms_example(tmp_path):
+    spec = importlib.util.spec_from_file_location("arms", ROOT / "examples" / "arms.py")
+    assert spec and spec.loader
+    arms = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(arms)
+    tables = arms.main(tmp_path)
+    runs = tables["runs"]
+    assert runs["stable"].all()
+    assert (runs["force_ss_error"].abs() < 0.05).all()
+    assert (runs["orientation_error [rad]"] < 1e-3).all()
+    assert (runs["joint_limit_violation"] == 0).all()
+    sweep = tables["sweep"]
+    assert sweep["stable"].all()
+    assert sweep["overshoot_pct"].is_sorted()  # overshoot grows with k_e, as in fig. 15
+    assert (tmp_path / "arms.png").stat().st_size > 10_000
+    assert (tmp_path / "arms.md").read_text() == (ROOT / "docs/arms/arms.md").read_text()

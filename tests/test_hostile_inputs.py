@@ -14,17 +14,23 @@ import select
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import admit_rs as ar
 
 HOSTILE = [0.0, -1.0, 1e300, -1e300, 1e100, 1e-300, math.nan, math.inf, -math.inf]
 TIMEOUT_S = 10.0
 
-WORKER = textwrap.dedent(
+URDF_PATH = str(Path(__file__).resolve().parent.parent / "examples" / "data" / "ur5.urdf")
+
+WORKER = f"URDF_PATH = {URDF_PATH!r}\n" + textwrap.dedent(
     """
     import json, math, sys
     import numpy as np
     import admit_rs as ar
+
+    UR5 = ar.UrdfArm(URDF_PATH, "tool0", q0=(0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0),
+                     viscous_friction=1.0, coulomb_friction=2.0)
 
     BASES = {
         "tdc": ar.paper.scenario("fig14").replace(
@@ -36,6 +42,7 @@ WORKER = textwrap.dedent(
         "ct": ar.paper.scenario("fig8").replace(
             admittance=ar.ImpedanceReference(), duration=0.3
         ),
+        "urdf": ar.paper.scenario("fig14").replace(robot=UR5, duration=0.3),
     }
 
     def apply(sc, path, value):
@@ -127,6 +134,10 @@ def test_every_numeric_field_survives_hostile_values():
             sensor=ar.ForceSensor(cutoff=30.0), actuator=ar.Actuator(torque_limit=60.0)
         ),
         "ct": ar.paper.scenario("fig8").replace(admittance=ar.ImpedanceReference()),
+        "urdf": ar.paper.scenario("fig14").replace(
+            robot=ar.UrdfArm(URDF_PATH, "tool0", q0=(0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0),
+                             viscous_friction=1.0, coulomb_friction=2.0)
+        ),
     }
     cases = [
         (base, path, value)
@@ -138,7 +149,8 @@ def test_every_numeric_field_survives_hostile_values():
     # The new stages' fields are covered.
     assert {"sensor.noise_std", "sensor.latency", "actuator.rate_limit", "actuator.delay",
             "wall.damping", "wall.exponent", "wall.normal", "seed",
-            "admittance.assumed_stiffness"} <= paths
+            "admittance.assumed_stiffness", "robot.gravity", "robot.friction_smoothing",
+            "robot.coulomb_friction", "robot.q0"} <= paths
     failures = []
     worker = Worker()
     warmed = False

@@ -265,8 +265,11 @@ def test_bad_actuator_and_sensor_values_name_the_field():
         ar.Actuator(torque_limit=(5, -1, 5))
     with pytest.raises(ar.ParameterError, match="latency = 2.5"):
         ar.ForceSensor(latency=2.5)
+    # Two limits fit a two-joint arm, not the three-link one: the scenario says so.
     with pytest.raises(ar.ParameterError, match=r"torque_limit = \[1.0, 2.0\] .* one per joint"):
-        ar.Actuator(torque_limit=(1.0, 2.0))
+        ar.Scenario(actuator=ar.Actuator(torque_limit=(1.0, 2.0)))
+    with pytest.raises(ar.ParameterError, match=r"torque_limit = .* one per joint"):
+        ar.Actuator(torque_limit=tuple(range(1, 11)))
 
 
 # -- stepping and state ------------------------------------------------------------------

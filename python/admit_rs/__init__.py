@@ -28,6 +28,7 @@ from admit_rs.config import (
     Sine,
     Step,
     TimeDelayControl,
+    UrdfArm,
     Wall,
     parameter_paths,
 )
@@ -78,6 +79,7 @@ __all__ = [
     "ParameterError",
     "Result",
     "Robot",
+    "UrdfArm",
     "Sampled",
     "Scenario",
     "Simulation",

@@ -44,6 +44,22 @@ def robot_terms(
     """D (``inertia``), C (``coriolis``), G (``gravity``), J (``jacobian``), ``jdot_qd``,
     tip ``position`` and ``friction`` at (q, q̇)."""
 
+def urdf_terms(
+    robot: dict[str, Any],
+    q: list[float],
+    qd: list[float],
+    tau: list[float] | None = None,
+    tip_force: list[float] = ...,
+) -> dict[str, npt.NDArray[np.float64]]:
+    """A URDF arm's D (``inertia``), C q̇ (``coriolis``), G (``gravity``), the 6×n tip
+    ``jacobian`` (rows 0–2 linear, world-aligned), ``jdot_qd`` (6), tip ``position`` and
+    ``rotation``, ``friction``; with ``tau`` also q̈ (``acceleration``, ABA) under the world
+    force ``tip_force`` at the tip."""
+
+def urdf_info(robot: dict[str, Any]) -> dict[str, Any]:
+    """A URDF arm's ``joint_names``, position limits ``lower``/``upper``, ``effort`` limits,
+    the ``q0`` in use and the ``task`` (``"position"`` or ``"pose"``)."""
+
 def forward_dynamics(
     robot: dict[str, Any],
     q: tuple[float, float, float],

@@ -57,13 +57,23 @@ def _paper(args: argparse.Namespace) -> int:
     return 0
 
 
+def _resolve_urdf(table: dict[str, Any], toml_path: Path) -> dict[str, Any]:
+    """A URDF arm's relative ``path`` is relative to the TOML file that names it."""
+    robot = table.get("robot")
+    if isinstance(robot, dict) and "path" in robot and "urdf" not in robot:
+        path = Path(robot["path"])
+        if not path.is_absolute():
+            table = {**table, "robot": {**robot, "path": str(toml_path.parent / path)}}
+    return table
+
+
 def _run(args: argparse.Namespace) -> int:
     from admit_rs.config import Scenario
     from admit_rs.simulation import simulate
 
     with open(args.scenario, "rb") as fh:
         data = tomllib.load(fh)
-    scenario = Scenario.from_dict(data.get("scenario", data))
+    scenario = Scenario.from_dict(_resolve_urdf(data.get("scenario", data), Path(args.scenario)))
     result = simulate(scenario)
     if args.output:
         result.trace.write_parquet(args.output)
@@ -118,7 +128,7 @@ def load_sweep(path: Path) -> dict[str, Any]:
     if unknown:
         raise TypeError(f"{path}: unknown keys {sorted(unknown)}; allowed: {sorted(known)}")
     if "scenario" in data:
-        scenario = Scenario.from_dict(data["scenario"])
+        scenario = Scenario.from_dict(_resolve_urdf(data["scenario"], Path(path)))
     else:
         scenario = paper.scenario(data.get("base", "fig14"))
     scenario = scenario.replace(**data.get("overrides", {}))

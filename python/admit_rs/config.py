@@ -189,7 +189,13 @@ class Robot(_Block):
 
     def __post_init__(self) -> None:
         for name in ("lengths", "masses", "viscous_friction", "coulomb_friction", "q0"):
-            self._set(name, _vec3(name, getattr(self, name)))
+            try:
+                self._set(name, _vec3(name, getattr(self, name)))
+            except TypeError as e:
+                raise TypeError(
+                    f"{e} (ar.Robot is the paper's three-link arm; load any other serial arm "
+                    "from its URDF with ar.UrdfArm(path, tip_link), see docs/arms.md)"
+                ) from None
         self._validate()
 
     def dynamics(
@@ -219,6 +225,187 @@ class Robot(_Block):
         )
 
     def tip_position(self, q: ArrayLike3) -> npt.NDArray[np.float64]:
+        """Forward kinematics [x, y, z] [m]."""
+        return self.dynamics(q)["position"]
+
+
+def _numbers(name: str, value: Any) -> float | tuple[float, ...]:
+    """One number, or a sequence of numbers as a tuple."""
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return float(value)
+    try:
+        return tuple(float(v) for v in np.ravel(np.asarray(value, dtype=float)))
+    except (TypeError, ValueError) as e:
+        raise TypeError(f"{name} must be a number or a sequence of numbers, got {value!r}") from e
+
+
+@dataclass(frozen=True)
+class UrdfArm(_Block):
+    """A serial arm from a URDF file (SPEC §11), usable wherever :class:`Robot` is.
+
+    The chain runs from ``base_link`` (default: the URDF's root) to ``tip_link``; revolute,
+    continuous and prismatic joints move, fixed joints merge their links into the parent
+    body. D, C q̇ + G, J, J̇q̇ and forward dynamics come from the recursive algorithms
+    (RNEA, CRBA, ABA) in Rust. The document's text is kept in the block (``urdf``), so a
+    scenario carries it to other processes (Dask) without the file.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> arm = ar.UrdfArm("examples/data/panda.urdf", "panda_hand_tcp")  # doctest: +SKIP
+        >>> arm.dof, arm.task                                               # doctest: +SKIP
+        (7, 'pose')
+    """
+
+    path: str | Path = ""
+    """The URDF file it was read from (its text is read once, into ``urdf``; kept as a str)."""
+    tip_link: str = ""
+    """The link whose origin is the tip (contact point and task frame)."""
+    _: dataclasses.KW_ONLY
+    base_link: str | None = None
+    """The chain's base link; ``None``: the URDF's root link."""
+    q0: tuple[float, ...] | None = None
+    """Initial joint positions [rad or m], one per joint; ``None``: zero, clipped into the
+    URDF's position limits."""
+    viscous_friction: float | tuple[float, ...] = 0.0
+    """Viscous friction [N·m·s/rad]: one number for every joint or one per joint."""
+    coulomb_friction: float | tuple[float, ...] = 0.0
+    """Coulomb friction [N·m]: one number for every joint or one per joint."""
+    friction_smoothing: float = 0.01
+    """ε [rad/s] of sgn(q̇) ≈ tanh(q̇/ε); ε ≤ 0 uses the exact sign."""
+    gravity: float = 9.81
+    """Gravity along -z of the base frame [m/s²]."""
+    task: Literal["position", "pose"] | None = None
+    """Task space: ``"position"`` (tip position) or ``"pose"`` (position and orientation,
+    held at its start); ``None``: position below 6 joints, pose from 6."""
+    orientation_gains: tuple[float, float] | None = None
+    """(K_P [1/s²], K_D [1/s]) of the orientation in a pose task; ``None``: the controller's
+    kp, kd (both divided by its command_divisor K_A, as in eq. 39)."""
+    damping: float = 1e-3
+    """λ of the damped pseudo-inverse J⁺ = Jᵀ(J Jᵀ + λ² I)⁻¹ of eqs. 7 and 17."""
+    urdf: str = field(default="", repr=False, compare=True)
+    """The URDF document (read from ``path`` when not given)."""
+
+    _kind: ClassVar[str] = "urdf"
+    _check: ClassVar[str] = "robot"
+
+    def __post_init__(self) -> None:
+        for name in ("path", "tip_link", "urdf"):
+            if not isinstance(getattr(self, name), str):
+                value = getattr(self, name)
+                if name == "path" and isinstance(value, Path):
+                    self._set(name, str(value))
+                    continue
+                raise TypeError(f"{name} must be a str, got {type(value).__name__}")
+        if not self.urdf:
+            if not self.path:
+                raise TypeError("UrdfArm needs a path (or the document as urdf=...)")
+            try:
+                text = Path(self.path).read_text(encoding="utf-8")
+            except OSError as e:
+                err = ParameterError(
+                    f"path = {self.path!r} is invalid: must be a readable URDF file ({e.strerror})"
+                )
+                err.field, err.value, err.allowed = "path", repr(self.path), "a readable URDF file"
+                raise err from None
+            self._set("urdf", text)
+        if not self.tip_link:
+            raise TypeError("UrdfArm needs tip_link, the link whose origin is the tip")
+        if self.q0 is not None:
+            self._set("q0", _numbers("q0", self.q0))
+            if isinstance(self.q0, float):
+                self._set("q0", (self.q0,))
+        for name in ("viscous_friction", "coulomb_friction"):
+            self._set(name, _numbers(name, getattr(self, name)))
+        if self.orientation_gains is not None:
+            gains = _numbers("orientation_gains", self.orientation_gains)
+            if isinstance(gains, float) or len(gains) != 2:
+                err = ParameterError(
+                    f"orientation_gains = {self.orientation_gains!r} is invalid: must be two "
+                    "numbers (K_P, K_D) or None"
+                )
+                err.field, err.value = "orientation_gains", repr(self.orientation_gains)
+                err.allowed = "two numbers (K_P, K_D) or None"
+                raise err
+            self._set("orientation_gains", gains)
+        if self.base_link is not None and not isinstance(self.base_link, str):
+            err = ParameterError(
+                f"base_link = {self.base_link!r} is invalid: must be a link name (str) or None"
+            )
+            err.field, err.value, err.allowed = "base_link", repr(self.base_link), "a str or None"
+            raise err
+        if self.task not in (None, "position", "pose"):
+            err = ParameterError(
+                f"task = {self.task!r} is invalid: must be one of 'position', 'pose' or None"
+            )
+            err.field, err.value, err.allowed = "task", repr(self.task), "'position', 'pose', None"
+            raise err
+        self._validate()
+
+    @functools.cached_property
+    def _info(self) -> dict[str, Any]:
+        return dict(_core.urdf_info(self._to_core()))
+
+    @property
+    def dof(self) -> int:
+        """The number of joints of the chain."""
+        return len(self._info["joint_names"])
+
+    @property
+    def joint_names(self) -> list[str]:
+        """The URDF names of the chain's joints, base to tip."""
+        return list(self._info["joint_names"])
+
+    @property
+    def position_limits(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """(lower, upper) position limits per joint [rad or m]; ±inf where none."""
+        return np.asarray(self._info["lower"]), np.asarray(self._info["upper"])
+
+    @property
+    def effort_limits(self) -> npt.NDArray[np.float64]:
+        """Effort limit per joint [N·m or N]; inf where the URDF gives none."""
+        return np.asarray(self._info["effort"])
+
+    @property
+    def initial_position(self) -> npt.NDArray[np.float64]:
+        """q0 as used: the given one, or zero clipped into the limits."""
+        return np.asarray(self._info["q0"])
+
+    @property
+    def task_kind(self) -> str:
+        """The task in use: ``"position"`` or ``"pose"``."""
+        return str(self._info["task"])
+
+    def dynamics(
+        self, q: Iterable[float], qd: Iterable[float] | None = None
+    ) -> dict[str, npt.NDArray[np.float64]]:
+        """D, C q̇, G, J (6×n, rows 0–2 linear, world-aligned at the tip), J̇q̇ (6), the tip's
+        position and rotation, and friction at (q, q̇).
+
+        Keys: ``inertia``, ``coriolis``, ``gravity``, ``jacobian``, ``jdot_qd``,
+        ``position``, ``rotation``, ``friction``.
+        """
+        q = [float(v) for v in q]
+        qd = [0.0] * len(q) if qd is None else [float(v) for v in qd]
+        return dict(_core.urdf_terms(self._to_core(), q, qd))
+
+    def forward_dynamics(
+        self,
+        q: Iterable[float],
+        qd: Iterable[float],
+        tau: Iterable[float],
+        tip_force: ArrayLike3 = (0.0, 0.0, 0.0),
+    ) -> npt.NDArray[np.float64]:
+        """q̈ (ABA): D q̈ = τ + Jᵀ F_tip − C q̇ − G − τ_f, F_tip a world force at the tip."""
+        out = _core.urdf_terms(
+            self._to_core(),
+            [float(v) for v in q],
+            [float(v) for v in qd],
+            [float(v) for v in tau],
+            list(_vec3("tip_force", tip_force)),
+        )
+        return np.asarray(out["acceleration"])
+
+    def tip_position(self, q: Iterable[float]) -> npt.NDArray[np.float64]:
         """Forward kinematics [x, y, z] [m]."""
         return self.dynamics(q)["position"]
 
@@ -322,6 +509,20 @@ class Actuator(_Block):
                 ) from e
         self._validate()
 
+    @classmethod
+    def from_urdf(
+        cls, arm: UrdfArm, rate_limit: float | None = None, delay: int = 0
+    ) -> Actuator:
+        """Torque limits from the URDF's effort limits (joints without one: unlimited,
+        written as 1e300)."""
+        if not isinstance(arm, UrdfArm):
+            raise TypeError(f"from_urdf() takes an admit_rs.UrdfArm, got {type(arm).__name__}")
+        effort = arm.effort_limits
+        limit = None if np.all(np.isinf(effort)) else tuple(
+            float(e) if np.isfinite(e) else 1e300 for e in effort
+        )
+        return cls(torque_limit=limit, rate_limit=rate_limit, delay=delay)
+
 
 @dataclass(frozen=True, kw_only=True)
 class ModelError(_Block):
@@ -388,10 +589,21 @@ class _ConstantInertiaLaw(_Controller):
     """K_P of eq. (39) [1/s²]."""
     scale_feedforward: bool = True
     """See :attr:`ComputedTorque.scale_feedforward`."""
-    inertia: float = 0.1
-    """Constant inertia D̄ = α I [kg·m²]."""
+    inertia: float | tuple[float, ...] | tuple[tuple[float, ...], ...] = 0.1
+    """Constant inertia D̄ [kg·m²]: one number (D̄ = α I, the paper's), one per joint
+    (D̄ = diag(...)) or an n×n symmetric positive definite matrix (rows), for URDF arms
+    whose inertias differ by orders of magnitude between shoulder and wrist."""
     torque_constant: float = 200.0
     """Torque constant K_t (eq. 18)."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.inertia, int | float) or isinstance(self.inertia, bool):
+            arr = np.asarray(self.inertia, dtype=float)
+            if arr.ndim == 2:
+                self._set("inertia", tuple(tuple(float(v) for v in row) for row in arr))
+            else:
+                self._set("inertia", _numbers("inertia", self.inertia))
+        super().__post_init__()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -415,6 +627,31 @@ class TimeDelayControl(_ConstantInertiaLaw):
     """Used only for the initial torque τ_{−1} = Ĝ(q0)."""
 
     _kind: ClassVar[str] = "time_delay"
+
+    @classmethod
+    def for_arm(
+        cls,
+        arm: UrdfArm,
+        *,
+        inertia_fraction: float = 0.8,
+        torque_constant: float = 50.0,
+        kp: float = 600.0,
+        kd: float = 50.0,
+        **kwargs: Any,
+    ) -> TimeDelayControl:
+        """TDC tuned for a URDF arm (docs/arms.md): D̄ = ``inertia_fraction``·D(q0) (the
+        full matrix: TDC needs the spectral radius of I − D⁻¹D̄ below 1, which a scalar D̄
+        cannot give an arm whose wrist is 100× lighter than its shoulder), a smaller K_t
+        and stiffer K_P, K_D (eq. 18's loop gain grows with the eigenvalues of J Jᵀ: 3.3–3.4
+        at q0 for the UR5's and the Panda's 6-D pose task, 0.79 for the paper's arm)."""
+        dbar = inertia_fraction * arm.dynamics(arm.initial_position)["inertia"]
+        return cls(
+            inertia=tuple(tuple(float(v) for v in row) for row in dbar),
+            torque_constant=torque_constant,
+            kp=kp,
+            kd=kd,
+            **kwargs,
+        )
 
 
 Controller: TypeAlias = ComputedTorque | ModelFree | TimeDelayControl
@@ -561,7 +798,7 @@ class Sampled(_Signal):
 Signal: TypeAlias = Step | Sine | Sampled
 
 _UNIONS: dict[str, tuple[type, ...]] = {
-    "robot": (Robot,),
+    "robot": (Robot, UrdfArm),
     "wall": (Wall, type(None)),
     "controller": (ComputedTorque, ModelFree, TimeDelayControl),
     "admittance": (AdmittanceFilter, ImpedanceReference, type(None)),
@@ -583,8 +820,8 @@ class Scenario(_Block):
         (50000.0, 400)
     """
 
-    robot: Robot = field(default_factory=Robot)
-    """The arm (plant)."""
+    robot: Robot | UrdfArm = field(default_factory=Robot)
+    """The arm (plant): the paper's three-link arm or a URDF arm."""
     wall: Wall | None = field(default_factory=Wall)
     """The environment; ``None``: free space."""
     controller: Controller = field(default_factory=TimeDelayControl)
@@ -719,6 +956,7 @@ _KINDS: dict[str, type[_Block]] = {
     "step": Step,
     "sine": Sine,
     "sampled": Sampled,
+    "urdf": UrdfArm,
 }
 _SLOTS: dict[str, tuple[type[_Block], ...]] = {
     **{k: tuple(t for t in v if issubclass(t, _Block)) for k, v in _UNIONS.items()},
@@ -828,6 +1066,7 @@ def _guard_init(cls: type[_Block]) -> None:
 
 _BLOCKS: tuple[type[_Block], ...] = (
     Robot,
+    UrdfArm,
     Wall,
     ModelError,
     ComputedTorque,

@@ -97,6 +97,10 @@ METRICS: Mapping[str, Metric] = MappingProxyType({
         Metric("torque_saturation", "fraction (0–1)", "fraction of samples with any joint's "
                "applied torque at the actuator's torque_limit (0 without a limit)", _WHOLE, "–",
                "every run"),
+        Metric("joint_limit_violation", "rad or m", "largest excursion of any joint beyond its "
+               "URDF position limit (rad for revolute joints, m for prismatic ones); 0 if none, "
+               "and 0 for arms without limits (the three-link arm)", _WHOLE, "–",
+               "every run"),
         Metric("stable", "bool", "not diverged and, for force-controlled runs, "
                f"force_oscillation ≤ {OSCILLATION_LIMIT} and contact_loss ≤ "
                f"{CONTACT_LOSS_LIMIT} (a criterion whose metric is NaN is not applied); "

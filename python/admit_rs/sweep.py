@@ -341,7 +341,9 @@ def _run_chunk(
                 pl.DataFrame(t).with_columns(pl.lit(rid, dtype=pl.Int64).alias("run_id"))
                 for rid, t in zip(run_ids, raw["traces"], strict=True)
             ]
-        ).select("run_id", *_core.TRACE_COLUMNS)
+        )
+        # The arm's own columns (q1..qn, tau1..taun): the three-link names, extended.
+        long = long.select("run_id", *[c for c in long.columns if c != "run_id"])
     return table, long
 
 

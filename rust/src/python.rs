@@ -9,20 +9,23 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::control::controller::{
-    ComputedTorqueParams, ControllerParams, ModelError, ModelFreeParams, PositionGains, TdcLaw,
-    TimeDelayParams,
+    ComputedTorqueParams, ControllerParams, ModelError, ModelFreeParams, PerJoint, PositionGains,
+    TdcLaw, TimeDelayParams,
 };
 use crate::control::filter::{
     AdmittanceFilter, AdmittanceParams, ForceControlParams, ImpedanceParams,
 };
 use crate::control::reference::Signal;
 use crate::error::Error;
+use crate::robot::chain::arm::{chain_info, chain_terms};
+use crate::robot::chain::urdf::MAX_JOINTS;
+use crate::robot::chain::{TaskKind, UrdfArmParams};
 use crate::robot::three_link::{Mat3, Vec3};
 use crate::robot::{MassModel, RobotModel, RobotParams, ThreeLinkArm};
+use crate::sim::dispatch::AnySimulation;
 use crate::sim::metrics::{Metrics, METRIC_NAMES};
-use crate::sim::simulation::{
-    Outcome, RunResult, ScenarioConfig, ThreeLinkSimulation, MAX_SUBSTEPS,
-};
+use crate::sim::scenario::RobotConfig;
+use crate::sim::simulation::{Outcome, RunResult, ScenarioConfig, MAX_SUBSTEPS};
 use crate::sim::trace::{trace_columns, Trace};
 use crate::world::actuator::ActuatorParams;
 use crate::world::environment::{ContactModel, WallParams};
@@ -185,6 +188,73 @@ fn type_name(obj: &Bound<'_, PyAny>) -> String {
         .map_or_else(|_| "?".to_owned(), |n| n.to_string())
 }
 
+/// The robot block: `kind = "urdf"` is a URDF chain, anything else the three-link arm.
+fn robot_config_from(b: &Block) -> PyResult<RobotConfig> {
+    let is_urdf = match b.dict.get_item("kind")? {
+        Some(k) => k.extract::<String>().map(|k| k == "urdf").unwrap_or(false),
+        None => false,
+    };
+    Ok(if is_urdf {
+        RobotConfig::Urdf(urdf_arm_from(b)?)
+    } else {
+        RobotConfig::ThreeLink(robot_from(b)?)
+    })
+}
+
+/// One number or a sequence of numbers, as a list.
+fn numbers(b: &Block, key: &str) -> PyResult<Vec<f64>> {
+    let v = b.item(key)?;
+    match v.extract::<f64>() {
+        Ok(x) => Ok(vec![x]),
+        Err(_) => b.vec(key),
+    }
+}
+
+fn urdf_arm_from(b: &Block) -> PyResult<UrdfArmParams> {
+    let q0 = b.item("q0")?;
+    Ok(UrdfArmParams {
+        urdf: b.string("urdf")?,
+        tip_link: b.string("tip_link")?,
+        base_link: b.typed("base_link", "a str or None")?,
+        q0: if q0.is_none() {
+            None
+        } else {
+            Some(b.vec("q0")?)
+        },
+        viscous_friction: numbers(b, "viscous_friction")?,
+        coulomb_friction: numbers(b, "coulomb_friction")?,
+        friction_smoothing: b.f64("friction_smoothing")?,
+        gravity: b.f64("gravity")?,
+        orientation_gains: {
+            let g = b.item("orientation_gains")?;
+            if g.is_none() {
+                None
+            } else {
+                let v = b.vec("orientation_gains")?;
+                match v.as_slice() {
+                    [kp, kd] => Some((*kp, *kd)),
+                    _ => {
+                        return Err(parameter_error(
+                            b.dict.py(),
+                            &b.field_path("orientation_gains"),
+                            &format!("{v:?}"),
+                            "two numbers (K_P, K_D) or None",
+                        ))
+                    }
+                }
+            }
+        },
+        damping: b.f64("damping")?,
+        task: match b.item("task")?.is_none() {
+            true => None,
+            false => Some(match b.choice("task", &["position", "pose"])?.as_str() {
+                "position" => TaskKind::Position,
+                _ => TaskKind::Pose,
+            }),
+        },
+    })
+}
+
 fn robot_from(b: &Block) -> PyResult<RobotParams> {
     Ok(RobotParams {
         lengths: b.vec3("lengths")?,
@@ -261,6 +331,27 @@ fn model_from(b: &Block) -> PyResult<ModelError> {
     })
 }
 
+/// `inertia`: one number (D̄ = α I), one per joint (D̄ = diag) or rows of a matrix.
+fn inertia_from(b: &Block) -> PyResult<(f64, Option<PerJoint>)> {
+    let item = b.item("inertia")?;
+    let v = match item.extract::<Vec<Vec<f64>>>() {
+        Ok(rows) if !rows.is_empty() && rows.iter().all(|r| r.len() == rows.len()) => rows.concat(),
+        _ => numbers(b, "inertia")?,
+    };
+    match v.as_slice() {
+        [one] => Ok((*one, None)),
+        many => match PerJoint::from_slice(many) {
+            Some(p) if !many.is_empty() => Ok((many[0], Some(p))),
+            _ => Err(parameter_error(
+                b.dict.py(),
+                &b.field_path("inertia"),
+                &format!("{many:?}"),
+                &format!("one number, one per joint or an n×n matrix (n ≤ {MAX_JOINTS})"),
+            )),
+        },
+    }
+}
+
 fn controller_from(b: &Block) -> PyResult<ControllerParams> {
     let kind = b.choice("kind", &["computed_torque", "model_free", "time_delay"])?;
     Ok(match kind.as_str() {
@@ -271,12 +362,14 @@ fn controller_from(b: &Block) -> PyResult<ControllerParams> {
         }),
         "model_free" => ControllerParams::ModelFree(ModelFreeParams {
             gains: gains_from(b)?,
-            inertia: b.f64("inertia")?,
+            inertia: inertia_from(b)?.0,
+            joint_inertia: inertia_from(b)?.1,
             torque_constant: b.f64("torque_constant")?,
         }),
         _ => ControllerParams::TimeDelay(TimeDelayParams {
             gains: gains_from(b)?,
-            inertia: b.f64("inertia")?,
+            inertia: inertia_from(b)?.0,
+            joint_inertia: inertia_from(b)?.1,
             torque_constant: b.f64("torque_constant")?,
             law: match b
                 .choice("law", &["jacobian_transpose", "inverse_jacobian"])?
@@ -355,7 +448,7 @@ fn scenario_from(obj: &Bound<'_, PyAny>) -> PyResult<ScenarioConfig> {
         ));
     }
     let config = ScenarioConfig {
-        robot: robot_from(&b.sub("robot")?)?,
+        robot: robot_config_from(&b.sub("robot")?)?,
         wall: b.optional_sub("wall")?.map(|w| wall_from(&w)).transpose()?,
         controller: controller_from(&b.sub("controller")?)?,
         admittance: b
@@ -483,7 +576,7 @@ fn check_block(kind: &str, params: &Bound<'_, PyAny>) -> PyResult<()> {
     let py = params.py();
     let b = Block::new(params, "")?;
     let checked = match kind {
-        "robot" => robot_from(&b)?.validate(),
+        "robot" => robot_config_from(&b)?.validate().map(|_| ()),
         "wall" => wall_from(&b)?.validate(),
         "controller" => controller_from(&b)?.validate(),
         // The discretisation is checked with the scenario's period, in `validate`.
@@ -492,7 +585,13 @@ fn check_block(kind: &str, params: &Bound<'_, PyAny>) -> PyResult<()> {
             ForceControlParams::Impedance(p) => p.validate(),
         },
         "sensor" => sensor_from(&b)?.validate(),
-        "actuator" => actuator_from(&b)?.validate(3),
+        // On its own an actuator may serve any arm: one limit, or one per joint of a 1- to
+        // 8-joint arm; the scenario checks the count against its arm.
+        "actuator" => {
+            let a = actuator_from(&b)?;
+            let n = a.torque_limit.as_ref().map_or(1, Vec::len);
+            a.validate(if (1..=MAX_JOINTS).contains(&n) { n } else { 3 })
+        }
         "signal" => signal_from(&b)?.validate(),
         "model" => model_from(&b)?.validate(),
         other => {
@@ -550,7 +649,7 @@ const STEP_CHUNK: usize = 1000;
 /// The loop of one scenario, stepped from Python (`admit_rs.Simulation`).
 #[pyclass(module = "admit_rs._core", name = "Stepper")]
 struct Stepper {
-    sim: ThreeLinkSimulation,
+    sim: AnySimulation,
 }
 
 #[pymethods]
@@ -558,7 +657,7 @@ impl Stepper {
     #[new]
     fn new(scenario: &Bound<'_, PyAny>) -> PyResult<Self> {
         let config = scenario_from(scenario)?;
-        let sim = ThreeLinkSimulation::new(&config).map_err(|e| to_py_err(scenario.py(), e))?;
+        let sim = AnySimulation::new(&config).map_err(|e| to_py_err(scenario.py(), e))?;
         Ok(Self { sim })
     }
 
@@ -787,6 +886,64 @@ fn forward_dynamics<'py>(
     Ok(vector(robot.py(), &qdd))
 }
 
+fn urdf_params(robot: &Bound<'_, PyAny>) -> PyResult<UrdfArmParams> {
+    urdf_arm_from(&Block::new(robot, "robot")?)
+}
+
+fn rows<'py>(py: Python<'py>, flat: &[f64], cols: usize) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let rows: Vec<Vec<f64>> = flat.chunks(cols).map(<[f64]>::to_vec).collect();
+    PyArray2::from_vec2(py, &rows).map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
+/// A URDF arm's D, C q̇, G, J (6×n), J̇q̇ (6), tip position and rotation, friction at (q, q̇);
+/// with `tau` also q̈ (ABA) for that torque and the world force `tip_force` on the tip.
+#[pyfunction]
+#[pyo3(signature = (robot, q, qd, tau=None, tip_force=[0.0; 3]))]
+fn urdf_terms<'py>(
+    robot: &Bound<'py, PyAny>,
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    tau: Option<Vec<f64>>,
+    tip_force: [f64; 3],
+) -> PyResult<Bound<'py, PyDict>> {
+    let py = robot.py();
+    let p = urdf_params(robot)?;
+    let forward = tau.as_deref().map(|t| (t, tip_force));
+    let t = py
+        .detach(|| chain_terms(&p, &q, &qd, forward))
+        .map_err(|e| to_py_err(py, e.within("robot")))?;
+    let n = t.joints;
+    let out = PyDict::new(py);
+    out.set_item("inertia", rows(py, &t.inertia, n)?)?;
+    out.set_item("coriolis", PyArray1::from_vec(py, t.coriolis))?;
+    out.set_item("gravity", PyArray1::from_vec(py, t.gravity))?;
+    out.set_item("jacobian", rows(py, &t.jacobian, n)?)?;
+    out.set_item("jdot_qd", PyArray1::from_vec(py, t.jdot_qd))?;
+    out.set_item("position", PyArray1::from_vec(py, t.position))?;
+    out.set_item("rotation", rows(py, &t.rotation, 3)?)?;
+    out.set_item("friction", PyArray1::from_vec(py, t.friction))?;
+    if let Some(a) = t.acceleration {
+        out.set_item("acceleration", PyArray1::from_vec(py, a))?;
+    }
+    Ok(out)
+}
+
+/// A URDF arm's joint names, position and effort limits, default q0 and task.
+#[pyfunction]
+fn urdf_info<'py>(robot: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyDict>> {
+    let py = robot.py();
+    let p = urdf_params(robot)?;
+    let i = chain_info(&p).map_err(|e| to_py_err(py, e.within("robot")))?;
+    Ok(py_dict!(py, {
+        "joint_names": i.joint_names,
+        "lower": i.lower,
+        "upper": i.upper,
+        "effort": i.effort,
+        "q0": i.q0,
+        "task": match i.task { TaskKind::Position => "position", TaskKind::Pose => "pose" },
+    }))
+}
+
 fn checked_admittance(params: &Bound<'_, PyAny>, period: f64) -> PyResult<AdmittanceParams> {
     let py = params.py();
     let p = admittance_params_from(&Block::new(params, "admittance")?)?;
@@ -866,7 +1023,7 @@ fn linearize<'py>(scenario: &Bound<'py, PyAny>, at: Option<f64>) -> PyResult<Bou
     let py = scenario.py();
     let config = scenario_from(scenario)?;
     let lin = py
-        .detach(move || crate::analysis::linearize(&config, at, ThreeLinkSimulation::new))
+        .detach(move || crate::analysis::linearize_scenario(&config, at))
         .map_err(|e| analysis_err(py, e))?;
     let b = nalgebra::DMatrix::from_column_slice(lin.b.len(), 1, lin.b.as_slice());
     let d = nalgebra::DMatrix::from_column_slice(lin.d.len(), 1, lin.d.as_slice());
@@ -902,9 +1059,7 @@ fn predict_batch<'py>(
         .iter()
         .map(|s| scenario_from(&s))
         .collect::<PyResult<Vec<_>>>()?;
-    let results = py.detach(move || {
-        crate::analysis::predict_batch(&configs, threads, ThreeLinkSimulation::new)
-    });
+    let results = py.detach(move || crate::analysis::predict_scenarios(&configs, threads));
     let names = crate::analysis::PREDICTION_NAMES;
     let mut columns: Vec<Vec<f64>> = vec![Vec::with_capacity(results.len()); names.len()];
     let errors = PyList::empty(py);
@@ -950,6 +1105,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate_batch, m)?)?;
     m.add_function(wrap_pyfunction!(robot_terms, m)?)?;
     m.add_function(wrap_pyfunction!(forward_dynamics, m)?)?;
+    m.add_function(wrap_pyfunction!(urdf_terms, m)?)?;
+    m.add_function(wrap_pyfunction!(urdf_info, m)?)?;
     m.add_function(wrap_pyfunction!(filter_discretize, m)?)?;
     m.add_function(wrap_pyfunction!(filter_response, m)?)?;
     m.add_function(wrap_pyfunction!(linearize, m)?)?;

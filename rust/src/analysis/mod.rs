@@ -8,3 +8,50 @@ pub mod stability;
 
 pub use linearize::{linearize, AnalysisError, AnalysisResult, Linearization};
 pub use stability::{predict, predict_batch, predict_from, Prediction, PREDICTION_NAMES};
+
+use crate::sim::dispatch::{visit_arm, ArmVisitor};
+use crate::sim::scenario::ScenarioConfig;
+use crate::sim::simulation::Simulation;
+
+/// [`linearize`] for the scenario's own arm, whichever it is.
+pub fn linearize_scenario(
+    config: &ScenarioConfig,
+    at: Option<f64>,
+) -> AnalysisResult<Linearization> {
+    struct Visit<'a>(&'a ScenarioConfig, Option<f64>);
+    impl ArmVisitor for Visit<'_> {
+        type Output = AnalysisResult<Linearization>;
+        fn visit<R: crate::robot::RobotModel<N>, const N: usize>(
+            self,
+            build: &(dyn Fn(&ScenarioConfig) -> crate::error::Result<Simulation<R, N>> + Sync),
+        ) -> Self::Output {
+            linearize(self.0, self.1, build)
+        }
+    }
+    visit_arm(&config.robot, Visit(config, at))?
+}
+
+/// [`predict_batch`] for scenarios that share the first one's kind of arm (a stability map
+/// varies parameters, not the arm); a scenario with another arm gets an error of its own.
+pub fn predict_scenarios(
+    configs: &[ScenarioConfig],
+    threads: Option<usize>,
+) -> Vec<AnalysisResult<Prediction>> {
+    struct Visit<'a>(&'a [ScenarioConfig], Option<usize>);
+    impl ArmVisitor for Visit<'_> {
+        type Output = Vec<AnalysisResult<Prediction>>;
+        fn visit<R: crate::robot::RobotModel<N>, const N: usize>(
+            self,
+            build: &(dyn Fn(&ScenarioConfig) -> crate::error::Result<Simulation<R, N>> + Sync),
+        ) -> Self::Output {
+            predict_batch(self.0, self.1, build)
+        }
+    }
+    let Some(first) = configs.first() else {
+        return Vec::new();
+    };
+    match visit_arm(&first.robot, Visit(configs, threads)) {
+        Ok(predictions) => predictions,
+        Err(e) => configs.iter().map(|_| Err(e.clone().into())).collect(),
+    }
+}

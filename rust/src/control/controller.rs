@@ -2,11 +2,13 @@
 //! delay estimate) and time-delayed control (eqs. 17 and 18), all driven by the Cartesian
 //! command V of eq. (39). Each is a state machine with `reset()` and `step()`.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, Matrix6, SMatrix, SVector, Vector3};
 
 use crate::control::task::Desired;
 use crate::error::{check, Result};
-use crate::robot::{Jacobian, JointVector, Kinematics, RobotModel, TaskVector};
+use crate::robot::{
+    Jacobian, JointMatrix, JointVector, Kinematics, RobotModel, TaskOptions, TaskVector,
+};
 
 /// Gains of eq. (39): V = K_A⁻¹ (Ẍ_d + K_D (Ẋ_d − Ẋ) + K_P (X_d − X)), each a scalar times I.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -115,6 +117,90 @@ impl Default for ComputedTorqueParams {
     }
 }
 
+/// The most joints a per-joint parameter can describe.
+pub const MAX_JOINTS: usize = 8;
+
+/// A constant inertia D̄ given per joint: n values (D̄ = diag) or n² values (a full
+/// symmetric positive definite D̄, row-major), stored inline so parameter blocks stay `Copy`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PerJoint {
+    values: [f64; MAX_JOINTS * MAX_JOINTS],
+    len: usize,
+}
+
+impl PerJoint {
+    /// `None` when `values` has more than 64 entries.
+    pub fn from_slice(values: &[f64]) -> Option<Self> {
+        (values.len() <= MAX_JOINTS * MAX_JOINTS).then(|| {
+            let mut v = [0.0; MAX_JOINTS * MAX_JOINTS];
+            v[..values.len()].copy_from_slice(values);
+            Self {
+                values: v,
+                len: values.len(),
+            }
+        })
+    }
+
+    pub fn as_slice(&self) -> &[f64] {
+        &self.values[..self.len]
+    }
+
+    /// Whether it describes an `n`-joint arm (n values or n² values).
+    pub fn fits(&self, n: usize) -> bool {
+        self.len == n || self.len == n * n
+    }
+
+    /// D̄ as a matrix (the caller has checked `fits(N)`).
+    pub fn matrix<const N: usize>(&self) -> JointMatrix<N> {
+        if self.len == N {
+            JointMatrix::<N>::from_diagonal(&JointVector::<N>::from_fn(|i, _| self.values[i]))
+        } else {
+            JointMatrix::<N>::from_fn(|i, j| self.values[i * N + j])
+        }
+    }
+}
+
+/// D̄ of eqs. 17/18: `inertia`·I, or the per-joint D̄ when given (a URDF arm whose wrist
+/// inertias are far below its shoulder's needs one: TDC is stable only while the spectral
+/// radius of I − D⁻¹D̄ stays below 1).
+fn constant_inertia<const N: usize>(inertia: f64, joint: &Option<PerJoint>) -> JointMatrix<N> {
+    joint.map_or_else(
+        || JointMatrix::<N>::identity() * inertia,
+        |p| p.matrix::<N>(),
+    )
+}
+
+fn check_joint_inertia(p: &Option<PerJoint>) -> Result<()> {
+    if let Some(p) = p {
+        for (i, v) in p.as_slice().iter().enumerate() {
+            check::finite(&format!("inertia[{i}]"), *v)?;
+        }
+    }
+    Ok(())
+}
+
+/// Checks a per-joint D̄ against the arm's joint count: n positive values, or an n×n
+/// symmetric positive definite matrix.
+pub fn check_inertia_for<const N: usize>(p: &PerJoint) -> Result<()> {
+    let shown = || format!("{:?}", p.as_slice());
+    if !p.fits(N) {
+        return Err(crate::error::Error::parameter(
+            "inertia",
+            shown(),
+            &format!("one number, {N} numbers (diagonal) or {N}x{N} (a matrix)"),
+        ));
+    }
+    let m = p.matrix::<N>();
+    if (m - m.transpose()).abs().max() > 1e-12 * m.abs().max() || m.cholesky().is_none() {
+        return Err(crate::error::Error::parameter(
+            "inertia",
+            shown(),
+            "positive values, or a symmetric positive definite matrix",
+        ));
+    }
+    Ok(())
+}
+
 /// Model-free ("nonmodel") control: eq. (18) without the delay estimate, τ = D̄ K_t Jᵀ V.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ModelFreeParams {
@@ -122,6 +208,8 @@ pub struct ModelFreeParams {
     pub gains: PositionGains,
     /// Constant inertia D̄ = α I [kg·m²]. Default 0.1.
     pub inertia: f64,
+    /// D̄ = diag(values), one per joint, instead of `inertia`·I. Default `None`.
+    pub joint_inertia: Option<PerJoint>,
     /// Torque constant K_t. Default 200.
     pub torque_constant: f64,
 }
@@ -131,6 +219,7 @@ impl Default for ModelFreeParams {
         Self {
             gains: PositionGains::new(5.0, 20.0, 100.0),
             inertia: 0.1,
+            joint_inertia: None,
             torque_constant: 200.0,
         }
     }
@@ -143,6 +232,8 @@ pub struct TimeDelayParams {
     pub gains: PositionGains,
     /// Constant inertia D̄ [kg·m²]. Default 0.1.
     pub inertia: f64,
+    /// D̄ = diag(values), one per joint, instead of `inertia`·I. Default `None`.
+    pub joint_inertia: Option<PerJoint>,
     /// Torque constant K_t (eq. 18 only). Default 200.
     pub torque_constant: f64,
     pub law: TdcLaw,
@@ -156,6 +247,7 @@ impl Default for TimeDelayParams {
         Self {
             gains: mf.gains,
             inertia: mf.inertia,
+            joint_inertia: None,
             torque_constant: mf.torque_constant,
             law: TdcLaw::JacobianTranspose,
             model: ModelError::default(),
@@ -181,11 +273,13 @@ impl ControllerParams {
             ControllerParams::ModelFree(p) => {
                 gains(&p.gains)?;
                 check::positive("inertia", p.inertia)?;
+                check_joint_inertia(&p.joint_inertia)?;
                 check::positive("torque_constant", p.torque_constant)
             }
             ControllerParams::TimeDelay(p) => {
                 gains(&p.gains)?;
                 check::positive("inertia", p.inertia)?;
+                check_joint_inertia(&p.joint_inertia)?;
                 check::positive("torque_constant", p.torque_constant)?;
                 p.model.validate().map_err(|e| e.within("model"))
             }
@@ -204,6 +298,38 @@ pub struct Measurement<'a, const N: usize> {
     pub force: f64,
     /// The wall normal n (the force direction).
     pub normal: &'a TaskVector,
+    /// A pose task's orientation terms (SPEC §11); `None` for a position task.
+    pub orientation: Option<OrientationTask<N>>,
+    /// q0 of the null-space posture term, when the arm has more joints than the task has
+    /// dimensions; `None` otherwise.
+    pub posture: Option<&'a JointVector<N>>,
+    /// J⁺'s damping and the orientation gains (general task path only).
+    pub options: TaskOptions,
+}
+
+/// The orientation part of a pose task: the error e_o = log(R0 Rᵀ) as a rotation vector
+/// (the orientation is held at its start R0), the angular Jacobian and its J̇q̇.
+#[derive(Debug, Clone, Copy)]
+pub struct OrientationTask<const N: usize> {
+    pub error: TaskVector,
+    pub jacobian: Jacobian<N>,
+    pub jdot_qd: TaskVector,
+}
+
+/// The damped pseudo-inverse J⁺ = Jᵀ (J Jᵀ + λ² I)⁻¹ of a 6×N task Jacobian (SPEC §11).
+#[inline]
+fn damped_pseudo_inverse<const N: usize>(
+    j: &SMatrix<f64, 6, N>,
+    damping: f64,
+) -> std::result::Result<SMatrix<f64, N, 6>, ControlFailure> {
+    let a = j * j.transpose() + Matrix6::identity() * (damping * damping);
+    let chol = a.cholesky().ok_or(ControlFailure::SingularJacobian)?;
+    let pinv = chol.solve(j).transpose();
+    if pinv.iter().all(|v| v.is_finite()) {
+        Ok(pinv)
+    } else {
+        Err(ControlFailure::SingularJacobian)
+    }
 }
 
 /// Why a control law could not produce a torque.
@@ -293,6 +419,15 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
         }
     }
 
+    /// D̄ per joint, when given.
+    pub fn joint_inertia(&self) -> Option<&PerJoint> {
+        match self {
+            Controller::ComputedTorque { .. } => None,
+            Controller::ModelFree(p) => p.joint_inertia.as_ref(),
+            Controller::TimeDelay { params, .. } => params.joint_inertia.as_ref(),
+        }
+    }
+
     pub fn gains(&self) -> &PositionGains {
         match self {
             Controller::ComputedTorque { params, .. } => &params.gains,
@@ -324,6 +459,15 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
         let k = m.kinematics;
         let velocity = k.jacobian * m.qd;
         let v = self.gains().command(desired, &k.position, &velocity);
+        // The paper's square 3×3 path (J⁻¹) stays as it was; every other task goes through
+        // the general one (J⁺ with the arm's damping).
+        if N != 3
+            || m.orientation.is_some()
+            || m.posture.is_some()
+            || self.joint_inertia().is_some()
+        {
+            return self.step_task(m, &v);
+        }
         match self {
             Controller::ComputedTorque { params, model } => {
                 // eq. (7) mapped to joint space with eq. (4).
@@ -356,6 +500,80 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
                     TdcLaw::InverseJacobian => {
                         solve_jacobian(&k.jacobian, &(v - k.jdot_qd))? * params.inertia
                     }
+                };
+                let tau = u + h_hat;
+                *tau_prev = tau;
+                *qd_prev = Some(*m.qd);
+                Ok(tau)
+            }
+        }
+    }
+
+    /// The laws over a general task (SPEC §11): the tip position, with the orientation for
+    /// a pose task (6-D: rows 0–2 linear, 3–5 angular; the angular rows are zero for a
+    /// position task, which the damped J⁺ then ignores), and a null-space posture term
+    /// a_n = (I − J⁺J) K_A⁻¹ (K_P (q0 − q) − K_D q̇) when the arm is redundant. Eq. 7 and
+    /// eq. 17 use J⁺ (V − J̇q̇) + a_n; eq. 18 and model-free use K_t Jᵀ V plus a_n, both
+    /// times D̄.
+    fn step_task(
+        &mut self,
+        m: &Measurement<N>,
+        v_position: &TaskVector,
+    ) -> std::result::Result<JointVector<N>, ControlFailure> {
+        let k = m.kinematics;
+        let gains = *self.gains();
+        let mut j = SMatrix::<f64, 6, N>::zeros();
+        let mut v = SVector::<f64, 6>::zeros();
+        let mut jdot_qd = SVector::<f64, 6>::zeros();
+        j.fixed_rows_mut::<3>(0).copy_from(&k.jacobian);
+        v.fixed_rows_mut::<3>(0).copy_from(v_position);
+        jdot_qd.fixed_rows_mut::<3>(0).copy_from(&k.jdot_qd);
+        if let Some(o) = &m.orientation {
+            // eq. (39) for the orientation, held at R0: no feed-forward, Ẋ_d = 0.
+            let omega = o.jacobian * m.qd;
+            let (kp, kd) = m.options.orientation_gains.unwrap_or((gains.kp, gains.kd));
+            let v_o = (o.error * kp - omega * kd) / gains.ka;
+            j.fixed_rows_mut::<3>(3).copy_from(&o.jacobian);
+            v.fixed_rows_mut::<3>(3).copy_from(&v_o);
+            jdot_qd.fixed_rows_mut::<3>(3).copy_from(&o.jdot_qd);
+        }
+        let pinv = damped_pseudo_inverse(&j, m.options.damping)?;
+        let null = match m.posture {
+            Some(q0) => {
+                let projector = JointMatrix::<N>::identity() - pinv * j;
+                projector * ((q0 - m.q) * gains.kp - m.qd * gains.kd) / gains.ka
+            }
+            None => JointVector::<N>::zeros(),
+        };
+        let inverse = || pinv * (v - jdot_qd) + null;
+        match self {
+            Controller::ComputedTorque { params, model } => {
+                let d = model.dynamics(&model.configure(m.q), m.qd);
+                let mut tau = d.inertia * inverse() + d.coriolis + d.gravity + model.friction(m.qd);
+                if params.contact_compensation {
+                    tau += k.jacobian.transpose() * m.normal * m.force;
+                }
+                Ok(tau)
+            }
+            Controller::ModelFree(p) => {
+                let dbar = constant_inertia::<N>(p.inertia, &p.joint_inertia);
+                Ok(dbar * (j.transpose() * v * p.torque_constant + null))
+            }
+            Controller::TimeDelay {
+                params,
+                period,
+                tau_prev,
+                qd_prev,
+                ..
+            } => {
+                let qdd_prev = qd_prev.map_or_else(JointVector::zeros, |p| (m.qd - p) / *period);
+                let dbar = constant_inertia::<N>(params.inertia, &params.joint_inertia);
+                let h_hat = *tau_prev - dbar * qdd_prev;
+                let u = match params.law {
+                    TdcLaw::JacobianTranspose => {
+                        dbar * (j.transpose() * v * params.torque_constant + null)
+                    }
+                    TdcLaw::InverseJacobian => dbar * inverse(),
                 };
                 let tau = u + h_hat;
                 *tau_prev = tau;
@@ -442,6 +660,9 @@ mod tests {
             kinematics: k,
             force: 0.0,
             normal: &X,
+            orientation: None,
+            posture: None,
+            options: TaskOptions::default(),
         }
     }
 

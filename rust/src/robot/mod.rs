@@ -8,6 +8,7 @@
 
 use nalgebra::{DMatrix, DVector, SMatrix, SVector, Vector3};
 
+pub mod chain;
 pub mod three_link;
 
 pub use three_link::{MassModel, RobotParams, ThreeLinkArm};
@@ -25,6 +26,32 @@ pub type Jacobian<const N: usize> = SMatrix<f64, 3, N>;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Kinematics<const N: usize> {
     pub position: TaskVector,
+    pub jacobian: Jacobian<N>,
+    pub jdot_qd: TaskVector,
+}
+
+/// How a general arm's task is solved (SPEC §11): the damping λ of J⁺ = Jᵀ(J Jᵀ + λ² I)⁻¹
+/// and, for a pose task, (K_P, K_D) of the orientation (`None`: the controller's).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TaskOptions {
+    pub orientation_gains: Option<(f64, f64)>,
+    pub damping: f64,
+}
+
+impl Default for TaskOptions {
+    fn default() -> Self {
+        Self {
+            orientation_gains: None,
+            damping: 1e-3,
+        }
+    }
+}
+
+/// The tip's orientation terms for a pose task (SPEC §11): rotation R (tip axes in the
+/// world), the angular Jacobian (3×N, world frame) and its J̇q̇ (angular acceleration at q̈ = 0).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Orientation<const N: usize> {
+    pub rotation: nalgebra::Matrix3<f64>,
     pub jacobian: Jacobian<N>,
     pub jdot_qd: TaskVector,
 }
@@ -123,4 +150,21 @@ pub trait RobotModel<const N: usize>: Clone + Send + Sync {
 
     /// The initial joint positions q0.
     fn initial_position(&self) -> JointVector<N>;
+
+    /// The orientation terms when the arm's task includes the tip orientation (SPEC §11
+    /// `task = "pose"`); `None` for a position task (the three-link arm).
+    #[inline(always)]
+    fn orientation(&self, _c: &Self::Config, _qd: &JointVector<N>) -> Option<Orientation<N>> {
+        None
+    }
+
+    /// J⁺'s damping and the orientation gains.
+    fn task_options(&self) -> TaskOptions {
+        TaskOptions::default()
+    }
+
+    /// Joint position limits (lower, upper), if the arm has any.
+    fn position_limits(&self) -> Option<(JointVector<N>, JointVector<N>)> {
+        None
+    }
 }

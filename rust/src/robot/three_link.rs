@@ -453,7 +453,7 @@ impl ThreeLinkArm {
 /// tanh(x) as ±(1 − e^(−2|x|)) / (1 + e^(−2|x|)): one `exp`, never overflows, within
 /// 2.3e-16 of `f64::tanh` (tested) and about twice as fast. It runs 3 times per RK4 stage.
 #[inline(always)]
-fn smooth_sign(x: f64) -> f64 {
+pub(crate) fn smooth_sign(x: f64) -> f64 {
     // A joint at rest (the yaw joint in every planar task) skips the call.
     if x == 0.0 {
         return x;

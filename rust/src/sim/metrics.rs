@@ -51,6 +51,9 @@ pub struct Metrics {
     pub force_oscillation: f64,
     /// Fraction of samples with any joint's applied torque at its limit (0 without limits).
     pub torque_saturation: f64,
+    /// Largest excursion of any joint beyond its URDF position limit [rad or m]; 0 if none
+    /// (and for arms without limits, such as the three-link arm).
+    pub joint_limit_violation: f64,
     /// The run stopped early (non-finite state or the velocity limit).
     pub diverged: bool,
     /// Not diverged and, for force-controlled runs, `force_oscillation` ≤ 0.1 and
@@ -59,7 +62,7 @@ pub struct Metrics {
 }
 
 /// Metric names in the order of `Metrics::values`.
-pub const METRIC_NAMES: [&str; 13] = [
+pub const METRIC_NAMES: [&str; 14] = [
     "force_ss_error",
     "force_rms_error",
     "force_peak",
@@ -73,6 +76,7 @@ pub const METRIC_NAMES: [&str; 13] = [
     "contact_loss",
     "force_oscillation",
     "torque_saturation",
+    "joint_limit_violation",
 ];
 
 impl Metrics {
@@ -91,6 +95,7 @@ impl Metrics {
             self.contact_loss,
             self.force_oscillation,
             self.torque_saturation,
+            self.joint_limit_violation,
         ]
     }
 
@@ -215,6 +220,8 @@ pub struct OnlineMetrics {
     normal: TaskVector,
     tangent: TaskVector,
     torque_limit: Option<Vec<f64>>,
+    /// The arm's joint position limits (lower, upper), when it has them.
+    position_limits: Option<(Vec<f64>, Vec<f64>)>,
     /// First sample of the last 2 s.
     steady_start: usize,
     /// First sample after the transient (t ≥ 1 s).
@@ -225,6 +232,8 @@ pub struct OnlineMetrics {
     samples: usize,
     force_peak: f64,
     saturated: usize,
+    /// Largest excursion of a joint beyond its limits so far.
+    limit_excursion: f64,
     along_n: SumOfSquares,
     along_t: SumOfSquares,
     steady_error_sum: f64,
@@ -259,12 +268,14 @@ impl OnlineMetrics {
             normal: frame.normal,
             tangent: frame.tangent,
             torque_limit: config.actuator.torque_limit.clone(),
+            position_limits: None,
             steady_start,
             late_start,
             window_start: steady_start.max(late_start),
             samples: 0,
             force_peak: f64::NEG_INFINITY,
             saturated: 0,
+            limit_excursion: 0.0,
             along_n: SumOfSquares::ZERO,
             along_t: SumOfSquares::ZERO,
             steady_error_sum: 0.0,
@@ -277,11 +288,17 @@ impl OnlineMetrics {
         }
     }
 
+    /// Reports `joint_limit_violation` against these joint position limits.
+    pub fn set_position_limits(&mut self, lower: &[f64], upper: &[f64]) {
+        self.position_limits = Some((lower.to_vec(), upper.to_vec()));
+    }
+
     /// Back to no samples.
     pub fn reset(&mut self) {
         self.samples = 0;
         self.force_peak = f64::NEG_INFINITY;
         self.saturated = 0;
+        self.limit_excursion = 0.0;
         self.along_n = SumOfSquares::ZERO;
         self.along_t = SumOfSquares::ZERO;
         self.steady_error_sum = 0.0;
@@ -304,6 +321,12 @@ impl OnlineMetrics {
         let k = self.samples;
         self.samples += 1;
         self.saturated += usize::from(self.any_saturated(row.tau));
+        if let Some((lower, upper)) = &self.position_limits {
+            for ((q, lo), hi) in row.q.iter().zip(lower).zip(upper) {
+                let beyond = (lo - q).max(q - hi);
+                self.limit_excursion = self.limit_excursion.max(beyond);
+            }
+        }
         let [xr, yr, zr] = row.reference;
         let [x, y, z] = row.position;
         let e = TaskVector::new(xr - x, yr - y, zr - z);
@@ -417,6 +440,7 @@ impl OnlineMetrics {
                 (Some(_), 0) => nan,
                 (Some(_), _) => self.saturated as f64 / len as f64,
             },
+            joint_limit_violation: self.limit_excursion,
             diverged,
             stable: !diverged,
         };

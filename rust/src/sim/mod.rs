@@ -5,6 +5,7 @@
 //! reads them; `simulation` drives `plant` and records into `trace`, then calls `metrics`;
 //! `sweep` runs many `simulation`s.
 
+pub mod dispatch;
 pub mod metrics;
 pub mod outcome;
 pub mod plant;

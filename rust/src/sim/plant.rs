@@ -82,6 +82,12 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
         self.arm.kinematics(&self.config, &self.state.qd)
     }
 
+    /// The tip's orientation terms, for arms with a pose task.
+    #[inline(always)]
+    pub fn orientation(&self) -> Option<crate::robot::Orientation<N>> {
+        self.arm.orientation(&self.config, &self.state.qd)
+    }
+
     /// The true contact force along n at tip position `position` and velocity `velocity`.
     #[inline]
     pub fn contact_force(&self, position: &TaskVector, velocity: &TaskVector) -> f64 {

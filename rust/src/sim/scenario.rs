@@ -4,6 +4,7 @@ use crate::control::controller::ControllerParams;
 use crate::control::filter::ForceControlParams;
 use crate::control::reference::Signal;
 use crate::error::{check, Error, Result};
+use crate::robot::chain::UrdfArmParams;
 use crate::robot::RobotParams;
 use crate::world::actuator::ActuatorParams;
 use crate::world::environment::WallParams;
@@ -14,10 +15,47 @@ pub const MAX_SAMPLES: usize = 10_000_000;
 /// Largest number of RK4 substeps per control period.
 pub const MAX_SUBSTEPS: usize = 10_000;
 
+/// The arm: the paper's three-link arm in closed form, or a serial chain from a URDF.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RobotConfig {
+    ThreeLink(RobotParams),
+    Urdf(UrdfArmParams),
+}
+
+impl Default for RobotConfig {
+    fn default() -> Self {
+        RobotConfig::ThreeLink(RobotParams::default())
+    }
+}
+
+impl From<RobotParams> for RobotConfig {
+    fn from(p: RobotParams) -> Self {
+        RobotConfig::ThreeLink(p)
+    }
+}
+
+impl RobotConfig {
+    /// Checks the parameters (parsing the URDF) and returns the joint count.
+    pub fn validate(&self) -> Result<usize> {
+        match self {
+            RobotConfig::ThreeLink(p) => p.validate().map(|()| 3),
+            RobotConfig::Urdf(p) => p.dof(),
+        }
+    }
+
+    /// The three-link arm's parameters, if that is the arm.
+    pub fn three_link(&self) -> Option<&RobotParams> {
+        match self {
+            RobotConfig::ThreeLink(p) => Some(p),
+            RobotConfig::Urdf(_) => None,
+        }
+    }
+}
+
 /// Everything that defines one run. Defaults are the paper preset of fig. 14.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScenarioConfig {
-    pub robot: RobotParams,
+    pub robot: RobotConfig,
     /// `None`: free space.
     pub wall: Option<WallParams>,
     pub controller: ControllerParams,
@@ -46,7 +84,7 @@ pub struct ScenarioConfig {
 impl Default for ScenarioConfig {
     fn default() -> Self {
         Self {
-            robot: RobotParams::default(),
+            robot: RobotConfig::default(),
             wall: Some(WallParams::default()),
             controller: ControllerParams::TimeDelay(Default::default()),
             admittance: Some(ForceControlParams::Admittance(Default::default())),
@@ -75,7 +113,7 @@ impl Default for ScenarioConfig {
 impl ScenarioConfig {
     /// Checks every field; errors name the field by its dotted path.
     pub fn validate(&self) -> Result<()> {
-        self.robot.validate().map_err(|e| e.within("robot"))?;
+        let joints = self.robot.validate().map_err(|e| e.within("robot"))?;
         if let Some(w) = &self.wall {
             w.validate().map_err(|e| e.within("wall"))?;
         }
@@ -95,7 +133,7 @@ impl ScenarioConfig {
             .map_err(|e| e.within("z_reference"))?;
         self.sensor.validate().map_err(|e| e.within("sensor"))?;
         self.actuator
-            .validate(3)
+            .validate(joints)
             .map_err(|e| e.within("actuator"))?;
         check::positive("duration", self.duration)?;
         check::positive("velocity_limit", self.velocity_limit)?;

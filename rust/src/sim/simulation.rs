@@ -8,12 +8,17 @@
 //! `Simulation` all go through the same code. The state is explicit: [`Simulation::state`]
 //! and [`Simulation::set_state`] read and write it as one flat labelled vector.
 
-use crate::control::controller::{ControlFailure, Controller, Measurement};
+use nalgebra::Matrix3;
+
+use crate::control::controller::{
+    check_inertia_for, ControlFailure, Controller, Measurement, OrientationTask,
+};
 use crate::control::filter::ForceControl;
 use crate::control::reference::Sample;
 use crate::control::task::TaskFrame;
 use crate::error::{Error, Result};
-use crate::robot::{JointVector, RobotModel, TaskVector, ThreeLinkArm};
+use crate::robot::chain::arm::rotation_vector;
+use crate::robot::{JointVector, RobotModel, TaskOptions, TaskVector, ThreeLinkArm};
 use crate::sim::metrics::{Metrics, OnlineMetrics};
 pub use crate::sim::outcome::{Divergence, Outcome};
 use crate::sim::plant::{Plant, PlantState};
@@ -42,6 +47,12 @@ pub struct Simulation<R: RobotModel<N>, const N: usize> {
     controller: Controller<R, N>,
     actuator: Actuator<N>,
     frame: TaskFrame,
+    /// The tip orientation R0 a pose task holds; `None` for a position task.
+    start_rotation: Option<Matrix3<f64>>,
+    /// q0 for the null-space posture term of a redundant arm; `None` otherwise.
+    posture: Option<JointVector<N>>,
+    /// J⁺'s damping and the orientation gains of the arm's task.
+    task_options: TaskOptions,
     samples: usize,
     /// The next sample to take.
     k: usize,
@@ -61,10 +72,18 @@ pub struct Simulation<R: RobotModel<N>, const N: usize> {
 pub type ThreeLinkSimulation = Simulation<ThreeLinkArm, 3>;
 
 impl Simulation<ThreeLinkArm, 3> {
-    /// Validates `config` and builds the pipeline for its three-link arm.
+    /// Validates `config` and builds the pipeline for its three-link arm (an error if the
+    /// scenario's arm is a URDF chain: use [`crate::sim::dispatch::AnySimulation`]).
     pub fn new(config: &ScenarioConfig) -> Result<Self> {
         config.validate()?;
-        Self::with_robot(config, ThreeLinkArm::new(&config.robot))
+        match config.robot.three_link() {
+            Some(p) => Self::with_robot(config, ThreeLinkArm::new(p)),
+            None => Err(Error::parameter(
+                "robot",
+                "a URDF arm",
+                "the three-link arm for ThreeLinkSimulation (AnySimulation runs any arm)",
+            )),
+        }
     }
 }
 
@@ -76,8 +95,17 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             .actuator
             .validate(N)
             .map_err(|e| e.within("actuator"))?;
+        let controller = Controller::new(&config.controller, &robot, config.period);
+        if let Some(p) = controller.joint_inertia() {
+            check_inertia_for::<N>(p).map_err(|e| e.within("controller"))?;
+        }
         let q0 = robot.initial_position();
         let start = robot.tip_position(&robot.configure(&q0));
+        let start_rotation = robot
+            .orientation(&robot.configure(&q0), &JointVector::zeros())
+            .map(|o| o.rotation);
+        let task_dimension = if start_rotation.is_some() { 6 } else { 3 };
+        let posture = (N > task_dimension).then_some(q0);
         let wall = config
             .wall
             .as_ref()
@@ -89,8 +117,13 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             None => TaskFrame::new(TaskVector::x(), start, start[0]),
         };
         let samples = config.samples();
+        let task_options = robot.task_options();
+        let mut metrics = OnlineMetrics::new(config, &frame);
+        if let Some((lower, upper)) = robot.position_limits() {
+            metrics.set_position_limits(lower.as_slice(), upper.as_slice());
+        }
         Ok(Self {
-            controller: Controller::new(&config.controller, &robot, config.period),
+            controller,
             plant: Plant::new(
                 robot,
                 wall,
@@ -108,12 +141,15 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
                 .map(|a| ForceControl::new(a, config.period)),
             actuator: Actuator::new(&config.actuator, config.period),
             frame,
+            start_rotation,
+            posture,
+            task_options,
             samples,
             k: 0,
             outcome: None,
             recording: true,
             trace: Trace::new(N, samples),
-            metrics: OnlineMetrics::new(config, &frame),
+            metrics,
             metrics_stale: false,
             config: config.clone(),
         })
@@ -122,9 +158,14 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
     /// Keeps no trace: the run is judged by its online metrics alone (a sweep without
     /// traces). A simulation without a trace cannot be moved back by `set_state`.
     pub fn without_trace(mut self) -> Self {
+        self.stop_recording();
+        self
+    }
+
+    /// From here on keeps no trace (see `without_trace`); drops what was recorded.
+    pub fn stop_recording(&mut self) {
         self.recording = false;
         self.trace = Trace::new(N, 0);
-        self
     }
 
     pub fn config(&self) -> &ScenarioConfig {
@@ -189,7 +230,11 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
     /// The metrics of the samples taken so far, for a run that ended with `outcome`.
     pub fn metrics(&self, outcome: &Outcome) -> Metrics {
         if self.metrics_stale {
-            return Metrics::compute(&self.trace, &self.config, outcome, &self.frame);
+            // A set_state moved the run in time: replay what the trace holds now.
+            let mut replayed = self.metrics.clone();
+            replayed.reset();
+            replayed.replay(&self.trace);
+            return replayed.finish(outcome);
         }
         self.metrics.finish(outcome)
     }
@@ -269,6 +314,15 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             kinematics: &kin,
             force: measured,
             normal: &self.frame.normal,
+            orientation: self.start_rotation.and_then(|r0| {
+                self.plant.orientation().map(|o| OrientationTask {
+                    error: rotation_vector(&(r0 * o.rotation.transpose())),
+                    jacobian: o.jacobian,
+                    jdot_qd: o.jdot_qd,
+                })
+            }),
+            posture: self.posture.as_ref(),
+            options: self.task_options,
         };
         let command = match self.controller.step(&measurement, &desired) {
             Ok(tau) if tau.iter().all(|v| v.is_finite()) => tau,
@@ -424,7 +478,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
 
 /// Validates, builds and runs one scenario.
 pub fn simulate(config: &ScenarioConfig) -> Result<RunResult> {
-    Ok(Simulation::new(config)?.run())
+    Ok(crate::sim::dispatch::AnySimulation::new(config)?.run())
 }
 
 impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {

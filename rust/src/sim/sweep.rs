@@ -4,8 +4,9 @@
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
+use crate::sim::dispatch::AnySimulation;
 use crate::sim::metrics::Metrics;
-use crate::sim::simulation::{Outcome, ScenarioConfig, Simulation};
+use crate::sim::simulation::{Outcome, ScenarioConfig};
 use crate::sim::trace::Trace;
 
 /// What a batch keeps of one run.
@@ -34,14 +35,14 @@ pub fn run_batch(
     // Every config is checked before anything runs; the runs are then built one at a time
     // inside the workers, so a large batch never holds more than one pipeline per thread.
     for (index, c) in configs.iter().enumerate() {
-        Simulation::new(c).map_err(|error| BatchError { index, error })?;
+        AnySimulation::new(c).map_err(|error| BatchError { index, error })?;
     }
     let run_all = move || -> std::result::Result<Vec<RunSummary>, BatchError> {
         configs
             .par_iter()
             .enumerate()
             .map(|(index, c)| {
-                let sim = Simulation::new(c).map_err(|error| BatchError { index, error })?;
+                let sim = AnySimulation::new(c).map_err(|error| BatchError { index, error })?;
                 // Without traces a run keeps nothing but its online metrics.
                 let mut sim = if keep_traces {
                     sim

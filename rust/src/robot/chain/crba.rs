@@ -1,0 +1,36 @@
+//! Composite-rigid-body algorithm (Featherstone Table 6.2): the joint-space inertia D(q).
+
+use nalgebra::{Matrix6, SMatrix};
+
+use super::kinematics::Frames;
+use super::model::SerialChain;
+use super::spatial::{Real, SVec};
+
+impl<T: Real, const N: usize> SerialChain<T, N> {
+    /// D(q): composite inertias I^c_i = I_i + Σ X_jᵀ I^c_j X_j from the tip down, then
+    /// D_ij = S_jᵀ (X … X)ᵀ I^c_i S_i along the chain.
+    #[inline]
+    pub fn crba(&self, f: &Frames<T, N>) -> SMatrix<T, N, N> {
+        let mut composite: [Matrix6<T>; N] =
+            std::array::from_fn(|i| self.bodies[i].inertia.matrix());
+        for i in (1..N).rev() {
+            let x = f.up[i].motion_matrix();
+            composite[i - 1] += x.transpose() * composite[i] * x;
+        }
+        let mut d = SMatrix::<T, N, N>::zeros();
+        for i in 0..N {
+            let mut force =
+                SVec::from_matrix_column(&(composite[i] * self.subspace(i).to_vector6()));
+            d[(i, i)] = self.subspace(i).dot(&force);
+            let mut j = i;
+            while j > 0 {
+                force = f.up[j].force_to_parent(&force);
+                j -= 1;
+                let dij = self.subspace(j).dot(&force);
+                d[(i, j)] = dij;
+                d[(j, i)] = dij;
+            }
+        }
+        d
+    }
+}

@@ -1,0 +1,302 @@
+//! Spatial (6-D) algebra after Featherstone, *Rigid Body Dynamics Algorithms* (2008), ch. 2.
+//!
+//! Motion vectors m = [ω; v] and force vectors f = [n; f] (angular part first, linear part at
+//! the frame's origin). A [`Pose`] places a child frame in its parent (rotation R: child axes
+//! in parent coordinates; p: child origin in parent coordinates); its Plücker motion transform
+//! parent → child is X = [[Rᵀ, 0], [−Rᵀ[p]×, Rᵀ]] (eq. 2.24 with E = Rᵀ, r = p).
+//!
+//! Everything is generic over the scalar `T` ([`Real`]: nalgebra's `SimdRealField`), so the
+//! same code runs on `f64` and on SIMD lanes, and nothing allocates.
+
+use nalgebra::{Matrix3, Matrix6, SimdRealField, Vector3};
+
+/// The scalar of the spatial algorithms: `f64`, or a SIMD lane type such as simba's
+/// `WideF64x4`.
+pub trait Real: SimdRealField + Copy {}
+impl<T: SimdRealField + Copy> Real for T {}
+
+/// A 6-D spatial vector: motion [ω; v] or force [n; f].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SVec<T: Real> {
+    pub ang: Vector3<T>,
+    pub lin: Vector3<T>,
+}
+
+impl<T: Real> SVec<T> {
+    #[inline(always)]
+    pub fn new(ang: Vector3<T>, lin: Vector3<T>) -> Self {
+        Self { ang, lin }
+    }
+
+    #[inline(always)]
+    pub fn zero() -> Self {
+        Self::new(Vector3::zeros(), Vector3::zeros())
+    }
+
+    /// Motion cross product v ×ₘ m (eq. 2.31).
+    #[inline(always)]
+    pub fn cross_motion(&self, m: &SVec<T>) -> SVec<T> {
+        SVec::new(
+            self.ang.cross(&m.ang),
+            self.ang.cross(&m.lin) + self.lin.cross(&m.ang),
+        )
+    }
+
+    /// Force cross product v ×* f (eq. 2.32).
+    #[inline(always)]
+    pub fn cross_force(&self, f: &SVec<T>) -> SVec<T> {
+        SVec::new(
+            self.ang.cross(&f.ang) + self.lin.cross(&f.lin),
+            self.ang.cross(&f.lin),
+        )
+    }
+
+    /// The scalar product of a motion and a force vector.
+    #[inline(always)]
+    pub fn dot(&self, f: &SVec<T>) -> T {
+        self.ang.dot(&f.ang) + self.lin.dot(&f.lin)
+    }
+
+    #[inline(always)]
+    pub fn scale(&self, s: T) -> SVec<T> {
+        SVec::new(self.ang * s, self.lin * s)
+    }
+
+    #[inline(always)]
+    pub fn add(&self, o: &SVec<T>) -> SVec<T> {
+        SVec::new(self.ang + o.ang, self.lin + o.lin)
+    }
+
+    #[inline(always)]
+    pub fn sub(&self, o: &SVec<T>) -> SVec<T> {
+        SVec::new(self.ang - o.ang, self.lin - o.lin)
+    }
+
+    /// Reads a 6-vector [ang; lin] out of a 6×6 matrix product.
+    #[inline(always)]
+    pub fn from_matrix_column(m: &nalgebra::Vector6<T>) -> Self {
+        SVec::new(
+            Vector3::new(m[0], m[1], m[2]),
+            Vector3::new(m[3], m[4], m[5]),
+        )
+    }
+
+    #[inline(always)]
+    pub fn to_vector6(&self) -> nalgebra::Vector6<T> {
+        nalgebra::Vector6::new(
+            self.ang[0],
+            self.ang[1],
+            self.ang[2],
+            self.lin[0],
+            self.lin[1],
+            self.lin[2],
+        )
+    }
+}
+
+/// The skew matrix [a]× with [a]× b = a × b.
+#[inline(always)]
+pub fn skew<T: Real>(a: &Vector3<T>) -> Matrix3<T> {
+    let z = T::zero();
+    Matrix3::new(z, -a[2], a[1], a[2], z, -a[0], -a[1], a[0], z)
+}
+
+/// A frame placed in its parent: rotation (child axes in parent coordinates) and origin.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pose<T: Real> {
+    pub rot: Matrix3<T>,
+    pub pos: Vector3<T>,
+}
+
+impl<T: Real> Pose<T> {
+    pub fn identity() -> Self {
+        Self {
+            rot: Matrix3::identity(),
+            pos: Vector3::zeros(),
+        }
+    }
+
+    /// This pose followed by `child` (a frame placed in this one).
+    #[inline(always)]
+    pub fn compose(&self, child: &Pose<T>) -> Pose<T> {
+        Pose {
+            rot: self.rot * child.rot,
+            pos: self.pos + self.rot * child.pos,
+        }
+    }
+
+    /// A point given in this frame, in the parent's coordinates.
+    #[inline(always)]
+    pub fn transform_point(&self, p: &Vector3<T>) -> Vector3<T> {
+        self.pos + self.rot * p
+    }
+
+    /// Motion vector from parent to child coordinates: X m (eq. 2.24).
+    #[inline(always)]
+    pub fn motion_to_child(&self, m: &SVec<T>) -> SVec<T> {
+        let rt = self.rot.transpose();
+        SVec::new(rt * m.ang, rt * (m.lin - self.pos.cross(&m.ang)))
+    }
+
+    /// Force vector from child to parent coordinates: Xᵀ f (= X* of the inverse, eq. 2.25).
+    #[inline(always)]
+    pub fn force_to_parent(&self, f: &SVec<T>) -> SVec<T> {
+        let lin = self.rot * f.lin;
+        SVec::new(self.rot * f.ang + self.pos.cross(&lin), lin)
+    }
+
+    /// The 6×6 motion transform X (parent → child).
+    #[inline(always)]
+    pub fn motion_matrix(&self) -> Matrix6<T> {
+        let rt = self.rot.transpose();
+        let mut x = Matrix6::zeros();
+        x.fixed_view_mut::<3, 3>(0, 0).copy_from(&rt);
+        x.fixed_view_mut::<3, 3>(3, 3).copy_from(&rt);
+        x.fixed_view_mut::<3, 3>(3, 0)
+            .copy_from(&(-(rt * skew(&self.pos))));
+        x
+    }
+}
+
+/// A rotation of `angle` about the unit `axis` (Rodrigues).
+#[inline(always)]
+pub fn axis_angle<T: Real>(axis: &Vector3<T>, (s, c): (T, T)) -> Matrix3<T> {
+    let k = skew(axis);
+    Matrix3::identity() + k * s + k * k * (T::one() - c)
+}
+
+/// A rigid body's spatial inertia about a frame's origin: mass m, first moment h = m c and
+/// the rotational inertia Ī about the origin (eq. 2.63).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RigidInertia<T: Real> {
+    pub mass: T,
+    pub h: Vector3<T>,
+    pub ibar: Matrix3<T>,
+}
+
+impl<T: Real> RigidInertia<T> {
+    pub fn zero() -> Self {
+        Self {
+            mass: T::zero(),
+            h: Vector3::zeros(),
+            ibar: Matrix3::zeros(),
+        }
+    }
+
+    /// From the mass, the centre of mass c and the inertia I_c about it (all in this frame):
+    /// Ī = I_c + m [c]× [c]×ᵀ (parallel axes).
+    pub fn from_com(mass: T, com: Vector3<T>, i_com: Matrix3<T>) -> Self {
+        let cx = skew(&com);
+        Self {
+            mass,
+            h: com * mass,
+            ibar: i_com + cx * cx.transpose() * mass,
+        }
+    }
+
+    /// I m: the momentum of motion m, [Ī ω + h × v; m v − h × ω].
+    #[inline(always)]
+    pub fn apply(&self, m: &SVec<T>) -> SVec<T> {
+        SVec::new(
+            self.ibar * m.ang + self.h.cross(&m.lin),
+            m.lin * self.mass - self.h.cross(&m.ang),
+        )
+    }
+
+    /// The same body seen from the parent frame, this frame being placed by `pose`.
+    pub fn to_parent(&self, pose: &Pose<T>) -> Self {
+        let h = pose.rot * self.h;
+        // Ī about the new origin: rotate, then shift by p (parallel axes for the first moment).
+        let r = pose.rot;
+        let ic_rot = r * self.ibar * r.transpose();
+        let p = pose.pos;
+        let (px, hx) = (skew(&p), skew(&h));
+        // Ī' = R Ī Rᵀ − [p]×[h]× − [h + m p]×[p]×, from Ī' = Σ m_k [x_k]×[x_k]×ᵀ, x_k = p + R y_k.
+        let ibar = ic_rot - px * hx - skew(&(h + p * self.mass)) * px;
+        Self {
+            mass: self.mass,
+            h: h + p * self.mass,
+            ibar,
+        }
+    }
+
+    pub fn add(&self, o: &Self) -> Self {
+        Self {
+            mass: self.mass + o.mass,
+            h: self.h + o.h,
+            ibar: self.ibar + o.ibar,
+        }
+    }
+
+    pub fn scaled(&self, s: T) -> Self {
+        Self {
+            mass: self.mass * s,
+            h: self.h * s,
+            ibar: self.ibar * s,
+        }
+    }
+
+    /// The 6×6 matrix [[Ī, [h]×], [[h]×ᵀ, m 1]].
+    pub fn matrix(&self) -> Matrix6<T> {
+        let mut m = Matrix6::zeros();
+        let hx = skew(&self.h);
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.ibar);
+        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&hx);
+        m.fixed_view_mut::<3, 3>(3, 0).copy_from(&hx.transpose());
+        m.fixed_view_mut::<3, 3>(3, 3)
+            .copy_from(&(Matrix3::identity() * self.mass));
+        m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pose() -> Pose<f64> {
+        let axis = Vector3::new(0.3, -0.5, 0.8).normalize();
+        Pose {
+            rot: axis_angle(&axis, 0.7f64.sin_cos()),
+            pos: Vector3::new(0.1, -0.4, 0.25),
+        }
+    }
+
+    fn body() -> RigidInertia<f64> {
+        let i = Matrix3::new(0.3, 0.01, -0.02, 0.01, 0.2, 0.03, -0.02, 0.03, 0.25);
+        RigidInertia::from_com(2.5, Vector3::new(0.05, -0.1, 0.2), i)
+    }
+
+    #[test]
+    fn transforms_agree_with_their_matrices() {
+        let x = pose();
+        let m = SVec::new(Vector3::new(0.1, 0.2, -0.3), Vector3::new(1.0, -2.0, 0.5));
+        let by_matrix = SVec::from_matrix_column(&(x.motion_matrix() * m.to_vector6()));
+        assert!((x.motion_to_child(&m).to_vector6() - by_matrix.to_vector6()).norm() < 1e-14);
+        let f = SVec::new(Vector3::new(0.4, -0.2, 0.1), Vector3::new(3.0, 1.0, -2.0));
+        let by_matrix = x.motion_matrix().transpose() * f.to_vector6();
+        assert!((x.force_to_parent(&f).to_vector6() - by_matrix).norm() < 1e-14);
+        // Power is frame-invariant: (X m)·f_child = m·(Xᵀ f_child).
+        let power = x.motion_to_child(&m).dot(&f) - m.dot(&x.force_to_parent(&f));
+        assert!(power.abs() < 1e-14);
+    }
+
+    #[test]
+    fn inertia_moves_like_its_matrix() {
+        let (x, i) = (pose(), body());
+        // I_parent = Xᵀ I_child X (eq. 2.66).
+        let expect = x.motion_matrix().transpose() * i.matrix() * x.motion_matrix();
+        assert!((i.to_parent(&x).matrix() - expect).norm() < 1e-13);
+        let m = SVec::new(Vector3::new(0.1, 0.2, -0.3), Vector3::new(1.0, -2.0, 0.5));
+        assert!((i.apply(&m).to_vector6() - i.matrix() * m.to_vector6()).norm() < 1e-14);
+    }
+
+    #[test]
+    fn cross_products_are_dual() {
+        let v = SVec::new(Vector3::new(0.1, 0.2, -0.3), Vector3::new(1.0, -2.0, 0.5));
+        let m = SVec::new(Vector3::new(-0.7, 0.4, 0.2), Vector3::new(0.3, 0.1, -0.9));
+        let f = SVec::new(Vector3::new(0.4, -0.2, 0.1), Vector3::new(3.0, 1.0, -2.0));
+        // (v ×ₘ m)·f = −m·(v ×* f) (eq. 2.33).
+        let s: f64 = v.cross_motion(&m).dot(&f) + m.dot(&v.cross_force(&f));
+        assert!(s.abs() < 1e-14);
+    }
+}
