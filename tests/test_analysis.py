@@ -3,6 +3,7 @@ analysis (eqs. 25-28, 34-37), classic delay bounds, stability maps and tune."""
 
 import itertools
 import math
+from pathlib import Path
 
 import admit_rs as ar
 import control
@@ -72,9 +73,21 @@ def _step_from_equilibrium(scenario, samples, rel=0.01):
     return {k: (sim_y[k], lin.outputs[i]) for i, k in enumerate(["f", "x", "z"])}, fd * rel
 
 
-@pytest.mark.parametrize("label", ["fig14", "fig8 scheme 1"])
+def ur5_scenario() -> ar.Scenario:
+    """fig14's task on the UR5 from its URDF (TDC tuned for the arm, SPEC §11)."""
+    data = Path(__file__).resolve().parent.parent / "examples" / "data"
+    q0 = (0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0)
+    arm = ar.UrdfArm(data / "ur5.urdf", "tool0", q0=q0)
+    return fig14().replace(robot=arm, controller=ar.TimeDelayControl.for_arm(arm))
+
+
+@pytest.mark.parametrize("label", ["fig14", "fig8 scheme 1", "ur5 urdf"])
 def test_small_step_linear_matches_simulation(label):
-    sc = fig14() if label == "fig14" else ar.paper.scenarios("fig8")[0].replace(z_reference=HOLD)
+    sc = {
+        "fig14": fig14,
+        "fig8 scheme 1": lambda: ar.paper.scenarios("fig8")[0].replace(z_reference=HOLD),
+        "ur5 urdf": ur5_scenario,
+    }[label]()
     out, step = _step_from_equilibrium(sc, 1500)
     sim_f, lin_f = out["f"]
     rms = np.sqrt(np.mean((sim_f - lin_f) ** 2))
