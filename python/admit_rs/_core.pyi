@@ -15,6 +15,8 @@ TRACE_COLUMNS: Final[list[str]]
 f_measured, f_d, penetration, x_a, xa_dot, tau1..tau3, tau_cmd1..tau_cmd3."""
 METRIC_NAMES: Final[list[str]]
 """Float metric names (see ``admit_rs.METRICS``); ``stable`` and ``diverged`` come besides."""
+PREDICTION_NAMES: Final[list[str]]
+"""Fields of `predict_batch`'s columns, in order (the Rust `Prediction`)."""
 
 # Errors: the extension raises admit_rs.errors.ParameterError (defined in Python so that it
 # is both a ValueError and an admit_rs.AdmitError); it defines no exception class itself.

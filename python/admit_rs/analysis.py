@@ -40,18 +40,7 @@ __all__ = [
     "tune",
 ]
 
-PREDICTION_NAMES = (
-    "force_ss_error",
-    "x_ss_error",
-    "overshoot_pct",
-    "rise_time_63",
-    "settling_time",
-    "spectral_radius",
-    "dominant_frequency",
-    "dominant_damping",
-    "stable",
-    "peak_joint_speed",
-)
+PREDICTION_NAMES: tuple[str, ...] = tuple(_core.PREDICTION_NAMES)
 """Fields of :func:`predict`, in order."""
 
 STEP_ITERATIONS = 4

@@ -1097,6 +1097,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("TRACE_COLUMNS", PyList::new(py, trace_columns(3))?)?;
     m.add("METRIC_NAMES", PyList::new(py, METRIC_NAMES)?)?;
+    m.add(
+        "PREDICTION_NAMES",
+        PyList::new(py, crate::analysis::PREDICTION_NAMES)?,
+    )?;
     m.add_class::<Stepper>()?;
     m.add_function(wrap_pyfunction!(defaults, m)?)?;
     m.add_function(wrap_pyfunction!(check_block, m)?)?;

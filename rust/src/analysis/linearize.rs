@@ -531,26 +531,13 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::control::controller::{ComputedTorqueParams, ControllerParams, PositionGains};
+
     use crate::control::filter::AdmittanceParams;
     use crate::sim::simulation::ThreeLinkSimulation;
     use crate::world::environment::WallParams;
 
     fn fig14() -> ScenarioConfig {
         ScenarioConfig::default()
-    }
-
-    /// Computed torque with contact compensation and stiff gains: X follows X_d closely.
-    fn ideal(admittance: AdmittanceParams) -> ScenarioConfig {
-        ScenarioConfig {
-            controller: ControllerParams::ComputedTorque(ComputedTorqueParams {
-                gains: PositionGains::new(1.0, 200.0, 1e4),
-                contact_compensation: true,
-                ..Default::default()
-            }),
-            admittance: Some(ForceControlParams::Admittance(admittance)),
-            ..ScenarioConfig::default()
-        }
     }
 
     fn lin(config: &ScenarioConfig) -> AnalysisResult<Linearization> {
@@ -613,7 +600,10 @@ mod tests {
     /// Eqs. (26), (28) with k_a: f(∞) = f_d k_a k_e / (k + k_a k_e), penetration f/k_e.
     #[test]
     fn scheme1_ideal_steady_state() {
-        let l = lin(&ideal(AdmittanceParams::scheme1(800.0, 400.0, 0.1))).unwrap();
+        let l = lin(&ScenarioConfig::ideal_inner_loop(
+            AdmittanceParams::scheme1(800.0, 400.0, 0.1),
+        ))
+        .unwrap();
         let r = 0.1 * 30_000.0 / 400.0;
         let f = 10.0 * r / (1.0 + r);
         assert!((l.outputs[0] - f).abs() < 1e-6 * f, "{}", l.outputs[0]);
@@ -639,7 +629,7 @@ mod tests {
                 position_error: 1e-3,
                 ..Default::default()
             }),
-            ..ideal(AdmittanceParams::scheme2(800.0, 0.0))
+            ..ScenarioConfig::ideal_inner_loop(AdmittanceParams::scheme2(800.0, 0.0))
         })
         .unwrap_err();
         assert!(matches!(e, AnalysisError::Singular(_)), "{e}");

@@ -167,3 +167,26 @@ impl ScenarioConfig {
         (self.duration / self.period).round() as usize + 1
     }
 }
+
+#[cfg(test)]
+impl ScenarioConfig {
+    /// A test fixture: computed torque with contact compensation and stiff gains (X follows
+    /// X_d closely, the "ideal inner loop" of the paper's analysis), the motion held at z0.
+    pub(crate) fn ideal_inner_loop(admittance: crate::control::filter::AdmittanceParams) -> Self {
+        use crate::control::controller::{ComputedTorqueParams, PositionGains};
+        Self {
+            controller: ControllerParams::ComputedTorque(ComputedTorqueParams {
+                gains: PositionGains::new(1.0, 200.0, 1e4),
+                contact_compensation: true,
+                ..Default::default()
+            }),
+            admittance: Some(ForceControlParams::Admittance(admittance)),
+            z_reference: Signal::Step {
+                value: 0.0,
+                time: 0.0,
+                initial: 0.0,
+            },
+            ..Self::default()
+        }
+    }
+}

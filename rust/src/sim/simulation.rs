@@ -492,30 +492,11 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::control::controller::{
-        ComputedTorqueParams, ControllerParams, ModelFreeParams, PositionGains,
-    };
-    use crate::control::filter::{AdmittanceParams, ForceControlParams};
-    use crate::control::reference::Signal;
+    use crate::control::controller::{ControllerParams, ModelFreeParams, PositionGains};
+    use crate::control::filter::AdmittanceParams;
+
     use crate::world::actuator::ActuatorParams;
     use crate::world::sensor::SensorParams;
-
-    fn ideal_inner_loop(admittance: AdmittanceParams) -> ScenarioConfig {
-        ScenarioConfig {
-            controller: ControllerParams::ComputedTorque(ComputedTorqueParams {
-                gains: PositionGains::new(1.0, 200.0, 1e4),
-                contact_compensation: true,
-                ..Default::default()
-            }),
-            admittance: Some(ForceControlParams::Admittance(admittance)),
-            z_reference: Signal::Step {
-                value: 0.0,
-                time: 0.0,
-                initial: 0.0,
-            },
-            ..ScenarioConfig::default()
-        }
-    }
 
     fn final_force(r: &RunResult) -> f64 {
         *r.trace.f.last().unwrap()
@@ -524,7 +505,7 @@ mod tests {
     /// eq. (26) with the admittance gain: f(∞) = f_d · r / (1 + r), r = k_a k_e / k.
     #[test]
     fn scheme1_steady_state_offset() {
-        let cfg = ideal_inner_loop(AdmittanceParams::scheme1(800.0, 400.0, 0.1));
+        let cfg = ScenarioConfig::ideal_inner_loop(AdmittanceParams::scheme1(800.0, 400.0, 0.1));
         let r = simulate(&cfg).unwrap();
         assert_eq!(r.outcome, Outcome::Completed);
         let ratio = 0.1 * 30_000.0 / 400.0;
@@ -540,7 +521,7 @@ mod tests {
     /// eq. (35): Scheme 2 has no steady-state force error.
     #[test]
     fn scheme2_zero_error() {
-        let cfg = ideal_inner_loop(AdmittanceParams::scheme2(800.0, 0.1));
+        let cfg = ScenarioConfig::ideal_inner_loop(AdmittanceParams::scheme2(800.0, 0.1));
         let r = simulate(&cfg).unwrap();
         assert!((final_force(&r) - 10.0).abs() < 1e-6, "{}", final_force(&r));
     }
@@ -554,7 +535,7 @@ mod tests {
                 bias: 1.5,
                 ..SensorParams::default()
             },
-            ..ideal_inner_loop(AdmittanceParams::scheme2(800.0, 0.1))
+            ..ScenarioConfig::ideal_inner_loop(AdmittanceParams::scheme2(800.0, 0.1))
         };
         let r = simulate(&cfg).unwrap();
         assert!((final_force(&r) - 8.5).abs() < 1e-6, "{}", final_force(&r));
