@@ -17,6 +17,7 @@ import polars as pl
 from matplotlib.patches import Rectangle
 
 if TYPE_CHECKING:
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
     from admit_rs.simulation import Result
@@ -364,21 +365,35 @@ def sweep_heatmap(
     if overlay_unstable and (~stable).any():
         handles.append(ax.scatter(xs[~stable], ys[~stable], marker="x", color="r", s=12,
                                   lw=0.8, label=f"unstable run ({(~stable).sum()})"))  # fmt: skip
+    _finish_grid_axes(ax, xe, ye, logx, logy, _with_unit(x, units), _with_unit(y, units), handles)
+    ax.set_title(f"{agg} {metric} over {x} × {y} ({table.height} runs,"
+                 f" {int((~stable).sum())} unstable)")  # fmt: skip
+    return fig
+
+
+
+def _finish_grid_axes(
+    ax: Axes,
+    xe: npt.NDArray[np.float64],
+    ye: npt.NDArray[np.float64],
+    logx: bool,
+    logy: bool,
+    xlabel: str,
+    ylabel: str,
+    handles: list[Any],
+) -> None:
+    """Scales, limits (the cell edges), labels and the legend below a grid plot."""
     if logx:
         ax.set_xscale("log")
     if logy:
         ax.set_yscale("log")
     ax.set_xlim(xe[0], xe[-1])
     ax.set_ylim(ye[0], ye[-1])
-    ax.set_xlabel(_with_unit(x, units))
-    ax.set_ylabel(_with_unit(y, units))
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
     if handles:
         ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.0, -0.12), ncols=2,
                   fontsize=8, frameon=False)  # fmt: skip
-    ax.set_title(f"{agg} {metric} over {x} × {y} ({table.height} runs,"
-                 f" {int((~stable).sum())} unstable)")  # fmt: skip
-    return fig
-
 
 def parameter_unit(path: str) -> str:
     """The unit of a dotted parameter path, from its block's attribute docstring ("" if none).
@@ -557,16 +572,7 @@ def stability_map(
             agree = float((joined["_predicted"] == joined["_simulated"]).mean())  # type: ignore[arg-type]
             subtitle = (f"\nsimulated `stable` agrees in {agree:.0%} of "
                         f"{joined.height} cells")  # fmt: skip
-    if logx:
-        ax.set_xscale("log")
-    if logy:
-        ax.set_yscale("log")
-    ax.set_xlim(xe[0], xe[-1])
-    ax.set_ylim(ye[0], ye[-1])
-    ax.set_xlabel(_with_unit(x, {x: parameter_unit(x)}))
-    ax.set_ylabel(_with_unit(y, {y: parameter_unit(y)}))
-    if handles:
-        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.0, -0.12), ncols=2,
-                  fontsize=8, frameon=False)  # fmt: skip
+    xlabel, ylabel = _with_unit(x, {x: parameter_unit(x)}), _with_unit(y, {y: parameter_unit(y)})
+    _finish_grid_axes(ax, xe, ye, logx, logy, xlabel, ylabel, handles)
     ax.set_title(title or f"predicted stability over {x} × {y}{subtitle}", fontsize=11)
     return fig
