@@ -119,14 +119,23 @@ def main() -> None:
     c = peers.Fig14(duration=args.duration, position_error=0.01)
     vary = {"wall.stiffness": ar.LogUniform(1e4, 1e5), "wall.position_error": ar.Uniform(0, 0.01)}
 
-    def admit(threads: int):
+    def admit(threads: int, lanes: bool = True):
         return ar.sweep(
-            base, vary=vary, samples=args.runs, seed=0, threads=threads, progress=False
-        )
+            base, vary=vary, samples=args.runs, seed=0, threads=threads, progress=False,
+            lanes=lanes,
+        )  # fmt: skip
 
     kernel = _compile()
     # Agreement first, on every run of the sweep.
     table = admit(max(args.threads))
+    # The lanes agree with the scalar path (= ar.simulate) to SPEC §13's 1e-9.
+    scalar_table = admit(max(args.threads), lanes=False)
+    for name in ["force_peak", "force_rms_error"]:
+        a, b = table[name].to_numpy(), scalar_table[name].to_numpy()
+        rel = np.max(np.abs(a - b) / np.abs(b))
+        print(f"lanes vs scalar {name}: max relative difference {rel:.1e}")
+        if not rel <= 1e-9:
+            raise SystemExit(f"lanes differ from the scalar path by {rel:.1e}: not timing")
     stiffness = table["wall.stiffness"].to_numpy().copy()
     error = table["wall.position_error"].to_numpy().copy()
     start = time.perf_counter()
@@ -145,12 +154,13 @@ def main() -> None:
     print(f"{'implementation':38s} {'threads':>7s} {'wall [s]':>9s} {'runs/s':>8s}")
     rates = {}
     for threads in args.threads:
-        start = time.perf_counter()
-        admit(threads)
-        elapsed = time.perf_counter() - start
-        rates["admit_rs", threads] = args.runs / elapsed
-        print(f"{'admit_rs (scalar, ar.sweep)':38s} {threads:7d} {elapsed:9.2f} "
-              f"{args.runs / elapsed:8.1f}")  # fmt: skip
+        for lanes, name in [(False, "admit_rs (scalar, ar.sweep)"),
+                            (True, "admit_rs (4 lanes, ar.sweep)")]:  # fmt: skip
+            start = time.perf_counter()
+            admit(threads, lanes)
+            elapsed = time.perf_counter() - start
+            rates[name, threads] = args.runs / elapsed
+            print(f"{name:38s} {threads:7d} {elapsed:9.2f} {args.runs / elapsed:8.1f}")
         numba.set_num_threads(threads)
         start = time.perf_counter()
         peer_sweep(kernel, c, stiffness, error)
@@ -159,8 +169,11 @@ def main() -> None:
         print(f"{'Numba @njit(parallel=True) prange':38s} {threads:7d} {elapsed:9.2f} "
               f"{args.runs / elapsed:8.1f}")  # fmt: skip
     for threads in args.threads:
-        ratio = rates["admit_rs", threads] / rates["numba", threads]
-        print(f"admit_rs / Numba on {threads} thread(s): {ratio:.2f}x")
+        lanes = rates["admit_rs (4 lanes, ar.sweep)", threads]
+        scalar = rates["admit_rs (scalar, ar.sweep)", threads]
+        print(f"on {threads} thread(s): lanes / Numba {lanes / rates['numba', threads]:.2f}x, "
+              f"scalar / Numba {scalar / rates['numba', threads]:.2f}x, "
+              f"lanes / scalar {lanes / scalar:.2f}x")  # fmt: skip
 
 
 _control = peers._control

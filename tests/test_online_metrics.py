@@ -107,9 +107,10 @@ def _same(a: float, b: float) -> bool:
 
 
 def test_a_sweep_without_traces_gives_the_simulated_metrics_bit_for_bit():
+    # The scalar path: the lanes' exp differs in the last bits (tests/test_lanes.py).
     base = ar.paper.scenario("fig19").replace(duration=2.5)
     grid = {"wall.stiffness": [1e4, 3e4, 3e5], "controller.inertia": [0.1, 0.5]}
-    table = ar.sweep(base, grid=grid, progress=False)
+    table = ar.sweep(base, grid=grid, progress=False, lanes=False)
     assert table["diverged"].any() and not table["diverged"].all()
     for row in table.iter_rows(named=True):
         res = ar.simulate(

@@ -133,7 +133,14 @@ def test_traces_long_table():
     assert traces.columns == ["run_id", *ar.TRACE_COLUMNS]
     assert traces.height == 2 * 501
     one = ar.simulate(BASE.replace(**{"admittance.b": 800.0})).trace
-    assert traces.filter(pl.col("run_id") == 1).drop("run_id").equals(one)
+    # Lanes agree with simulate to 1e-9 (SPEC §13); the scalar path is the same bits.
+    from_sweep = traces.filter(pl.col("run_id") == 1).drop("run_id")
+    assert not from_sweep.equals(one)  # the lanes' exp is not libm's
+    assert from_sweep.columns == one.columns
+    for name in one.columns:
+        np.testing.assert_allclose(from_sweep[name], one[name], rtol=1e-9, atol=1e-12)
+    _, scalar = run(grid={"admittance.b": [400.0, 800.0]}, traces=True, lanes=False)
+    assert scalar.filter(pl.col("run_id") == 1).drop("run_id").equals(one)
 
 
 def test_checkpoint_resume_equals_clean_run(tmp_path):

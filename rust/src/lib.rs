@@ -10,6 +10,7 @@ pub mod analysis;
 pub mod control;
 pub mod error;
 pub mod robot;
+pub mod scalar;
 pub mod sim;
 pub mod world;
 

@@ -8,6 +8,8 @@
 
 use nalgebra::{DMatrix, DVector, SMatrix, SVector, Vector3};
 
+use crate::scalar::Real;
+
 pub mod chain;
 pub mod three_link;
 
@@ -23,11 +25,12 @@ pub type TaskVector = Vector3<f64>;
 pub type Jacobian<const N: usize> = SMatrix<f64, 3, N>;
 
 /// Tip position, Jacobian and the velocity-product acceleration J̇q̇ at one state.
+/// Over `f64` by default; over lanes (`crate::scalar::F64x4`) for runs advancing together.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Kinematics<const N: usize> {
-    pub position: TaskVector,
-    pub jacobian: Jacobian<N>,
-    pub jdot_qd: TaskVector,
+pub struct Kinematics<const N: usize, T: Real = f64> {
+    pub position: Vector3<T>,
+    pub jacobian: SMatrix<T, 3, N>,
+    pub jdot_qd: Vector3<T>,
 }
 
 /// How a general arm's task is solved (SPEC §11): the damping λ of J⁺ = Jᵀ(J Jᵀ + λ² I)⁻¹
@@ -58,11 +61,11 @@ pub struct Orientation<const N: usize> {
 
 /// D(q), C(q, q̇) q̇ and G(q) of eq. (1).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Dynamics<const N: usize> {
-    pub inertia: JointMatrix<N>,
+pub struct Dynamics<const N: usize, T: Real = f64> {
+    pub inertia: SMatrix<T, N, N>,
     /// The Coriolis and centrifugal torque C(q, q̇) (already multiplied by q̇).
-    pub coriolis: JointVector<N>,
-    pub gravity: JointVector<N>,
+    pub coriolis: SVector<T, N>,
+    pub gravity: SVector<T, N>,
 }
 
 /// What controllers and the plant need from an arm.

@@ -8,6 +8,7 @@ use nalgebra::{Matrix3, Vector3};
 
 use super::{JointVector, RobotModel, TaskVector};
 use crate::error::{check, Error, Result};
+use crate::scalar::{F64x4, Real, LANES};
 
 pub type Vec3 = Vector3<f64>;
 pub type Mat3 = Matrix3<f64>;
@@ -113,33 +114,34 @@ pub const SINGULARITY_TOLERANCE: f64 = 1e-6;
 
 /// Sines and cosines of one configuration, computed once and shared by every term.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Trig {
-    s1: f64,
-    c1: f64,
-    s2: f64,
-    c2: f64,
-    s3: f64,
-    c3: f64,
-    s23: f64,
-    c23: f64,
+pub struct Trig<T: Real = f64> {
+    s1: T,
+    c1: T,
+    s2: T,
+    c2: T,
+    s3: T,
+    c3: T,
+    s23: T,
+    c23: T,
 }
 
-impl Trig {
+impl<T: Real> Trig<T> {
     #[inline(always)]
-    pub fn new(q: &Vec3) -> Self {
+    pub fn new(q: &Vector3<T>) -> Self {
         // libm's sincos shares one range reduction between sin and cos; std's sin_cos
         // makes two calls. A run calls this once per control period (`shifted` serves
         // the RK4 stages).
-        let (s1, c1) = libm::sincos(q[0]);
-        let (s2, c2) = libm::sincos(q[1]);
-        let (s3, c3) = libm::sincos(q[2]);
-        Self::from_joints((s1, c1), (s2, c2), (s3, c3))
+        Self::from_joints(
+            q[0].sin_cos_each(),
+            q[1].sin_cos_each(),
+            q[2].sin_cos_each(),
+        )
     }
 
     /// Completes the joints' (sin, cos) pairs with those of q2 + q3, by angle addition:
     /// no extra transcendental call.
     #[inline(always)]
-    fn from_joints((s1, c1): (f64, f64), (s2, c2): (f64, f64), (s3, c3): (f64, f64)) -> Self {
+    fn from_joints((s1, c1): (T, T), (s2, c2): (T, T), (s3, c3): (T, T)) -> Self {
         Self {
             s1,
             c1,
@@ -154,159 +156,215 @@ impl Trig {
 
     /// The trig of `q + delta` from this one (the trig of `q`) by angle addition, with
     /// sin δ and cos δ from their Taylor series while every |δ| ≤ 1/128 (truncation below
-    /// 4e-19); otherwise from scratch at `shifted` (= q + δ). An RK4 stage moves a joint by
-    /// h q̇, about 1e-5 rad in the paper's runs, so the series is the rule and saves 9 of
-    /// the 12 `sincos` calls of a substep.
+    /// 4e-19); otherwise from scratch at `shifted` (= q + δ), lane by lane. An RK4 stage
+    /// moves a joint by h q̇, about 1e-5 rad in the paper's runs, so the series is the rule
+    /// and saves 9 of the 12 `sincos` calls of a substep.
     #[inline(always)]
-    pub fn shifted(&self, delta: &Vec3, shifted: &Vec3) -> Self {
-        if delta.iter().any(|d| d.abs() > 1.0 / 128.0) {
+    pub fn shifted(&self, delta: &Vector3<T>, shifted: &Vector3<T>) -> Self {
+        let limit = T::splat(1.0 / 128.0);
+        let far = delta[0].simd_abs().simd_gt(limit)
+            | delta[1].simd_abs().simd_gt(limit)
+            | delta[2].simd_abs().simd_gt(limit);
+        if T::all(far) {
             return Self::new(shifted);
         }
-        let sc = |d: f64| {
+        let one = T::one();
+        let sc = |d: T| {
             let d2 = d * d;
-            let s = d * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0)));
-            let c = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0)));
+            let s = d * (one - d2 * T::splat(1.0 / 6.0) * (one - d2 * T::splat(1.0 / 20.0)));
+            let c = one
+                - d2 * T::splat(0.5)
+                    * (one - d2 * T::splat(1.0 / 12.0) * (one - d2 * T::splat(1.0 / 30.0)));
             (s, c)
         };
-        let rot = |s: f64, c: f64, d: f64| {
+        let rot = |s: T, c: T, d: T| {
             let (sd, cd) = sc(d);
             (s * cd + c * sd, c * cd - s * sd)
         };
-        Self::from_joints(
+        let near = Self::from_joints(
             rot(self.s1, self.c1, delta[0]),
             rot(self.s2, self.c2, delta[1]),
             rot(self.s3, self.c3, delta[2]),
-        )
-    }
-}
-
-/// The arm of Table 1 with its constants folded once (centre-of-mass distances a2, a3 and
-/// transverse inertias i2, i3 depend on the mass model).
-#[derive(Debug, Clone, PartialEq)]
-pub struct ThreeLinkArm {
-    /// The parameters it was built from (model-error copies start from them).
-    params: RobotParams,
-    l1: f64,
-    l2: f64,
-    l3: f64,
-    m2: f64,
-    m3: f64,
-    a2: f64,
-    a3: f64,
-    i2: f64,
-    i3: f64,
-    g: f64,
-    fv: Vec3,
-    fc: Vec3,
-    eps: f64,
-    /// 1/ε and −2/ε, so the hot path multiplies instead of dividing.
-    inv_eps: f64,
-    neg_two_inv_eps: f64,
-    inertia: InertiaConstants,
-}
-
-/// Parameter-only products of D, C and G, folded once instead of once per RK4 stage.
-#[derive(Debug, Clone, PartialEq, Default)]
-struct InertiaConstants {
-    /// m2 a2² + i2: D11's c2² coefficient.
-    k2: f64,
-    m3_l2: f64,
-    m3_a3: f64,
-    i3: f64,
-    /// m3 l2 a3: D23's c3 coefficient (and −h/s3).
-    m3_l2_a3: f64,
-    /// D22 = d22_0 + d22_c3 c3.
-    d22_0: f64,
-    d22_c3: f64,
-    /// D33 = m3 a3² + i3, also D23's constant part.
-    d33: f64,
-    g_m2_a2: f64,
-    g_m3_a3: f64,
-}
-
-impl InertiaConstants {
-    fn new(arm: &ThreeLinkArm) -> Self {
-        let ThreeLinkArm {
-            l2,
-            m2,
-            m3,
-            a2,
-            a3,
-            i2,
-            i3,
-            g,
-            ..
-        } = *arm;
-        let k2 = m2 * a2 * a2 + i2;
-        let d33 = m3 * a3 * a3 + i3;
+        );
+        if T::none(far) {
+            return near;
+        }
+        // Lanes disagree: each takes its own branch's value.
+        let fresh = Self::new(shifted);
+        let pick = |a: T, b: T| a.select(far, b);
         Self {
-            k2,
-            m3_l2: m3 * l2,
-            m3_a3: m3 * a3,
-            i3,
-            m3_l2_a3: m3 * l2 * a3,
-            d22_0: k2 + m3 * l2 * l2 + d33,
-            d22_c3: 2.0 * m3 * l2 * a3,
-            d33,
-            g_m2_a2: g * m2 * a2,
-            g_m3_a3: g * m3 * a3,
+            s1: pick(fresh.s1, near.s1),
+            c1: pick(fresh.c1, near.c1),
+            s2: pick(fresh.s2, near.s2),
+            c2: pick(fresh.c2, near.c2),
+            s3: pick(fresh.s3, near.s3),
+            c3: pick(fresh.c3, near.c3),
+            s23: pick(fresh.s23, near.s23),
+            c23: pick(fresh.c23, near.c23),
         }
     }
 }
 
-impl ThreeLinkArm {
-    pub fn new(p: &RobotParams) -> Self {
+impl Trig<F64x4> {
+    /// Four configurations' trig in four lanes.
+    pub fn pack(t: [&Trig; LANES]) -> Self {
+        let p = |f: fn(&Trig) -> f64| F64x4::from_lanes(|i| f(t[i]));
+        Self {
+            s1: p(|t| t.s1),
+            c1: p(|t| t.c1),
+            s2: p(|t| t.s2),
+            c2: p(|t| t.c2),
+            s3: p(|t| t.s3),
+            c3: p(|t| t.c3),
+            s23: p(|t| t.s23),
+            c23: p(|t| t.c23),
+        }
+    }
+}
+
+/// The arm's closed form (kinematics, eq. (1)'s D, C, G and friction) with its constants
+/// folded once, over any scalar: `f64` for one arm, [`F64x4`] for four arms (whose
+/// parameters may differ) advancing in lanes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClosedForm<T: Real = f64> {
+    l1: T,
+    l2: T,
+    l3: T,
+    a3: T,
+    g: T,
+    fv: Vector3<T>,
+    fc: Vector3<T>,
+    /// ε, 1/ε and −2/ε, so the hot path multiplies instead of dividing.
+    eps: T,
+    inv_eps: T,
+    neg_two_inv_eps: T,
+    k: InertiaConstants<T>,
+}
+
+/// Parameter-only products of D, C and G, folded once instead of once per RK4 stage.
+#[derive(Debug, Clone, PartialEq)]
+struct InertiaConstants<T: Real> {
+    /// m2 a2² + i2: D11's c2² coefficient.
+    k2: T,
+    m3_l2: T,
+    m3_a3: T,
+    i3: T,
+    /// m3 l2 a3: D23's c3 coefficient (and −h/s3).
+    m3_l2_a3: T,
+    /// D22 = d22_0 + d22_c3 c3.
+    d22_0: T,
+    d22_c3: T,
+    /// D33 = m3 a3² + i3, also D23's constant part.
+    d33: T,
+    g_m2_a2: T,
+    g_m3_a3: T,
+}
+
+impl ClosedForm {
+    fn new(p: &RobotParams) -> Self {
         let [l1, l2, l3] = p.lengths;
         let [_, m2, m3] = p.masses;
         let (a2, a3, i2, i3) = match p.mass_model {
             MassModel::Rod => (l2 / 2.0, l3 / 2.0, m2 * l2 * l2 / 12.0, m3 * l3 * l3 / 12.0),
             MassModel::Point => (l2, l3, 0.0, 0.0),
         };
-        let mut arm = Self {
-            params: p.clone(),
+        let g = p.gravity;
+        let k2 = m2 * a2 * a2 + i2;
+        let d33 = m3 * a3 * a3 + i3;
+        Self {
             l1,
             l2,
             l3,
-            m2,
-            m3,
-            a2,
             a3,
-            i2,
-            i3,
-            g: p.gravity,
+            g,
             fv: Vec3::from(p.viscous_friction),
             fc: Vec3::from(p.coulomb_friction),
             eps: p.friction_smoothing,
             inv_eps: 1.0 / p.friction_smoothing,
             neg_two_inv_eps: -2.0 / p.friction_smoothing,
-            inertia: InertiaConstants::default(),
-        };
-        arm.inertia = InertiaConstants::new(&arm);
-        arm
+            k: InertiaConstants {
+                k2,
+                m3_l2: m3 * l2,
+                m3_a3: m3 * a3,
+                i3,
+                m3_l2_a3: m3 * l2 * a3,
+                d22_0: k2 + m3 * l2 * l2 + d33,
+                d22_c3: 2.0 * m3 * l2 * a3,
+                d33,
+                g_m2_a2: g * m2 * a2,
+                g_m3_a3: g * m3 * a3,
+            },
+        }
     }
+}
 
+impl ClosedForm<F64x4> {
+    /// Four arms' closed forms in four lanes.
+    pub fn pack(arms: [&ClosedForm; LANES]) -> Self {
+        let p = |f: fn(&ClosedForm) -> f64| F64x4::from_lanes(|i| f(arms[i]));
+        let v = |f: fn(&ClosedForm) -> &Vec3| {
+            Vector3::from_fn(|j, _| F64x4::from_lanes(|i| f(arms[i])[j]))
+        };
+        Self {
+            l1: p(|a| a.l1),
+            l2: p(|a| a.l2),
+            l3: p(|a| a.l3),
+            a3: p(|a| a.a3),
+            g: p(|a| a.g),
+            fv: v(|a| &a.fv),
+            fc: v(|a| &a.fc),
+            eps: p(|a| a.eps),
+            inv_eps: p(|a| a.inv_eps),
+            neg_two_inv_eps: p(|a| a.neg_two_inv_eps),
+            k: InertiaConstants {
+                k2: p(|a| a.k.k2),
+                m3_l2: p(|a| a.k.m3_l2),
+                m3_a3: p(|a| a.k.m3_a3),
+                i3: p(|a| a.k.i3),
+                m3_l2_a3: p(|a| a.k.m3_l2_a3),
+                d22_0: p(|a| a.k.d22_0),
+                d22_c3: p(|a| a.k.d22_c3),
+                d33: p(|a| a.k.d33),
+                g_m2_a2: p(|a| a.k.g_m2_a2),
+                g_m3_a3: p(|a| a.k.g_m3_a3),
+            },
+        }
+    }
+}
+
+impl<T: Real> ClosedForm<T> {
     /// |det J| / (l2 l3 (l2 + l3)) = |r sin q3| / (l2 + l3): zero exactly at the singular
     /// configurations (det J = −r l2 l3 sin q3, r the tip's distance from the yaw axis).
-    pub fn jacobian_conditioning(&self, q: &Vec3) -> f64 {
-        let t = Trig::new(q);
+    pub fn jacobian_conditioning(&self, t: &Trig<T>) -> T {
         let r = self.l2 * t.c2 + self.l3 * t.c23;
-        (r * t.s3).abs() / (self.l2 + self.l3)
+        (r * t.s3).simd_abs() / (self.l2 + self.l3)
     }
 
     #[inline]
-    fn kinematics_from(&self, t: &Trig, qd: &Vec3) -> Kinematics {
+    pub fn tip_position(&self, t: &Trig<T>) -> Vector3<T> {
+        let r = self.l2 * t.c2 + self.l3 * t.c23;
+        Vector3::new(
+            t.c1 * r,
+            t.s1 * r,
+            self.l1 + self.l2 * t.s2 + self.l3 * t.s23,
+        )
+    }
+
+    #[inline]
+    pub fn kinematics(&self, t: &Trig<T>, qd: &Vector3<T>) -> super::Kinematics<3, T> {
         let (l2, l3) = (self.l2, self.l3);
+        let two = T::splat(2.0);
         let r = l2 * t.c2 + l3 * t.c23; // distance from the yaw axis
         let h = l2 * t.s2 + l3 * t.s23; // height above the shoulder
-        let position = Vec3::new(t.c1 * r, t.s1 * r, self.l1 + h);
-        let jacobian = Mat3::new(
+        let position = Vector3::new(t.c1 * r, t.s1 * r, self.l1 + h);
+        let jacobian = Matrix3::new(
             -t.s1 * r,
             -t.c1 * h,
             -t.c1 * l3 * t.s23,
             t.c1 * r,
             -t.s1 * h,
             -t.s1 * l3 * t.s23,
-            0.0,
+            T::zero(),
             r,
             l3 * t.c23,
         );
@@ -316,12 +374,12 @@ impl ThreeLinkArm {
         // Parts of r̈ and z̈ that do not contain q̈.
         let r_ddot = -(l2 * t.c2 * w2 * w2 + l3 * t.c23 * w23 * w23);
         let z_ddot = -(l2 * t.s2 * w2 * w2 + l3 * t.s23 * w23 * w23);
-        let jdot_qd = Vec3::new(
-            -t.c1 * w1 * w1 * r - 2.0 * t.s1 * w1 * r_dot + t.c1 * r_ddot,
-            -t.s1 * w1 * w1 * r + 2.0 * t.c1 * w1 * r_dot + t.s1 * r_ddot,
+        let jdot_qd = Vector3::new(
+            -t.c1 * w1 * w1 * r - two * t.s1 * w1 * r_dot + t.c1 * r_ddot,
+            -t.s1 * w1 * w1 * r + two * t.c1 * w1 * r_dot + t.s1 * r_ddot,
             z_ddot,
         );
-        Kinematics {
+        super::Kinematics {
             position,
             jacobian,
             jdot_qd,
@@ -329,8 +387,9 @@ impl ThreeLinkArm {
     }
 
     #[inline(always)]
-    fn dynamics_from(&self, t: &Trig, qd: &Vec3) -> Dynamics {
-        let k = &self.inertia;
+    pub fn dynamics(&self, t: &Trig<T>, qd: &Vector3<T>) -> super::Dynamics<3, T> {
+        let k = &self.k;
+        let (zero, two) = (T::zero(), T::splat(2.0));
         // m3 times the distance of link 3's centre of mass from the yaw axis.
         let m3r3 = k.m3_l2 * t.c2 + k.m3_a3 * t.c23;
         let r3 = self.l2 * t.c2 + self.a3 * t.c23;
@@ -339,7 +398,7 @@ impl ThreeLinkArm {
         let d22 = k.d22_0 + k.d22_c3 * t.c3;
         let d23 = k.d33 + k.m3_l2_a3 * t.c3;
         // The yaw inertia is decoupled from the pitch block: D12 = D13 = 0.
-        let inertia = Mat3::new(d11, 0.0, 0.0, 0.0, d22, d23, 0.0, d23, k.d33);
+        let inertia = Matrix3::new(d11, zero, zero, zero, d22, d23, zero, d23, k.d33);
 
         // C by Christoffel symbols from ∂D11/∂q2 = −2 p2, ∂D11/∂q3 = −2 p3,
         // ∂D22/∂q3 = 2h and ∂D23/∂q3 = h.
@@ -348,83 +407,85 @@ impl ThreeLinkArm {
         let h = -k.m3_l2_a3 * t.s3;
         let (w1, w2, w3) = (qd[0], qd[1], qd[2]);
         let w11 = w1 * w1;
-        let coriolis = Vec3::new(
-            -2.0 * (p2 * w2 + p3 * w3) * w1,
-            h * w3 * (2.0 * w2 + w3) + p2 * w11,
+        let coriolis = Vector3::new(
+            -two * (p2 * w2 + p3 * w3) * w1,
+            h * w3 * (two * w2 + w3) + p2 * w11,
             -h * w2 * w2 + p3 * w11,
         );
-        let gravity = Vec3::new(0.0, k.g_m2_a2 * t.c2 + self.g * m3r3, k.g_m3_a3 * t.c23);
-        Dynamics {
+        let gravity = Vector3::new(zero, k.g_m2_a2 * t.c2 + self.g * m3r3, k.g_m3_a3 * t.c23);
+        super::Dynamics {
             inertia,
             coriolis,
             gravity,
         }
     }
 
+    /// sgn(v) as friction uses it: tanh(v/ε), or the exact sign (0 at 0) where ε ≤ 0.
     #[inline]
-    fn sign(&self, v: f64) -> f64 {
-        if self.eps > 0.0 {
-            smooth_sign(v * self.inv_eps)
-        } else if v > 0.0 {
-            1.0
-        } else if v < 0.0 {
-            -1.0
-        } else {
-            0.0
+    fn sign(&self, v: T) -> T {
+        let (zero, one) = (T::zero(), T::one());
+        let exact = one.select(v.simd_gt(zero), (-one).select(v.simd_lt(zero), zero));
+        let sharp = self.eps.simd_le(zero);
+        if T::all(sharp) {
+            return exact;
         }
+        exact.select(sharp, smooth_sign(v * self.inv_eps))
     }
 
-    /// Kinematics and dynamics together, sharing one trigonometric evaluation.
-    #[inline]
-    pub fn evaluate(&self, q: &Vec3, qd: &Vec3) -> (Kinematics, Dynamics) {
-        let t = Trig::new(q);
-        (self.kinematics_from(&t, qd), self.dynamics_from(&t, qd))
+    /// Viscous plus Coulomb friction at q̇.
+    pub fn friction(&self, qd: &Vector3<T>) -> Vector3<T> {
+        Vector3::new(
+            self.fv[0] * qd[0] + self.fc[0] * self.sign(qd[0]),
+            self.fv[1] * qd[1] + self.fc[1] * self.sign(qd[1]),
+            self.fv[2] * qd[2] + self.fc[2] * self.sign(qd[2]),
+        )
     }
 
     /// Joint accelerations with the environment's force evaluated at the same state:
     /// eq. (1) with τ_ext = Jᵀ(−f n), f = `contact(n·X, n·Ẋ)`. Returns (q̈, f).
     #[inline(always)]
-    fn accelerate_at(
+    pub fn accelerate(
         &self,
-        t: &Trig,
-        qd: &Vec3,
-        tau: &Vec3,
-        contact: &impl Fn(f64, f64) -> f64,
-        normal: &TaskVector,
+        t: &Trig<T>,
+        qd: &Vector3<T>,
+        tau: &Vector3<T>,
+        contact: &impl Fn(T, T) -> T,
+        normal: &Vector3<T>,
         needs_rate: bool,
-    ) -> (Vec3, f64) {
+    ) -> (Vector3<T>, T) {
         let t = *t;
         let r = self.l2 * t.c2 + self.l3 * t.c23; // distance from the yaw axis
         let h = self.l2 * t.s2 + self.l3 * t.s23; // height above the shoulder
-                                                  // The normal's horizontal part in the arm's yaw frame: a = (c1, s1)·(n0, n1) and
-                                                  // b = (−s1, c1)·(n0, n1). Then n·X = r a + n2 (l1 + h), and Jᵀ n follows from J's
-                                                  // entries (see `kinematics_from`); for the paper's n = e_x, n·X = x and Jᵀ n is J's
-                                                  // first row.
+
+        // The normal's horizontal part in the arm's yaw frame: a = (c1, s1)·(n0, n1) and
+        // b = (−s1, c1)·(n0, n1). Then n·X = r a + n2 (l1 + h), and Jᵀ n follows from J's
+        // entries (see `kinematics`); for the paper's n = e_x, n·X = x and Jᵀ n is J's
+        // first row.
         let (n0, n1, n2) = (normal[0], normal[1], normal[2]);
         let a = t.c1 * n0 + t.s1 * n1;
         let b = t.c1 * n1 - t.s1 * n0;
         let along = r * a + n2 * (self.l1 + h);
-        let jt_n = Vec3::new(r * b, r * n2 - h * a, self.l3 * (t.c23 * n2 - t.s23 * a));
-        let rate = if needs_rate { jt_n.dot(qd) } else { 0.0 };
+        let jt_n = Vector3::new(r * b, r * n2 - h * a, self.l3 * (t.c23 * n2 - t.s23 * a));
+        let rate = if needs_rate { jt_n.dot(qd) } else { T::zero() };
         let f = contact(along, rate);
         // The wall pushes the tip along −n.
         let contact_torque = jt_n * -f;
-        let d = self.dynamics_from(&t, qd);
+        let d = self.dynamics(&t, qd);
         // q̈ = D⁻¹ (rest − τ_c), with τ_c the Coulomb friction and rest everything else. The
         // longest dependency chain of an RK4 stage runs q̇ → exp → τ_c → q̈ → next stage's q̇,
         // so τ_c enters last, through the inverse of D (which depends on q only and is
         // ready early): three dependent operations after τ_c instead of five.
         let rest = tau + contact_torque - d.coriolis - d.gravity - self.fv.component_mul(qd);
         let (a, b, c) = (d.inertia[(1, 1)], d.inertia[(1, 2)], d.inertia[(2, 2)]);
-        let inv_d11 = 1.0 / d.inertia[(0, 0)];
-        let inv_det = 1.0 / (a * c - b * b);
+        let inv_d11 = T::one() / d.inertia[(0, 0)];
+        let inv_det = T::one() / (a * c - b * b);
         let (k22, k23, k33) = (c * inv_det, -b * inv_det, a * inv_det);
-        let tau_c = Vec3::new(
+        let tau_c = Vector3::new(
             self.coulomb(0, qd[0]),
             self.coulomb(1, qd[1]),
             self.coulomb(2, qd[2]),
         );
-        let qdd = Vec3::new(
+        let qdd = Vector3::new(
             rest[0] * inv_d11 - tau_c[0] * inv_d11,
             (k22 * rest[1] + k23 * rest[2]) - (k22 * tau_c[1] + k23 * tau_c[2]),
             (k23 * rest[1] + k33 * rest[2]) - (k23 * tau_c[1] + k33 * tau_c[2]),
@@ -436,30 +497,52 @@ impl ThreeLinkArm {
     /// e = e^(−2|q̇|/ε) and the sign of q̇ (as `smooth_sign`, with f_c multiplied in before the
     /// division to shorten the chain), or f_c sgn q̇ for ε ≤ 0.
     #[inline(always)]
-    fn coulomb(&self, j: usize, v: f64) -> f64 {
-        if self.eps <= 0.0 {
+    fn coulomb(&self, j: usize, v: T) -> T {
+        let zero = T::zero();
+        let sharp = self.eps.simd_le(zero);
+        if T::all(sharp) {
             return self.fc[j] * self.sign(v);
         }
         // A joint at rest (the yaw joint in every planar task) skips the call.
-        if v == 0.0 {
-            return 0.0;
+        let rest = v.simd_eq(zero);
+        if T::all(rest) {
+            return zero;
         }
         // |v|·(−2/ε) is −2|v/ε| exactly: scaling by 2 commutes with rounding.
-        let e = (v.abs() * self.neg_two_inv_eps).exp();
-        ((self.fc[j] * (1.0 - e)) / (1.0 + e)).copysign(v)
+        let e = (v.simd_abs() * self.neg_two_inv_eps).exp_fast();
+        let one = T::one();
+        let smooth = ((self.fc[j] * (one - e)) / (one + e)).simd_copysign(v);
+        let smooth = if T::none(rest) {
+            smooth
+        } else {
+            zero.select(rest, smooth)
+        };
+        if T::none(sharp) {
+            smooth
+        } else {
+            (self.fc[j] * self.sign(v)).select(sharp, smooth)
+        }
     }
 }
 
 /// tanh(x) as ±(1 − e^(−2|x|)) / (1 + e^(−2|x|)): one `exp`, never overflows, within
 /// 2.3e-16 of `f64::tanh` (tested) and about twice as fast. It runs 3 times per RK4 stage.
 #[inline(always)]
-pub(crate) fn smooth_sign(x: f64) -> f64 {
+pub(crate) fn smooth_sign<T: Real>(x: T) -> T {
+    let zero = T::zero();
     // A joint at rest (the yaw joint in every planar task) skips the call.
-    if x == 0.0 {
+    let rest = x.simd_eq(zero);
+    if T::all(rest) {
         return x;
     }
-    let e = (-2.0 * x.abs()).exp();
-    ((1.0 - e) / (1.0 + e)).copysign(x)
+    let one = T::one();
+    let e = (T::splat(-2.0) * x.simd_abs()).exp_fast();
+    let y = ((one - e) / (one + e)).simd_copysign(x);
+    if T::none(rest) {
+        y
+    } else {
+        x.select(rest, y)
+    }
 }
 
 /// Solves D q̈ = rhs for this arm's block-diagonal D (yaw scalar ⊕ 2×2 pitch block).
@@ -474,6 +557,33 @@ fn solve_block_inertia(d: &Mat3, rhs: &Vec3) -> Vec3 {
         (c * rhs[1] - b * rhs[2]) * inv_det,
         (a * rhs[2] - b * rhs[1]) * inv_det,
     )
+}
+
+/// The arm of Table 1: its parameters and its closed form in `f64`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ThreeLinkArm {
+    /// The parameters it was built from (model-error copies start from them).
+    params: RobotParams,
+    form: ClosedForm,
+}
+
+impl ThreeLinkArm {
+    pub fn new(p: &RobotParams) -> Self {
+        Self {
+            params: p.clone(),
+            form: ClosedForm::new(p),
+        }
+    }
+
+    /// The closed form, for the SIMD lanes that pack four arms' (`ClosedForm::pack`).
+    pub fn closed_form(&self) -> &ClosedForm {
+        &self.form
+    }
+
+    /// |det J| / (l2 l3 (l2 + l3)): zero exactly at the singular configurations.
+    pub fn jacobian_conditioning(&self, q: &Vec3) -> f64 {
+        self.form.jacobian_conditioning(&Trig::new(q))
+    }
 }
 
 impl RobotModel<3> for ThreeLinkArm {
@@ -491,34 +601,25 @@ impl RobotModel<3> for ThreeLinkArm {
 
     #[inline]
     fn tip_position(&self, t: &Trig) -> Vec3 {
-        let r = self.l2 * t.c2 + self.l3 * t.c23;
-        Vec3::new(
-            t.c1 * r,
-            t.s1 * r,
-            self.l1 + self.l2 * t.s2 + self.l3 * t.s23,
-        )
+        self.form.tip_position(t)
     }
 
     #[inline]
     fn kinematics(&self, t: &Trig, qd: &Vec3) -> Kinematics {
-        self.kinematics_from(t, qd)
+        self.form.kinematics(t, qd)
     }
 
     #[inline]
     fn dynamics(&self, t: &Trig, qd: &Vec3) -> Dynamics {
-        self.dynamics_from(t, qd)
+        self.form.dynamics(t, qd)
     }
 
     fn friction(&self, qd: &Vec3) -> Vec3 {
-        Vec3::new(
-            self.fv[0] * qd[0] + self.fc[0] * self.sign(qd[0]),
-            self.fv[1] * qd[1] + self.fc[1] * self.sign(qd[1]),
-            self.fv[2] * qd[2] + self.fc[2] * self.sign(qd[2]),
-        )
+        self.form.friction(qd)
     }
 
     fn forward_dynamics(&self, t: &Trig, qd: &Vec3, tau: &Vec3, tip_force: &Vec3) -> Vec3 {
-        let (k, d) = (self.kinematics_from(t, qd), self.dynamics_from(t, qd));
+        let (k, d) = (self.form.kinematics(t, qd), self.form.dynamics(t, qd));
         let rhs =
             tau + k.jacobian.transpose() * tip_force - d.coriolis - d.gravity - self.friction(qd);
         solve_block_inertia(&d.inertia, &rhs)
@@ -534,7 +635,8 @@ impl RobotModel<3> for ThreeLinkArm {
         normal: &TaskVector,
         needs_rate: bool,
     ) -> (JointVector<3>, f64) {
-        self.accelerate_at(t, qd, tau, contact, normal, needs_rate)
+        self.form
+            .accelerate(t, qd, tau, contact, normal, needs_rate)
     }
 
     fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {
@@ -550,6 +652,12 @@ impl RobotModel<3> for ThreeLinkArm {
 impl ThreeLinkArm {
     pub fn params(&self) -> &RobotParams {
         &self.params
+    }
+
+    /// Kinematics and dynamics together, sharing one trigonometric evaluation.
+    pub fn evaluate(&self, q: &Vec3, qd: &Vec3) -> (Kinematics, Dynamics) {
+        let t = Trig::new(q);
+        (self.form.kinematics(&t, qd), self.form.dynamics(&t, qd))
     }
 
     /// Tip position at q.

@@ -3,9 +3,11 @@
 //!
 //! Dependencies run one way: `scenario`, `outcome` and `trace` are plain data; `metrics`
 //! reads them; `simulation` drives `plant` and records into `trace`, then calls `metrics`;
-//! `sweep` runs many `simulation`s.
+//! `lanes` advances four `simulation`s' plants together in SIMD lanes; `sweep` runs many
+//! `simulation`s, in lanes where their structure allows.
 
 pub mod dispatch;
+pub mod lanes;
 pub mod metrics;
 pub mod outcome;
 pub mod plant;

@@ -2,7 +2,10 @@
 //! substeps while the applied torque is held (zero-order hold, SPEC §6). The environment's
 //! force is evaluated inside every RK4 stage from that stage's state.
 
+use nalgebra::SVector;
+
 use crate::robot::{JointVector, RobotModel, TaskVector};
+use crate::scalar::Real;
 use crate::world::environment::Wall;
 
 /// Whether this CPU runs the AVX2 + FMA builds of the step loop (`Plant::advance`,
@@ -96,29 +99,6 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
             .map_or(0.0, |w| w.force(position, velocity))
     }
 
-    #[inline(always)]
-    fn acceleration(
-        &self,
-        c: &R::Config,
-        qd: &JointVector<N>,
-        tau: &JointVector<N>,
-    ) -> JointVector<N> {
-        match &self.wall {
-            Some(w) => {
-                let contact = |along: f64, rate: f64| w.force_along(along, rate);
-                self.arm
-                    .accelerate(c, qd, tau, &contact, &w.normal, w.needs_rate())
-                    .0
-            }
-            None => {
-                let free = |_: f64, _: f64| 0.0;
-                self.arm
-                    .accelerate(c, qd, tau, &free, &TaskVector::x(), false)
-                    .0
-            }
-        }
-    }
-
     /// One control period: `substeps` classical RK4 steps with τ held.
     ///
     /// Dispatched like `Simulation::run` (AVX2 + FMA code when the CPU has them, baseline
@@ -143,26 +123,115 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
     /// loop once and inlines this into it.
     #[inline(always)]
     pub(crate) fn advance_inlined(&mut self, tau: &JointVector<N>) {
-        let h = self.substep;
-        let PlantState { mut q, mut qd } = self.state;
-        let arm = &self.arm;
-        let mut c1 = self.config;
-        for _ in 0..self.substeps {
-            let a1 = self.acceleration(&c1, &qd, tau);
-            let (d2, qd2) = (qd * (h / 2.0), qd + a1 * (h / 2.0));
-            let a2 = self.acceleration(&arm.configure_shifted(&c1, &d2, &(q + d2)), &qd2, tau);
-            let (d3, qd3) = (qd2 * (h / 2.0), qd + a2 * (h / 2.0));
-            let a3 = self.acceleration(&arm.configure_shifted(&c1, &d3, &(q + d3)), &qd3, tau);
-            let (d4, qd4) = (qd3 * h, qd + a3 * h);
-            let a4 = self.acceleration(&arm.configure_shifted(&c1, &d4, &(q + d4)), &qd4, tau);
-            let dq = (qd + (qd2 + qd3) * 2.0 + qd4) * (h / 6.0);
-            q += dq;
-            c1 = arm.configure_shifted(&c1, &dq, &q);
-            qd += (a1 + (a2 + a3) * 2.0 + a4) * (h / 6.0);
-        }
+        let (q, qd) = rk4_period(
+            self,
+            (self.state.q, self.state.qd),
+            self.config,
+            self.substep,
+            self.substeps,
+            tau,
+        );
         // A fresh evaluation, so angle-addition rounding never outlives a period.
         self.set_state(PlantState { q, qd });
     }
+
+    /// Substeps per period.
+    pub(crate) fn substeps(&self) -> usize {
+        self.substeps
+    }
+
+    /// The substep h [s].
+    pub(crate) fn substep(&self) -> f64 {
+        self.substep
+    }
+
+    /// The arm's per-configuration values at the current state.
+    pub(crate) fn config(&self) -> &R::Config {
+        &self.config
+    }
+}
+
+/// What RK4 needs of a plant, over any scalar (one run, or runs in SIMD lanes).
+pub(crate) trait Stages<T: Real, const N: usize> {
+    /// The arm's per-configuration values (its trig).
+    type Config: Copy;
+
+    /// q̈ at a stage whose configuration values are `c`, with τ held.
+    fn acceleration(
+        &self,
+        c: &Self::Config,
+        qd: &SVector<T, N>,
+        tau: &SVector<T, N>,
+    ) -> SVector<T, N>;
+
+    /// The values at `shifted` = q + `delta`, given those at q.
+    fn shift(
+        &self,
+        c: &Self::Config,
+        delta: &SVector<T, N>,
+        shifted: &SVector<T, N>,
+    ) -> Self::Config;
+}
+
+impl<R: RobotModel<N>, const N: usize> Stages<f64, N> for Plant<R, N> {
+    type Config = R::Config;
+
+    #[inline(always)]
+    fn acceleration(
+        &self,
+        c: &R::Config,
+        qd: &JointVector<N>,
+        tau: &JointVector<N>,
+    ) -> JointVector<N> {
+        match &self.wall {
+            Some(w) => {
+                let contact = |along: f64, rate: f64| w.force_along(along, rate);
+                self.arm
+                    .accelerate(c, qd, tau, &contact, &w.normal, w.needs_rate())
+                    .0
+            }
+            None => {
+                let free = |_: f64, _: f64| 0.0;
+                self.arm
+                    .accelerate(c, qd, tau, &free, &TaskVector::x(), false)
+                    .0
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn shift(&self, c: &R::Config, delta: &JointVector<N>, shifted: &JointVector<N>) -> R::Config {
+        self.arm.configure_shifted(c, delta, shifted)
+    }
+}
+
+/// One control period of `substeps` classical RK4 steps of `h` from `(q, q̇)` with τ held,
+/// over any scalar. `config` is the arm's values at q. Returns the new (q, q̇).
+#[inline(always)]
+pub(crate) fn rk4_period<T: Real, S: Stages<T, N>, const N: usize>(
+    stages: &S,
+    (mut q, mut qd): (SVector<T, N>, SVector<T, N>),
+    config: S::Config,
+    h: T,
+    substeps: usize,
+    tau: &SVector<T, N>,
+) -> (SVector<T, N>, SVector<T, N>) {
+    let (two, six) = (T::splat(2.0), T::splat(6.0));
+    let mut c1 = config;
+    for _ in 0..substeps {
+        let a1 = stages.acceleration(&c1, &qd, tau);
+        let (d2, qd2) = (qd * (h / two), qd + a1 * (h / two));
+        let a2 = stages.acceleration(&stages.shift(&c1, &d2, &(q + d2)), &qd2, tau);
+        let (d3, qd3) = (qd2 * (h / two), qd + a2 * (h / two));
+        let a3 = stages.acceleration(&stages.shift(&c1, &d3, &(q + d3)), &qd3, tau);
+        let (d4, qd4) = (qd3 * h, qd + a3 * h);
+        let a4 = stages.acceleration(&stages.shift(&c1, &d4, &(q + d4)), &qd4, tau);
+        let dq = (qd + (qd2 + qd3) * two + qd4) * (h / six);
+        q += dq;
+        c1 = stages.shift(&c1, &dq, &q);
+        qd += (a1 + (a2 + a3) * two + a4) * (h / six);
+    }
+    (q, qd)
 }
 
 #[cfg(test)]

@@ -72,6 +72,14 @@ pub struct Simulation<R: RobotModel<N>, const N: usize> {
 pub type ThreeLinkSimulation = Simulation<ThreeLinkArm, 3>;
 
 impl Simulation<ThreeLinkArm, 3> {
+    pub(crate) fn plant(&self) -> &Plant<ThreeLinkArm, 3> {
+        &self.plant
+    }
+
+    pub(crate) fn plant_mut(&mut self) -> &mut Plant<ThreeLinkArm, 3> {
+        &mut self.plant
+    }
+
     /// Validates `config` and builds the pipeline for its three-link arm (an error if the
     /// scenario's arm is a URDF chain: use [`crate::sim::dispatch::AnySimulation`]).
     pub fn new(config: &ScenarioConfig) -> Result<Self> {
@@ -217,7 +225,13 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
     pub fn run(&mut self) -> RunResult {
         self.reset();
         // A whole run always ends within `samples` steps.
-        let outcome = self.step(self.samples).unwrap_or(Outcome::Completed);
+        self.step(self.samples);
+        self.take_result()
+    }
+
+    /// The result of a run that has ended; the trace moves out.
+    pub(crate) fn take_result(&mut self) -> RunResult {
+        let outcome = self.outcome.unwrap_or(Outcome::Completed);
         let metrics = self.metrics(&outcome);
         let trace = std::mem::replace(&mut self.trace, Trace::new(N, 0));
         RunResult {
@@ -273,6 +287,16 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
     /// One period of the pipeline, in SPEC §10 order.
     #[inline(always)]
     fn step_once(&mut self) {
+        if let Some(tau) = self.step_to_plant() {
+            self.plant.advance_inlined(&tau);
+            self.after_plant();
+        }
+    }
+
+    /// Stages 1 to 8 of a period: returns the torque to hold over the period, or `None`
+    /// if the run ended at this sample (stage 9 is then skipped).
+    #[inline(always)]
+    pub(crate) fn step_to_plant(&mut self) -> Option<JointVector<N>> {
         let k = self.k;
         let t = k as f64 * self.config.period;
         // 1. plant state (what the encoders give)
@@ -326,9 +350,13 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         };
         let command = match self.controller.step(&measurement, &desired) {
             Ok(tau) if tau.iter().all(|v| v.is_finite()) => tau,
-            Ok(_) => return self.stop(t, Divergence::NonFiniteTorque),
+            Ok(_) => {
+                self.stop(t, Divergence::NonFiniteTorque);
+                return None;
+            }
             Err(ControlFailure::SingularJacobian) => {
-                return self.stop(t, Divergence::SingularJacobian)
+                self.stop(t, Divergence::SingularJacobian);
+                return None;
             }
         };
         // 7. actuator; TDC remembers what was applied
@@ -359,9 +387,14 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         self.k = k + 1;
         if self.k == self.samples {
             self.outcome = Some(Outcome::Completed);
-            return;
+            return None;
         }
-        self.plant.advance_inlined(&tau);
+        Some(tau)
+    }
+
+    /// After stage 9: a diverged state ends the run.
+    #[inline(always)]
+    pub(crate) fn after_plant(&mut self) {
         if let Some(cause) = self.check_state() {
             self.stop(self.k as f64 * self.config.period, cause);
         }

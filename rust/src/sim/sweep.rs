@@ -5,8 +5,9 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::sim::dispatch::AnySimulation;
+use crate::sim::lanes::{run_lanes, LaneKey};
 use crate::sim::metrics::Metrics;
-use crate::sim::simulation::{Outcome, ScenarioConfig};
+use crate::sim::simulation::{Outcome, RunResult, ScenarioConfig};
 use crate::sim::trace::Trace;
 
 /// What a batch keeps of one run.
@@ -32,31 +33,37 @@ pub fn run_batch(
     threads: Option<usize>,
     keep_traces: bool,
 ) -> std::result::Result<Vec<RunSummary>, BatchError> {
+    run_batch_with(configs, threads, keep_traces, true)
+}
+
+/// `run_batch`, with the SIMD lanes (`sim::lanes`) on or off. Off is the scalar path, each
+/// run bit-identical to `simulate`; on, three-link runs agree with it to SPEC §13's 1e-9
+/// (`exp` differs in the last bits). Either way a run's result does not depend on the
+/// batch, its chunking or the thread count.
+pub fn run_batch_with(
+    configs: &[ScenarioConfig],
+    threads: Option<usize>,
+    keep_traces: bool,
+    lanes: bool,
+) -> std::result::Result<Vec<RunSummary>, BatchError> {
     // Every config is checked before anything runs; the runs are then built one at a time
     // inside the workers, so a large batch never holds more than one pipeline per thread.
     for (index, c) in configs.iter().enumerate() {
         AnySimulation::new(c).map_err(|error| BatchError { index, error })?;
     }
+    let workers = threads.unwrap_or_else(rayon::current_num_threads).max(1);
+    let size = if lanes {
+        configs.len().div_ceil(workers).clamp(1, LANE_BLOCK)
+    } else {
+        1
+    };
+    let blocks = blocks(configs.len(), size);
     let run_all = move || -> std::result::Result<Vec<RunSummary>, BatchError> {
-        configs
+        let runs: Vec<Vec<RunSummary>> = blocks
             .par_iter()
-            .enumerate()
-            .map(|(index, c)| {
-                let sim = AnySimulation::new(c).map_err(|error| BatchError { index, error })?;
-                // Without traces a run keeps nothing but its online metrics.
-                let mut sim = if keep_traces {
-                    sim
-                } else {
-                    sim.without_trace()
-                };
-                let r = sim.run();
-                Ok(RunSummary {
-                    metrics: r.metrics,
-                    outcome: r.outcome,
-                    trace: keep_traces.then_some(r.trace),
-                })
-            })
-            .collect()
+            .map(|block| run_block(configs, block.clone(), keep_traces, lanes))
+            .collect::<std::result::Result<_, _>>()?;
+        Ok(runs.into_iter().flatten().collect())
     };
     match threads {
         None => run_all(),
@@ -64,6 +71,86 @@ pub fn run_batch(
             .map_err(|error| BatchError { index: 0, error })?
             .install(run_all),
     }
+}
+
+/// Most runs per block of the lane scheduler: a block's runs of one [`LaneKey`] advance four
+/// at a time (`sim::lanes`); blocks are the parallel tasks, so a batch is cut into blocks of
+/// at most its share per thread.
+const LANE_BLOCK: usize = 32;
+
+/// What runs may share lanes: the three-link arm, with one substep count and contact law
+/// (controllers, filters, sensors, actuators and every parameter may differ: they run per
+/// lane, or in lanes with per-lane parameters). `None`: the run is scalar (URDF chains).
+fn lane_key(c: &ScenarioConfig) -> Option<LaneKey> {
+    c.robot.three_link().map(|_| LaneKey {
+        substeps: c.substeps,
+        wall: c.wall.as_ref().map(|w| w.model),
+    })
+}
+
+/// Consecutive runs, at most `size` per block, in run order.
+fn blocks(n: usize, size: usize) -> Vec<std::ops::Range<usize>> {
+    (0..n.div_ceil(size))
+        .map(|b| b * size..((b + 1) * size).min(n))
+        .collect()
+}
+
+fn summary(r: RunResult, keep_traces: bool) -> RunSummary {
+    RunSummary {
+        metrics: r.metrics,
+        outcome: r.outcome,
+        trace: keep_traces.then_some(r.trace),
+    }
+}
+
+/// One block's runs. With `lanes`, the runs of each lane key advance in lanes (even a lone
+/// run, in an otherwise idle group, so a run takes the same path in any chunking); the
+/// rest, and every run without `lanes`, one by one. Results come back in run order.
+fn run_block(
+    configs: &[ScenarioConfig],
+    block: std::ops::Range<usize>,
+    keep_traces: bool,
+    lanes: bool,
+) -> std::result::Result<Vec<RunSummary>, BatchError> {
+    let build = |i: usize| -> std::result::Result<AnySimulation, BatchError> {
+        let sim =
+            AnySimulation::new(&configs[i]).map_err(|error| BatchError { index: i, error })?;
+        // Without traces a run keeps nothing but its online metrics.
+        Ok(if keep_traces {
+            sim
+        } else {
+            sim.without_trace()
+        })
+    };
+    let mut out: Vec<Option<RunSummary>> = (0..block.len()).map(|_| None).collect();
+    let mut keys: Vec<LaneKey> = Vec::new();
+    for i in block.clone() {
+        match lane_key(&configs[i]).filter(|_| lanes) {
+            Some(k) if !keys.contains(&k) => keys.push(k),
+            Some(_) => {}
+            None => out[i - block.start] = Some(summary(build(i)?.run(), keep_traces)),
+        }
+    }
+    for key in keys {
+        let mut members = Vec::new();
+        let mut sims = Vec::new();
+        for i in block
+            .clone()
+            .filter(|&i| lane_key(&configs[i]) == Some(key))
+        {
+            match build(i)? {
+                AnySimulation::ThreeLink(sim) => {
+                    members.push(i);
+                    sims.push(*sim);
+                }
+                mut other => out[i - block.start] = Some(summary(other.run(), keep_traces)),
+            }
+        }
+        for (&i, r) in members.iter().zip(run_lanes(&mut sims)) {
+            out[i - block.start] = Some(summary(r, keep_traces));
+        }
+    }
+    Ok(out.into_iter().flatten().collect())
 }
 
 fn thread_pool(threads: usize) -> Result<rayon::ThreadPool> {
@@ -134,9 +221,27 @@ mod tests {
         // Chunked: the last two on their own give the same as within the batch.
         let tail = run_batch(&c[2..], Some(2), true).unwrap();
         assert!(bits(&one[2..]) == bits(&tail), "chunking changed results");
-        for (cfg, s) in c.iter().zip(&one) {
+        // The scalar path is `simulate` bit for bit; lanes agree with it to 1e-9 (SPEC §13).
+        let scalar = run_batch_with(&c, Some(2), true, false).unwrap();
+        for ((cfg, s), l) in c.iter().zip(&scalar).zip(&one) {
             let alone = crate::sim::simulation::simulate(cfg).unwrap();
             assert!(s.trace.as_ref() == Some(&alone.trace));
+            let (Some(a), Some(b)) = (&s.trace, &l.trace) else {
+                panic!("traces were kept");
+            };
+            for ((name, x), (_, y)) in a
+                .clone()
+                .into_named_columns()
+                .into_iter()
+                .zip(b.clone().into_named_columns())
+            {
+                let scale = x.iter().fold(1e-12_f64, |m, v| m.max(v.abs()));
+                let worst = x
+                    .iter()
+                    .zip(&y)
+                    .fold(0.0_f64, |m, (p, q)| m.max((p - q).abs()));
+                assert!(worst <= 1e-9 * scale, "{name}: {worst:e} of {scale:e}");
+            }
         }
     }
 

@@ -3,6 +3,8 @@
 
 use crate::error::{check, Error, Result};
 use crate::robot::TaskVector;
+use crate::scalar::{F64x4, Real, LANES};
+use nalgebra::Vector3;
 
 /// How the contact force grows with penetration δ and its rate δ̇.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -87,18 +89,36 @@ pub fn unit_normal(v: &[f64; 3]) -> Result<TaskVector> {
     Ok(scaled / scaled.norm())
 }
 
-/// A wall with its normal and position resolved.
+/// A wall with its normal and position resolved: over `f64`, or over lanes (four walls,
+/// one model, `Wall::pack`) for runs advancing together.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Wall {
-    pub stiffness: f64,
-    pub damping: f64,
+pub struct Wall<T: Real = f64> {
+    pub stiffness: T,
+    pub damping: T,
     pub model: ContactModel,
-    pub exponent: f64,
+    pub exponent: T,
     /// Unit normal n.
-    pub normal: TaskVector,
+    pub normal: Vector3<T>,
     /// x_e along n.
-    pub position: f64,
-    pub position_error: f64,
+    pub position: T,
+    pub position_error: T,
+}
+
+impl Wall<F64x4> {
+    /// Four walls of one contact model in four lanes.
+    pub fn pack(walls: [&Wall; LANES]) -> Self {
+        debug_assert!(walls.iter().all(|w| w.model == walls[0].model));
+        let p = |f: fn(&Wall) -> f64| F64x4::from_lanes(|i| f(walls[i]));
+        Self {
+            stiffness: p(|w| w.stiffness),
+            damping: p(|w| w.damping),
+            model: walls[0].model,
+            exponent: p(|w| w.exponent),
+            normal: Vector3::from_fn(|j, _| F64x4::from_lanes(|i| walls[i].normal[j])),
+            position: p(|w| w.position),
+            position_error: p(|w| w.position_error),
+        }
+    }
 }
 
 impl Wall {
@@ -134,33 +154,46 @@ impl Wall {
         self.force_along(self.normal.dot(position), self.normal.dot(velocity))
     }
 
-    /// Contact force along n [N] from the tip's displacement s = n·X and rate ṡ = n·Ẋ.
-    #[inline(always)]
-    pub fn force_along(&self, along: f64, rate: f64) -> f64 {
-        let delta = along - self.position;
-        if delta <= 0.0 {
-            return 0.0;
-        }
-        let spring = match self.model {
-            ContactModel::KelvinVoigt => delta,
-            ContactModel::HuntCrossley => delta.powf(self.exponent),
-        };
-        if self.damping == 0.0 {
-            // The paper's wall: no velocity term at all (and no 0·δ̇ to round).
-            return self.stiffness * spring;
-        }
-        let f = match self.model {
-            ContactModel::KelvinVoigt => self.stiffness * delta + self.damping * rate,
-            ContactModel::HuntCrossley => spring * (self.stiffness + self.damping * rate),
-        };
-        // A wall pushes, never pulls.
-        f.max(0.0)
-    }
-
     /// x̂_e: where the controller believes the wall is, along n.
     #[inline]
     pub fn estimated_position(&self) -> f64 {
         self.position + self.position_error
+    }
+}
+
+impl<T: Real> Wall<T> {
+    /// Contact force along n [N] from the tip's displacement s = n·X and rate ṡ = n·Ẋ.
+    /// Lanes out of contact (or undamped) take their branch by select.
+    #[inline(always)]
+    pub fn force_along(&self, along: T, rate: T) -> T {
+        let zero = T::zero();
+        let delta = along - self.position;
+        let apart = delta.simd_le(zero);
+        if T::all(apart) {
+            return zero;
+        }
+        let spring = match self.model {
+            ContactModel::KelvinVoigt => delta,
+            ContactModel::HuntCrossley => delta.simd_powf(self.exponent),
+        };
+        let undamped = self.damping.simd_eq(zero);
+        // The paper's wall: no velocity term at all (and no 0·δ̇ to round).
+        let elastic = self.stiffness * spring;
+        let f = if T::all(undamped) {
+            elastic
+        } else {
+            let f = match self.model {
+                ContactModel::KelvinVoigt => self.stiffness * delta + self.damping * rate,
+                ContactModel::HuntCrossley => spring * (self.stiffness + self.damping * rate),
+            };
+            // A wall pushes, never pulls.
+            elastic.select(undamped, f.simd_max(zero))
+        };
+        if T::none(apart) {
+            f
+        } else {
+            zero.select(apart, f)
+        }
     }
 }
 

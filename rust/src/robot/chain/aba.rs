@@ -108,10 +108,11 @@ mod lanes {
     use crate::robot::chain::kinematics::tests::{chain4, state};
     use crate::robot::chain::model::{Body, SerialChain};
     use crate::robot::chain::spatial::{Pose, RigidInertia, SVec};
+    use crate::scalar::{F64x4, Real};
     use nalgebra::{Matrix3, SVector, Vector3};
-    use simba::simd::{SimdValue, WideF64x4};
+    use simba::simd::SimdValue;
 
-    type W = WideF64x4;
+    type W = F64x4;
 
     fn splat(v: f64) -> W {
         <W as SimdValue>::splat(v)
@@ -153,8 +154,7 @@ mod lanes {
     }
 
     /// The algorithms are one source for scalars and SIMD lanes: four different states in
-    /// the four lanes of simba's `WideF64x4` give each lane's scalar result (to rounding:
-    /// the lanes' sin/cos is not glibc's).
+    /// the four lanes of `F64x4` give each lane's scalar result.
     #[test]
     fn four_lanes_match_four_scalar_runs() {
         let c = chain4();
@@ -162,14 +162,7 @@ mod lanes {
         let (q, qd) = state();
         let shift = |k: usize| 0.3 * k as f64;
         let lane = |v: &SVector<f64, 4>| {
-            SVector::<W, 4>::from_fn(|i, _| {
-                W::from_arr([
-                    v[i] + shift(0),
-                    v[i] + shift(1),
-                    v[i] + shift(2),
-                    v[i] + shift(3),
-                ])
-            })
+            SVector::<W, 4>::from_fn(|i, _| W::from_lanes(|k| v[i] + shift(k)))
         };
         let tau = SVector::<f64, 4>::new(1.5, -2.0, 3.0, 0.7);
         let (wq, wqd) = (lane(&q), lane(&qd));

@@ -8,12 +8,9 @@
 //! Everything is generic over the scalar `T` ([`Real`]: nalgebra's `SimdRealField`), so the
 //! same code runs on `f64` and on SIMD lanes, and nothing allocates.
 
-use nalgebra::{Matrix3, Matrix6, SimdRealField, Vector3};
+use nalgebra::{Matrix3, Matrix6, Vector3};
 
-/// The scalar of the spatial algorithms: `f64`, or a SIMD lane type such as simba's
-/// `WideF64x4`.
-pub trait Real: SimdRealField + Copy {}
-impl<T: SimdRealField + Copy> Real for T {}
+pub use crate::scalar::Real;
 
 /// A 6-D spatial vector: motion [ω; v] or force [n; f].
 #[derive(Debug, Clone, Copy, PartialEq)]
