@@ -145,3 +145,36 @@ def test_mixed_ragged_tables_are_the_same_bits_everywhere(tmp_path):
             distributed.Client(cluster) as client:  # fmt: skip
         remote = _mixed(chunk_size=64, client=client)
     assert remote.equals(ref)
+
+
+def test_urdf_arm_runs_in_lanes_agree_with_simulate():
+    """A URDF chain (the UR5, 6 joints) advances in lanes too; a sweep mixing it with the
+    three-link arm groups each arm's runs apart."""
+    from pathlib import Path
+
+    ur5 = ar.UrdfArm(
+        Path(__file__).parent.parent / "examples" / "data" / "ur5.urdf", "tool0",
+        q0=(0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0), coulomb_friction=2.0,
+    )  # fmt: skip
+    base = ar.paper.scenario("fig19").replace(
+        robot=ur5, controller=ar.TimeDelayControl.for_arm(ur5), duration=0.6
+    )
+    vary = {"wall.stiffness": ar.LogUniform(1e4, 1e5), "wall.position_error": ar.Uniform(0, 0.01)}
+    table = ar.sweep(base, vary=vary, samples=6, seed=4, threads=2, progress=False)
+    scalar = ar.sweep(base, vary=vary, samples=6, seed=4, threads=2, progress=False, lanes=False)
+    for row, alone in zip(table.iter_rows(named=True), scalar.iter_rows(named=True), strict=True):
+        assert all(_agree(row[n], alone[n]) for n in ar.METRICS), row["run_id"]
+    one = ar.simulate(base.replace(**{p: scalar.row(2, named=True)[p] for p in vary}))
+    assert one.metrics["force_peak"] == scalar.row(2, named=True)["force_peak"]
+    # Mixed arms in one sweep (one controller both accept: the paper's TDC): each run is
+    # what ar.simulate gives it.
+    paper = base.replace(controller=ar.paper.scenario("fig19").controller)
+    arms = [ur5, ar.Robot(), ur5, ar.Robot(), ar.Robot()]
+    mixed = ar.sweep(paper, grid={"robot": arms}, progress=False)
+    for row, arm in zip(mixed.iter_rows(named=True), arms, strict=True):
+        alone = ar.simulate(paper.replace(robot=arm))
+        assert _same_sample(row["diverged_at"], alone.diverged_at)
+        assert row["stable"] == alone.stable
+        if alone.stable:
+            assert all(_agree(row[n], alone.metrics[n]) for n in ar.METRICS)
+    assert mixed.height == 5 and mixed["stable"].all()

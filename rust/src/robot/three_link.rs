@@ -420,16 +420,10 @@ impl<T: Real> ClosedForm<T> {
         }
     }
 
-    /// sgn(v) as friction uses it: tanh(v/ε), or the exact sign (0 at 0) where ε ≤ 0.
+    /// sgn(v) as friction uses it: tanh(v/ε), or the exact sign where ε ≤ 0.
     #[inline]
     fn sign(&self, v: T) -> T {
-        let (zero, one) = (T::zero(), T::one());
-        let exact = one.select(v.simd_gt(zero), (-one).select(v.simd_lt(zero), zero));
-        let sharp = self.eps.simd_le(zero);
-        if T::all(sharp) {
-            return exact;
-        }
-        exact.select(sharp, smooth_sign(v * self.inv_eps))
+        friction_sign(v, v * self.inv_eps, self.eps)
     }
 
     /// Viscous plus Coulomb friction at q̇.
@@ -522,6 +516,24 @@ impl<T: Real> ClosedForm<T> {
         } else {
             (self.fc[j] * self.sign(v)).select(sharp, smooth)
         }
+    }
+}
+
+/// sgn(v) as Coulomb friction uses it: tanh(v/ε) (`scaled` = v/ε) where ε > 0, else the
+/// exact sign (0 at 0), lane by lane.
+#[inline(always)]
+pub(crate) fn friction_sign<T: Real>(v: T, scaled: T, eps: T) -> T {
+    let (zero, one) = (T::zero(), T::one());
+    let exact = one.select(v.simd_gt(zero), (-one).select(v.simd_lt(zero), zero));
+    let sharp = eps.simd_le(zero);
+    if T::all(sharp) {
+        return exact;
+    }
+    let smooth = smooth_sign(scaled);
+    if T::none(sharp) {
+        smooth
+    } else {
+        exact.select(sharp, smooth)
     }
 }
 

@@ -12,89 +12,83 @@
 //! threads or chunking. They differ from `simulate` of the same run only through `exp`
 //! (a lane polynomial, within 2 ulp of libm's), far below SPEC §13's 1e-9.
 
+use nalgebra::{SVector, Vector3};
+
+use crate::robot::chain::arm::{accelerate as chain_accelerate, JointFriction};
+use crate::robot::chain::{Frames, SerialChain, UrdfArm};
 use crate::robot::three_link::{ClosedForm, Trig};
-use crate::robot::ThreeLinkArm;
+use crate::robot::{RobotModel, ThreeLinkArm};
 use crate::scalar::{splat, F64x4, Real, LANES};
-use crate::sim::plant::{rk4_period, PlantState, Stages};
+use crate::sim::plant::{rk4_period, Plant, PlantState, Stages};
 use crate::sim::simulation::{RunResult, Simulation};
 use crate::world::environment::{ContactModel, Wall};
-use nalgebra::Vector3;
 
-type ThreeLinkSim = Simulation<ThreeLinkArm, 3>;
+/// An arm whose runs can advance in lanes: four arms of one structure packed into one.
+pub trait LaneArm<const N: usize>: RobotModel<N> {
+    /// The four arms' dynamics in lanes.
+    type Lanes: ArmLanes<N>;
 
-/// What runs must share to advance in one group of lanes: the RK4 loop count and the
-/// contact law's branch structure. Everything else (parameters, controllers, filters,
-/// sensors, actuators) may differ between lanes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct LaneKey {
-    pub substeps: usize,
-    pub wall: Option<ContactModel>,
+    /// Whether `other` can share lanes with this arm (same joint structure).
+    fn same_structure(&self, other: &Self) -> bool;
+
+    fn pack(arms: [&Self; LANES]) -> Self::Lanes;
+
+    /// The lanes' configuration values at `q`, given each lane's own (`configs`, at q).
+    fn pack_config(
+        lanes: &Self::Lanes,
+        q: &SVector<F64x4, N>,
+        configs: [&Self::Config; LANES],
+    ) -> <Self::Lanes as ArmLanes<N>>::Config;
 }
 
-impl LaneKey {
-    pub fn of(sim: &ThreeLinkSim) -> Self {
-        Self {
-            substeps: sim.plant().substeps(),
-            wall: sim.plant().wall().map(|w| w.model),
-        }
+/// The dynamics of four arms in lanes: what RK4 asks of them.
+pub trait ArmLanes<const N: usize> {
+    type Config: Copy;
+
+    fn shift(
+        &self,
+        c: &Self::Config,
+        delta: &SVector<F64x4, N>,
+        shifted: &SVector<F64x4, N>,
+    ) -> Self::Config;
+
+    /// q̈ with the contact force evaluated at the same state (`RobotModel::accelerate`).
+    #[allow(clippy::too_many_arguments)]
+    fn accelerate(
+        &self,
+        c: &Self::Config,
+        qd: &SVector<F64x4, N>,
+        tau: &SVector<F64x4, N>,
+        contact: &impl Fn(F64x4, F64x4) -> F64x4,
+        normal: &Vector3<F64x4>,
+        needs_rate: bool,
+    ) -> SVector<F64x4, N>;
+}
+
+impl LaneArm<3> for ThreeLinkArm {
+    type Lanes = ClosedForm<F64x4>;
+
+    fn same_structure(&self, _: &Self) -> bool {
+        true
     }
-}
 
-/// Four plants' parameters in lanes, rebuilt whenever a lane takes a new run.
-struct PackedPlant {
-    form: ClosedForm<F64x4>,
-    wall: Option<Wall<F64x4>>,
-    needs_rate: bool,
-    substep: F64x4,
-    substeps: usize,
-}
-
-impl PackedPlant {
-    fn new(sims: [&ThreeLinkSim; LANES]) -> Self {
-        let plants = sims.map(|s| s.plant());
-        let wall = plants[0].wall().map(|_| {
-            Wall::pack(std::array::from_fn(|i| {
-                plants[i]
-                    .wall()
-                    .expect("a lane group shares wall presence (LaneKey)")
-            }))
-        });
-        Self {
-            form: ClosedForm::pack(plants.map(|p| p.arm().closed_form())),
-            needs_rate: plants
-                .iter()
-                .any(|p| p.wall().is_some_and(|w| w.needs_rate())),
-            wall,
-            substep: F64x4::from_lanes(|i| plants[i].substep()),
-            substeps: plants[0].substeps(),
-        }
+    fn pack(arms: [&Self; LANES]) -> ClosedForm<F64x4> {
+        ClosedForm::pack(arms.map(|a| a.closed_form()))
     }
-}
-
-impl Stages<F64x4, 3> for PackedPlant {
-    type Config = Trig<F64x4>;
 
     #[inline(always)]
-    fn acceleration(
-        &self,
-        c: &Trig<F64x4>,
-        qd: &Vector3<F64x4>,
-        tau: &Vector3<F64x4>,
-    ) -> Vector3<F64x4> {
-        match &self.wall {
-            Some(w) => {
-                let contact = |along, rate| w.force_along(along, rate);
-                self.form
-                    .accelerate(c, qd, tau, &contact, &w.normal, self.needs_rate)
-                    .0
-            }
-            None => {
-                let free = |_, _| splat::<F64x4>(0.0);
-                let x = Vector3::x().map(splat::<F64x4>);
-                self.form.accelerate(c, qd, tau, &free, &x, false).0
-            }
-        }
+    fn pack_config(
+        _: &ClosedForm<F64x4>,
+        _: &Vector3<F64x4>,
+        configs: [&Trig; LANES],
+    ) -> Trig<F64x4> {
+        // Each lane's own fresh evaluation (libm's sincos), as the scalar plant starts from.
+        Trig::pack(configs)
     }
+}
+
+impl ArmLanes<3> for ClosedForm<F64x4> {
+    type Config = Trig<F64x4>;
 
     #[inline(always)]
     fn shift(
@@ -105,14 +99,174 @@ impl Stages<F64x4, 3> for PackedPlant {
     ) -> Trig<F64x4> {
         c.shifted(delta, shifted)
     }
+
+    #[inline(always)]
+    fn accelerate(
+        &self,
+        c: &Trig<F64x4>,
+        qd: &Vector3<F64x4>,
+        tau: &Vector3<F64x4>,
+        contact: &impl Fn(F64x4, F64x4) -> F64x4,
+        normal: &Vector3<F64x4>,
+        needs_rate: bool,
+    ) -> Vector3<F64x4> {
+        ClosedForm::accelerate(self, c, qd, tau, contact, normal, needs_rate).0
+    }
+}
+
+/// Four URDF chains of one structure in lanes.
+pub struct ChainLanes<const N: usize> {
+    chain: SerialChain<F64x4, N>,
+    friction: JointFriction<F64x4, N>,
+}
+
+impl<const N: usize> LaneArm<N> for UrdfArm<N> {
+    type Lanes = ChainLanes<N>;
+
+    fn same_structure(&self, other: &Self) -> bool {
+        self.chain.same_structure(&other.chain)
+    }
+
+    fn pack(arms: [&Self; LANES]) -> ChainLanes<N> {
+        ChainLanes {
+            chain: SerialChain::pack(arms.map(|a| &a.chain)),
+            friction: JointFriction::pack(arms.map(|a| &a.friction)),
+        }
+    }
+
+    #[inline(always)]
+    fn pack_config(
+        lanes: &ChainLanes<N>,
+        q: &SVector<F64x4, N>,
+        _: [&Frames<f64, N>; LANES],
+    ) -> Frames<F64x4, N> {
+        // The chain evaluates its frames afresh at every stage anyway.
+        lanes.chain.frames(q)
+    }
+}
+
+impl<const N: usize> ArmLanes<N> for ChainLanes<N> {
+    type Config = Frames<F64x4, N>;
+
+    #[inline(always)]
+    fn shift(
+        &self,
+        _: &Frames<F64x4, N>,
+        _: &SVector<F64x4, N>,
+        shifted: &SVector<F64x4, N>,
+    ) -> Frames<F64x4, N> {
+        self.chain.frames(shifted)
+    }
+
+    #[inline(always)]
+    fn accelerate(
+        &self,
+        c: &Frames<F64x4, N>,
+        qd: &SVector<F64x4, N>,
+        tau: &SVector<F64x4, N>,
+        contact: &impl Fn(F64x4, F64x4) -> F64x4,
+        normal: &Vector3<F64x4>,
+        needs_rate: bool,
+    ) -> SVector<F64x4, N> {
+        chain_accelerate(
+            &self.chain,
+            &self.friction,
+            c,
+            qd,
+            tau,
+            contact,
+            normal,
+            needs_rate,
+        )
+        .0
+    }
+}
+
+/// What runs must share to advance in one group of lanes: the arm's structure, the RK4
+/// loop count and the contact law's branch structure. Everything else (parameters,
+/// controllers, filters, sensors, actuators) may differ between lanes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaneKey {
+    /// `None`: the three-link arm; else the URDF document, base and tip links.
+    pub urdf: Option<(String, Option<String>, String)>,
+    pub substeps: usize,
+    pub wall: Option<ContactModel>,
+}
+
+/// Four plants' parameters in lanes, rebuilt whenever a lane takes a new run.
+struct PackedPlant<A> {
+    arm: A,
+    wall: Option<Wall<F64x4>>,
+    needs_rate: bool,
+    substep: F64x4,
+    substeps: usize,
+}
+
+impl<A> PackedPlant<A> {
+    fn new<R: LaneArm<N, Lanes = A>, const N: usize>(plants: [&Plant<R, N>; LANES]) -> Self {
+        let wall = plants[0].wall().map(|_| {
+            Wall::pack(std::array::from_fn(|i| {
+                plants[i]
+                    .wall()
+                    .expect("a lane group shares wall presence (LaneKey)")
+            }))
+        });
+        Self {
+            arm: R::pack(plants.map(|p| p.arm())),
+            needs_rate: plants
+                .iter()
+                .any(|p| p.wall().is_some_and(|w| w.needs_rate())),
+            wall,
+            substep: F64x4::from_lanes(|i| plants[i].substep()),
+            substeps: plants[0].substeps(),
+        }
+    }
+}
+
+impl<A: ArmLanes<N>, const N: usize> Stages<F64x4, N> for PackedPlant<A> {
+    type Config = A::Config;
+
+    #[inline(always)]
+    fn acceleration(
+        &self,
+        c: &A::Config,
+        qd: &SVector<F64x4, N>,
+        tau: &SVector<F64x4, N>,
+    ) -> SVector<F64x4, N> {
+        match &self.wall {
+            Some(w) => {
+                let contact = |along, rate| w.force_along(along, rate);
+                self.arm
+                    .accelerate(c, qd, tau, &contact, &w.normal, self.needs_rate)
+            }
+            None => {
+                let free = |_, _| splat::<F64x4>(0.0);
+                let x = Vector3::x().map(splat::<F64x4>);
+                self.arm.accelerate(c, qd, tau, &free, &x, false)
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn shift(
+        &self,
+        c: &A::Config,
+        delta: &SVector<F64x4, N>,
+        shifted: &SVector<F64x4, N>,
+    ) -> A::Config {
+        self.arm.shift(c, delta, shifted)
+    }
 }
 
 /// Runs every simulation of `sims` from its start to its end, four at a time, and returns
 /// their results in order. All must share one [`LaneKey`] (the scheduler's grouping).
-pub fn run_lanes(sims: &mut [ThreeLinkSim]) -> Vec<RunResult> {
-    debug_assert!(sims
-        .windows(2)
-        .all(|w| LaneKey::of(&w[0]) == LaneKey::of(&w[1])));
+pub fn run_lanes<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> Vec<RunResult> {
+    debug_assert!(sims.windows(2).all(|w| {
+        let (a, b) = (w[0].plant(), w[1].plant());
+        a.arm().same_structure(b.arm())
+            && a.substeps() == b.substeps()
+            && a.wall().map(|w| w.model) == b.wall().map(|w| w.model)
+    }));
     for s in sims.iter_mut() {
         s.reset();
     }
@@ -128,19 +282,19 @@ pub fn run_lanes(sims: &mut [ThreeLinkSim]) -> Vec<RunResult> {
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn lanes_avx2(sims: &mut [ThreeLinkSim]) {
+unsafe fn lanes_avx2<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) {
     lanes_loop(sims)
 }
 
 #[inline(always)]
-fn lanes_loop(sims: &mut [ThreeLinkSim]) {
+fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) {
     if sims.is_empty() {
         return;
     }
     let mut next = 0;
     let mut slot: [Option<usize>; LANES] = [None; LANES];
-    let mut tau = [Vector3::<f64>::zeros(); LANES];
-    let mut packed: Option<(PackedPlant, [usize; LANES])> = None;
+    let mut tau = [SVector::<f64, N>::zeros(); LANES];
+    let mut packed: Option<(PackedPlant<R::Lanes>, [usize; LANES])> = None;
     loop {
         // Stages 1–8 in every lane; a lane whose run is over takes the next one.
         for l in 0..LANES {
@@ -169,21 +323,24 @@ fn lanes_loop(sims: &mut [ThreeLinkSim]) {
         };
         // Idle lanes repeat an active run (their results are discarded).
         let run: [usize; LANES] = slot.map(|s| s.or(slot[first]).unwrap_or(0));
-        let lane_tau: [Vector3<f64>; LANES] =
+        let lane_tau: [SVector<f64, N>; LANES] =
             std::array::from_fn(|l| tau[if slot[l].is_some() { l } else { first }]);
         if packed.as_ref().is_none_or(|(_, runs)| *runs != run) {
-            packed = Some((PackedPlant::new(run.map(|i| &sims[i])), run));
+            packed = Some((PackedPlant::new(run.map(|i| sims[i].plant())), run));
         }
         let Some((plant, _)) = packed.as_ref() else {
             break;
         };
-        let pack =
-            |v: [&Vector3<f64>; LANES]| Vector3::from_fn(|j, _| F64x4::from_lanes(|i| v[i][j]));
+        let pack = |v: [&SVector<f64, N>; LANES]| {
+            SVector::<F64x4, N>::from_fn(|j, _| F64x4::from_lanes(|i| v[i][j]))
+        };
         let states = run.map(|i| sims[i].plant().state());
+        let q = pack(states.map(|s| &s.q));
+        let config = R::pack_config(&plant.arm, &q, run.map(|i| sims[i].plant().config()));
         let (q, qd) = rk4_period(
             plant,
-            (pack(states.map(|s| &s.q)), pack(states.map(|s| &s.qd))),
-            Trig::pack(run.map(|i| sims[i].plant().config())),
+            (q, pack(states.map(|s| &s.qd))),
+            config,
             plant.substep,
             plant.substeps,
             &pack(std::array::from_fn(|l| &lane_tau[l])),
@@ -191,7 +348,7 @@ fn lanes_loop(sims: &mut [ThreeLinkSim]) {
         // Stage 9's write-back and the divergence check, per lane.
         for (l, active) in slot.iter().enumerate() {
             if let Some(i) = *active {
-                let unpack = |v: &Vector3<F64x4>| v.map(|x| crate::scalar::lane(x, l));
+                let unpack = |v: &SVector<F64x4, N>| v.map(|x| crate::scalar::lane(x, l));
                 sims[i].plant_mut().set_state(PlantState {
                     q: unpack(&q),
                     qd: unpack(&qd),

@@ -72,14 +72,6 @@ pub struct Simulation<R: RobotModel<N>, const N: usize> {
 pub type ThreeLinkSimulation = Simulation<ThreeLinkArm, 3>;
 
 impl Simulation<ThreeLinkArm, 3> {
-    pub(crate) fn plant(&self) -> &Plant<ThreeLinkArm, 3> {
-        &self.plant
-    }
-
-    pub(crate) fn plant_mut(&mut self) -> &mut Plant<ThreeLinkArm, 3> {
-        &mut self.plant
-    }
-
     /// Validates `config` and builds the pipeline for its three-link arm (an error if the
     /// scenario's arm is a URDF chain: use [`crate::sim::dispatch::AnySimulation`]).
     pub fn new(config: &ScenarioConfig) -> Result<Self> {
@@ -96,6 +88,14 @@ impl Simulation<ThreeLinkArm, 3> {
 }
 
 impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
+    pub(crate) fn plant(&self) -> &Plant<R, N> {
+        &self.plant
+    }
+
+    pub(crate) fn plant_mut(&mut self) -> &mut Plant<R, N> {
+        &mut self.plant
+    }
+
     /// Builds the pipeline for `robot` (its parameters replace `config.robot`). The rest of
     /// `config` must be valid.
     pub fn with_robot(config: &ScenarioConfig, robot: R) -> Result<Self> {

@@ -7,6 +7,7 @@ use crate::error::{Error, Result};
 use crate::sim::dispatch::AnySimulation;
 use crate::sim::lanes::{run_lanes, LaneKey};
 use crate::sim::metrics::Metrics;
+use crate::sim::scenario::RobotConfig;
 use crate::sim::simulation::{Outcome, RunResult, ScenarioConfig};
 use crate::sim::trace::Trace;
 
@@ -78,14 +79,18 @@ pub fn run_batch_with(
 /// at most its share per thread.
 const LANE_BLOCK: usize = 32;
 
-/// What runs may share lanes: the three-link arm, with one substep count and contact law
-/// (controllers, filters, sensors, actuators and every parameter may differ: they run per
-/// lane, or in lanes with per-lane parameters). `None`: the run is scalar (URDF chains).
-fn lane_key(c: &ScenarioConfig) -> Option<LaneKey> {
-    c.robot.three_link().map(|_| LaneKey {
+/// What runs may share lanes: one arm structure (the three-link arm, or one URDF chain),
+/// substep count and contact law. Controllers, filters, sensors, actuators and every
+/// parameter may differ (they run per lane, or in lanes with per-lane parameters).
+fn lane_key(c: &ScenarioConfig) -> LaneKey {
+    LaneKey {
+        urdf: match &c.robot {
+            RobotConfig::ThreeLink(_) => None,
+            RobotConfig::Urdf(p) => Some((p.urdf.clone(), p.base_link.clone(), p.tip_link.clone())),
+        },
         substeps: c.substeps,
         wall: c.wall.as_ref().map(|w| w.model),
-    })
+    }
 }
 
 /// Consecutive runs, at most `size` per block, in run order.
@@ -123,34 +128,61 @@ fn run_block(
         })
     };
     let mut out: Vec<Option<RunSummary>> = (0..block.len()).map(|_| None).collect();
-    let mut keys: Vec<LaneKey> = Vec::new();
-    for i in block.clone() {
-        match lane_key(&configs[i]).filter(|_| lanes) {
-            Some(k) if !keys.contains(&k) => keys.push(k),
-            Some(_) => {}
-            None => out[i - block.start] = Some(summary(build(i)?.run(), keep_traces)),
+    if !lanes {
+        for i in block.clone() {
+            out[i - block.start] = Some(summary(build(i)?.run(), keep_traces));
+        }
+        return Ok(out.into_iter().flatten().collect());
+    }
+    let keys: Vec<LaneKey> = block.clone().map(|i| lane_key(&configs[i])).collect();
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (k, key) in keys.iter().enumerate() {
+        match groups.iter_mut().find(|g| keys[g[0] - block.start] == *key) {
+            Some(g) => g.push(block.start + k),
+            None => groups.push(vec![block.start + k]),
         }
     }
-    for key in keys {
-        let mut members = Vec::new();
-        let mut sims = Vec::new();
-        for i in block
-            .clone()
-            .filter(|&i| lane_key(&configs[i]) == Some(key))
-        {
-            match build(i)? {
-                AnySimulation::ThreeLink(sim) => {
-                    members.push(i);
-                    sims.push(*sim);
-                }
-                mut other => out[i - block.start] = Some(summary(other.run(), keep_traces)),
-            }
-        }
-        for (&i, r) in members.iter().zip(run_lanes(&mut sims)) {
+    for members in groups {
+        let sims = members
+            .iter()
+            .map(|&i| build(i))
+            .collect::<std::result::Result<Vec<_>, _>>()?;
+        for (&i, r) in members.iter().zip(run_group(sims)) {
             out[i - block.start] = Some(summary(r, keep_traces));
         }
     }
     Ok(out.into_iter().flatten().collect())
+}
+
+/// Runs one lane group (runs of one [`LaneKey`], so of one arm type) in lanes; results in
+/// the order of `sims`.
+fn run_group(sims: Vec<AnySimulation>) -> Vec<RunResult> {
+    macro_rules! typed {
+        ($($variant:ident),*) => {
+            match sims.first() {
+                $(Some(AnySimulation::$variant(_)) => {
+                    let mut results: Vec<Option<RunResult>> = (0..sims.len()).map(|_| None).collect();
+                    let (mut at, mut typed) = (Vec::new(), Vec::new());
+                    for (k, s) in sims.into_iter().enumerate() {
+                        match s {
+                            AnySimulation::$variant(s) => {
+                                at.push(k);
+                                typed.push(*s);
+                            }
+                            // Not reached (one key is one arm type); right all the same.
+                            mut other => results[k] = Some(other.run()),
+                        }
+                    }
+                    for (k, r) in at.into_iter().zip(run_lanes(&mut typed)) {
+                        results[k] = Some(r);
+                    }
+                    results.into_iter().flatten().collect()
+                })*
+                None => Vec::new(),
+            }
+        };
+    }
+    typed!(ThreeLink, Chain1, Chain2, Chain3, Chain4, Chain5, Chain6, Chain7, Chain8)
 }
 
 fn thread_pool(threads: usize) -> Result<rayon::ThreadPool> {

@@ -10,7 +10,7 @@ use super::spatial::{Real, SVec};
 impl<T: Real, const N: usize> SerialChain<T, N> {
     /// q̈ for joint torques `tau` (friction already subtracted) with `tip_wrench` acting on
     /// body N (its frame) and gravity along −z.
-    #[inline]
+    #[inline(always)]
     pub fn aba(
         &self,
         f: &Frames<T, N>,
@@ -53,10 +53,11 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
             if i > 0 {
                 let ia_a = ia[i] - ui * ui.transpose() * inv;
                 let pa_a = pa[i] + ia_a * c[i].to_vector6() + ui * (u[i] * inv);
-                let x = f.up[i].motion_matrix();
-                let to_parent = x.transpose();
-                ia[i - 1] += to_parent * ia_a * x;
-                pa[i - 1] += to_parent * pa_a;
+                let up = &f.up[i];
+                ia[i - 1] += up.inertia_to_parent(&ia_a);
+                pa[i - 1] += up
+                    .force_to_parent(&SVec::from_matrix_column(&pa_a))
+                    .to_vector6();
             }
         }
         // Pass 3: accelerations from the base up, a_0 = −a_g.

@@ -8,8 +8,10 @@ use super::kinematics::Frames;
 use super::model::{ChainModel, SerialChain};
 use super::urdf;
 use crate::error::{check, Error, Result};
-use crate::robot::three_link::smooth_sign;
+use crate::robot::chain::spatial::Real;
+use crate::robot::three_link::friction_sign;
 use crate::robot::{Dynamics, JointVector, Kinematics, Orientation, RobotModel, TaskVector};
+use crate::scalar::{F64x4, LANES};
 
 /// What the task space holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -134,13 +136,68 @@ impl UrdfArmParams {
     }
 }
 
+/// Viscous plus Coulomb joint friction, τ_f = f_v q̇ + f_c sgn(q̇), over any scalar.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointFriction<T: Real, const N: usize> {
+    pub fv: SVector<T, N>,
+    pub fc: SVector<T, N>,
+    /// ε of sgn(q̇) ≈ tanh(q̇/ε); ε ≤ 0: the exact sign.
+    pub eps: T,
+}
+
+impl<T: Real, const N: usize> JointFriction<T, N> {
+    #[inline(always)]
+    pub fn torque(&self, qd: &SVector<T, N>) -> SVector<T, N> {
+        SVector::<T, N>::from_fn(|i, _| {
+            self.fv[i] * qd[i] + self.fc[i] * friction_sign(qd[i], qd[i] / self.eps, self.eps)
+        })
+    }
+}
+
+impl<const N: usize> JointFriction<F64x4, N> {
+    /// Four arms' friction in four lanes.
+    pub fn pack(f: [&JointFriction<f64, N>; LANES]) -> Self {
+        let v = |g: fn(&JointFriction<f64, N>) -> &SVector<f64, N>| {
+            SVector::<F64x4, N>::from_fn(|j, _| F64x4::from_lanes(|l| g(f[l])[j]))
+        };
+        Self {
+            fv: v(|f| &f.fv),
+            fc: v(|f| &f.fc),
+            eps: F64x4::from_lanes(|l| f[l].eps),
+        }
+    }
+}
+
+/// q̈ of eq. (1) by ABA (Featherstone Table 7.1) with the environment's force evaluated at
+/// the same state, as a wrench on the last body: τ_ext = Jᵀ(−f n), f = `contact(n·X, n·Ẋ)`.
+/// Returns (q̈, f). Over any scalar: one arm, or arms in SIMD lanes.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub fn accelerate<T: Real, const N: usize>(
+    chain: &SerialChain<T, N>,
+    friction: &JointFriction<T, N>,
+    c: &Frames<T, N>,
+    qd: &SVector<T, N>,
+    tau: &SVector<T, N>,
+    contact: &impl Fn(T, T) -> T,
+    normal: &Vector3<T>,
+    needs_rate: bool,
+) -> (SVector<T, N>, T) {
+    let rate = if needs_rate {
+        normal.dot(&chain.tip_velocity(c, qd))
+    } else {
+        T::zero()
+    };
+    let f = contact(normal.dot(&c.tip.pos), rate);
+    let wrench = chain.tip_wrench(c, &(normal * -f));
+    (chain.aba(c, qd, &(tau - friction.torque(qd)), &wrench), f)
+}
+
 /// A URDF chain of `N` joints as a [`RobotModel`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct UrdfArm<const N: usize> {
     pub chain: SerialChain<f64, N>,
-    pub fv: JointVector<N>,
-    pub fc: JointVector<N>,
-    eps: f64,
+    pub friction: JointFriction<f64, N>,
     q0: JointVector<N>,
     pub task: TaskKind,
     pub options: crate::robot::TaskOptions,
@@ -178,9 +235,11 @@ impl<const N: usize> UrdfArm<N> {
         let fc = per_joint("coulomb_friction", &params.coulomb_friction, N)?;
         Ok(Self {
             chain: SerialChain::from_model(model, params.gravity),
-            fv: JointVector::<N>::from_column_slice(&fv),
-            fc: JointVector::<N>::from_column_slice(&fc),
-            eps: params.friction_smoothing,
+            friction: JointFriction {
+                fv: JointVector::<N>::from_column_slice(&fv),
+                fc: JointVector::<N>::from_column_slice(&fc),
+                eps: params.friction_smoothing,
+            },
             q0,
             task: params.task.unwrap_or(if N >= 6 {
                 TaskKind::Pose
@@ -196,19 +255,6 @@ impl<const N: usize> UrdfArm<N> {
             effort: v(|j| j.effort),
             joint_names: model.joints.iter().map(|j| j.name.clone()).collect(),
         })
-    }
-
-    #[inline(always)]
-    fn sign(&self, v: f64) -> f64 {
-        if self.eps > 0.0 {
-            smooth_sign(v / self.eps)
-        } else if v > 0.0 {
-            1.0
-        } else if v < 0.0 {
-            -1.0
-        } else {
-            0.0
-        }
     }
 
     /// The 6×N Jacobian and 6-D J̇q̇ (rows 0–2 linear, 3–5 angular).
@@ -262,7 +308,7 @@ impl<const N: usize> RobotModel<N> for UrdfArm<N> {
 
     #[inline(always)]
     fn friction(&self, qd: &JointVector<N>) -> JointVector<N> {
-        JointVector::<N>::from_fn(|i, _| self.fv[i] * qd[i] + self.fc[i] * self.sign(qd[i]))
+        self.friction.torque(qd)
     }
 
     /// ABA (Featherstone Table 7.1) with the tip force as a wrench on the last body.
@@ -288,20 +334,23 @@ impl<const N: usize> RobotModel<N> for UrdfArm<N> {
         normal: &TaskVector,
         needs_rate: bool,
     ) -> (JointVector<N>, f64) {
-        let rate = if needs_rate {
-            normal.dot(&self.chain.tip_velocity(c, qd))
-        } else {
-            0.0
-        };
-        let f = contact(normal.dot(&c.tip.pos), rate);
-        (self.forward_dynamics(c, qd, tau, &(normal * -f)), f)
+        accelerate(
+            &self.chain,
+            &self.friction,
+            c,
+            qd,
+            tau,
+            contact,
+            normal,
+            needs_rate,
+        )
     }
 
     fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {
         let mut a = self.clone();
         a.chain = self.chain.with_mass_scale(mass_scale);
-        a.fv *= friction_scale;
-        a.fc *= friction_scale;
+        a.friction.fv *= friction_scale;
+        a.friction.fc *= friction_scale;
         a
     }
 

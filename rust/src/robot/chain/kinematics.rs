@@ -30,7 +30,7 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
     }
 
     /// The frames at `q` (one sin/cos per revolute joint).
-    #[inline]
+    #[inline(always)]
     pub fn frames(&self, q: &SVector<T, N>) -> Frames<T, N> {
         let mut up = [Pose::identity(); N];
         let mut world = [Pose::identity(); N];
@@ -119,7 +119,7 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
     }
 
     /// The tip's linear velocity in the world (J_v q̇ without forming J).
-    #[inline]
+    #[inline(always)]
     pub fn tip_velocity(&self, f: &Frames<T, N>, qd: &SVector<T, N>) -> Vector3<T> {
         let mut omega = Vector3::<T>::zeros();
         let mut v = Vector3::<T>::zeros();

@@ -4,9 +4,10 @@
 //! [`SerialChain`] is the same chain at a fixed joint count `N` over a scalar `T`, the form
 //! the recursive algorithms (`kinematics`, `rnea`, `crba`, `aba`) run on without allocating.
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 use super::spatial::{Pose, Real, RigidInertia};
+use crate::scalar::{F64x4, LANES};
 
 /// The joint kinds the algorithms support (fixed joints are merged away by the loader).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -90,6 +91,14 @@ impl<const N: usize> SerialChain<f64, N> {
         }
     }
 
+    /// Whether `other` has this chain's structure (joint kinds), so both can share lanes.
+    pub fn same_structure(&self, other: &Self) -> bool {
+        self.bodies
+            .iter()
+            .zip(&other.bodies)
+            .all(|(a, b)| a.kind == b.kind)
+    }
+
     /// Every inertia scaled by `s` (a controller's mass model error).
     pub fn with_mass_scale(&self, s: f64) -> Self {
         let mut c = *self;
@@ -97,5 +106,36 @@ impl<const N: usize> SerialChain<f64, N> {
             .iter_mut()
             .for_each(|b| b.inertia = b.inertia.scaled(s));
         c
+    }
+}
+
+impl<const N: usize> SerialChain<F64x4, N> {
+    /// Four chains of one structure (joint kinds) in four lanes; every number may differ.
+    pub fn pack(chains: [&SerialChain<f64, N>; LANES]) -> Self {
+        debug_assert!(chains.iter().all(|c| c.same_structure(chains[0])));
+        let v = |f: &dyn Fn(usize) -> Vector3<f64>| {
+            Vector3::from_fn(|r, _| F64x4::from_lanes(|l| f(l)[r]))
+        };
+        let m = |f: &dyn Fn(usize) -> Matrix3<f64>| {
+            Matrix3::from_fn(|r, c| F64x4::from_lanes(|l| f(l)[(r, c)]))
+        };
+        let pose = |f: &dyn Fn(usize) -> Pose<f64>| Pose {
+            rot: m(&|l| f(l).rot),
+            pos: v(&|l| f(l).pos),
+        };
+        Self {
+            bodies: std::array::from_fn(|i| Body {
+                kind: chains[0].bodies[i].kind,
+                axis: v(&|l| chains[l].bodies[i].axis),
+                tree: pose(&|l| chains[l].bodies[i].tree),
+                inertia: RigidInertia {
+                    mass: F64x4::from_lanes(|l| chains[l].bodies[i].inertia.mass),
+                    h: v(&|l| chains[l].bodies[i].inertia.h),
+                    ibar: m(&|l| chains[l].bodies[i].inertia.ibar),
+                },
+            }),
+            tip: pose(&|l| chains[l].tip),
+            gravity: F64x4::from_lanes(|l| chains[l].gravity),
+        }
     }
 }
