@@ -358,3 +358,64 @@ fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::scenario::ScenarioConfig;
+    use crate::world::environment::WallParams;
+
+    fn sims(stiffness: &[f64]) -> Vec<Simulation<ThreeLinkArm, 3>> {
+        stiffness
+            .iter()
+            .map(|&k| {
+                let config = ScenarioConfig {
+                    wall: Some(WallParams {
+                        stiffness: k,
+                        ..WallParams::default()
+                    }),
+                    duration: 0.4,
+                    ..ScenarioConfig::default()
+                };
+                Simulation::new(&config).expect("a valid scenario")
+            })
+            .collect()
+    }
+
+    /// Every metric and every trace value, as bits.
+    fn bits(runs: &[RunResult]) -> Vec<u64> {
+        runs.iter()
+            .flat_map(|r| {
+                let trace = r.trace.clone().into_named_columns().into_iter();
+                r.metrics
+                    .values()
+                    .into_iter()
+                    .chain(trace.flat_map(|(_, column)| column))
+                    .collect::<Vec<_>>()
+            })
+            .map(f64::to_bits)
+            .collect()
+    }
+
+    /// The portable build of the lane loop (what a CPU without AVX2, or aarch64, runs) gives
+    /// the dispatched build's bits: Rust never fuses a multiply and an add on its own.
+    #[test]
+    fn baseline_build_equals_the_dispatched_one() {
+        let stiffness = [1e4, 3e4, 1e5, 2e5, 5e4];
+        let dispatched = run_lanes(&mut sims(&stiffness));
+        let mut baseline = sims(&stiffness);
+        baseline.iter_mut().for_each(|s| s.reset());
+        lanes_loop(&mut baseline);
+        let baseline: Vec<RunResult> = baseline.iter_mut().map(|s| s.take_result()).collect();
+        assert_eq!(bits(&dispatched), bits(&baseline));
+    }
+
+    /// A run's result does not depend on the runs sharing its lanes, nor on its lane.
+    #[test]
+    fn a_lane_does_not_depend_on_its_neighbours() {
+        let alone = run_lanes(&mut sims(&[3e4]));
+        let crowd = run_lanes(&mut sims(&[1e4, 3e4, 2e5, 7e4, 9e4, 3e4, 1.5e4]));
+        assert_eq!(bits(&alone), bits(&crowd[1..2]));
+        assert_eq!(bits(&alone), bits(&crowd[5..6]));
+    }
+}
