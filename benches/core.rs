@@ -14,6 +14,8 @@
 //! | `plant/control_period` | `Simulation::step` once: every stage of one 1-ms period, 10 substeps |
 //! | `run/fig14_10s`        | `Simulation::run` of fig. 14 (10 001 samples, trace, metrics)  |
 //! | `batch/fig14_64x10s`   | 64 fig. 14 runs (k_e 1e4 … 1e5), rayon `par_iter_mut`          |
+//! | `batch/sweep_lanes_64x10s` | the same 64 runs as a sweep (metrics only) in SIMD lanes   |
+//! | `batch/sweep_scalar_64x10s` | … and on the scalar path (`lanes=False`)                  |
 //!
 //! The batch uses rayon's global pool: `RAYON_NUM_THREADS=1 cargo bench -- batch` for one thread.
 
@@ -27,6 +29,7 @@ use admit_rs::robot::three_link::{Trig, Vec3};
 use admit_rs::robot::{RobotModel, ThreeLinkArm};
 use admit_rs::sim::plant::{Plant, PlantState};
 use admit_rs::sim::simulation::ThreeLinkSimulation;
+use admit_rs::sim::sweep::run_batch_with;
 use admit_rs::world::environment::{Wall, WallParams};
 use admit_rs::{simulate, ScenarioConfig, Simulation};
 
@@ -193,6 +196,13 @@ fn batch(c: &mut Criterion) {
                 .collect::<Vec<f64>>()
         })
     });
+    // The sweep path (`ar.sweep`): metrics only, no trace; four runs per SIMD lane group
+    // (issue #12), and the scalar path for reference.
+    for (name, lanes) in [("sweep_lanes_64x10s", true), ("sweep_scalar_64x10s", false)] {
+        g.bench_function(name, |b| {
+            b.iter(|| run_batch_with(black_box(&configs), None, false, lanes).expect("valid"))
+        });
+    }
     g.finish();
 }
 
