@@ -342,3 +342,84 @@ impl Front<ThreeLinkArm, 3> for ThreeLinkStages {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::controller::{ControllerParams, TimeDelayParams};
+    use crate::sim::lanes::run_lanes;
+    use crate::sim::simulation::{RunResult, ScenarioConfig};
+    use crate::world::actuator::ActuatorParams;
+    use crate::world::environment::WallParams;
+    use crate::world::sensor::SensorParams;
+
+    /// Six TDC runs (a ragged group) with their own wall, sensor, actuator and gains.
+    fn configs() -> Vec<ScenarioConfig> {
+        (0..6)
+            .map(|i| {
+                let f = i as f64;
+                ScenarioConfig {
+                    duration: 0.3,
+                    seed: 3 + i as u64,
+                    wall: Some(WallParams {
+                        stiffness: 1e4 * (1.0 + f),
+                        ..WallParams::default()
+                    }),
+                    controller: ControllerParams::TimeDelay(TimeDelayParams {
+                        inertia: 0.1 + 0.01 * f,
+                        ..TimeDelayParams::default()
+                    }),
+                    sensor: SensorParams {
+                        noise_std: 0.1 * f,
+                        cutoff: (i % 2 == 0).then_some(60.0),
+                        resolution: if i == 3 { 0.05 } else { 0.0 },
+                        latency: 1,
+                        ..SensorParams::default()
+                    },
+                    actuator: ActuatorParams {
+                        torque_limit: (i % 3 == 1).then(|| vec![120.0]),
+                        rate_limit: (i == 4).then_some(3e4),
+                        ..ActuatorParams::default()
+                    },
+                    ..ScenarioConfig::default()
+                }
+            })
+            .collect()
+    }
+
+    fn lanes(configs: &[ScenarioConfig]) -> Vec<RunResult> {
+        let mut sims: Vec<Sim> = configs.iter().map(|c| Sim::new(c).unwrap()).collect();
+        run_lanes(&mut sims)
+    }
+
+    /// Runs in lanes agree with `simulate` to 1e-9 (only `exp` differs), and a run's bits
+    /// do not depend on which runs share its lanes.
+    #[test]
+    fn lane_stages_agree_with_simulate_and_do_not_mix() {
+        let c = configs();
+        let all = lanes(&c);
+        for (cfg, r) in c.iter().zip(&all) {
+            let alone = crate::sim::simulation::simulate(cfg).unwrap();
+            assert_eq!(r.outcome, alone.outcome);
+            for ((name, x), (_, y)) in alone
+                .trace
+                .clone()
+                .into_named_columns()
+                .into_iter()
+                .zip(r.trace.clone().into_named_columns())
+            {
+                let scale = x.iter().fold(1e-12_f64, |m, v| m.max(v.abs()));
+                let worst = x
+                    .iter()
+                    .zip(&y)
+                    .filter(|(p, _)| !p.is_nan())
+                    .fold(0.0_f64, |m, (p, q)| m.max((p - q).abs()));
+                assert!(worst <= 1e-9 * scale, "{name}: {worst:e} of {scale:e}");
+            }
+        }
+        // The last run with other neighbours, and alone: the same bits.
+        let other = lanes(&[c[1].clone(), c[5].clone()]);
+        assert_eq!(other[1].trace, all[5].trace);
+        assert_eq!(lanes(&c[5..])[0].trace, all[5].trace);
+    }
+}

@@ -386,7 +386,14 @@ fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) {
         let run: [usize; LANES] = slot.map(|s| s.or(slot[first]).unwrap_or(0));
         let plant = repack(&mut packed, sims, run);
         if !tried {
-            front = R::Front::pack(run.map(|i| &sims[i]));
+            // Only if every run of the group fits one pack (the lane key sees to it in
+            // sweeps; a caller's mixed group still runs, lane by lane).
+            let all_fit = sims.iter().all(|s| {
+                R::Front::pack([&sims[run[0]], &sims[run[0]], &sims[run[0]], s]).is_some()
+            });
+            front = all_fit
+                .then(|| R::Front::pack(run.map(|i| &sims[i])))
+                .flatten();
             tried = true;
         } else if let Some(f) = &mut front {
             for l in (0..LANES).filter(|&l| fresh[l]) {
