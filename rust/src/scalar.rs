@@ -7,8 +7,9 @@
 //! what runs share its group. Lane and scalar results differ only where `exp` differs
 //! (a polynomial here, libm's for `f64`): within a few ulp per call.
 
-use nalgebra::SimdRealField;
+use nalgebra::{SMatrix, SVector, SimdRealField};
 use simba::simd::SimdBool;
+use simba::simd::SimdValue;
 
 /// Four f64 lanes. simba's array-backed type: its element-wise loops become AVX2 vector
 /// instructions inside the `avx2,fma` builds of the lane loop (and SSE2 elsewhere).
@@ -97,6 +98,90 @@ pub fn lane<T: Real>(x: T, i: usize) -> f64 {
 #[inline(always)]
 pub fn splat<T: Real>(x: f64) -> T {
     T::splat(x)
+}
+
+/// `yes()` in the lanes where `mask` holds, `no()` elsewhere. A scalar (or lanes that all
+/// agree) evaluates only its branch, so the `f64` instantiation keeps the scalar code's
+/// branch and its bits; mixed lanes evaluate both and select.
+#[inline(always)]
+pub fn choose<T: Real>(mask: T::SimdBool, yes: impl FnOnce() -> T, no: impl FnOnce() -> T) -> T {
+    if T::all(mask) {
+        yes()
+    } else if T::none(mask) {
+        no()
+    } else {
+        yes().select(mask, no())
+    }
+}
+
+/// [`choose`] for vectors (one mask for every component).
+#[inline(always)]
+pub fn choose_vector<T: Real, const N: usize>(
+    mask: T::SimdBool,
+    yes: impl FnOnce() -> SVector<T, N>,
+    no: impl FnOnce() -> SVector<T, N>,
+) -> SVector<T, N> {
+    if T::all(mask) {
+        yes()
+    } else if T::none(mask) {
+        no()
+    } else {
+        let (a, b) = (yes(), no());
+        a.zip_map(&b, |x, y| x.select(mask, y))
+    }
+}
+
+/// The lanes where `x` is finite (|x| < ∞ is false for ±∞ and NaN).
+#[inline(always)]
+pub fn finite<T: Real>(x: T) -> T::SimdBool {
+    x.simd_abs().simd_lt(T::splat(f64::INFINITY))
+}
+
+/// The mask that holds in no lane.
+#[inline(always)]
+pub fn no_lane<T: Real>() -> T::SimdBool {
+    T::zero().simd_ne(T::zero())
+}
+
+/// A mask from one bool per lane.
+#[inline(always)]
+pub fn mask_from<T: Real>(f: impl FnMut(usize) -> bool) -> T::SimdBool {
+    let mut f = f;
+    let ones = T::from_lanes(|i| if f(i) { 1.0 } else { 0.0 });
+    ones.simd_gt(T::zero())
+}
+
+/// Sets lane `l` of `x` to `v`: how a lane takes a new run's parameters and state.
+#[inline(always)]
+pub fn put(x: &mut F64x4, l: usize, v: f64) {
+    x.replace(l, v);
+}
+
+/// [`put`] for each component of a vector.
+#[inline(always)]
+pub fn put_vector<const R: usize, const C: usize>(
+    x: &mut SMatrix<F64x4, R, C>,
+    l: usize,
+    v: &SMatrix<f64, R, C>,
+) {
+    x.zip_apply(v, |a, b| a.replace(l, b));
+}
+
+/// Lane `l` of a vector.
+#[inline(always)]
+pub fn lane_of<T: Real, const R: usize, const C: usize>(
+    x: &SMatrix<T, R, C>,
+    l: usize,
+) -> SMatrix<f64, R, C> {
+    x.map(|v| v.extract(l))
+}
+
+/// A vector of lanes from one vector per lane.
+#[inline(always)]
+pub fn pack_vector<const R: usize, const C: usize>(
+    v: [&SMatrix<f64, R, C>; LANES],
+) -> SMatrix<F64x4, R, C> {
+    SMatrix::<F64x4, R, C>::from_fn(|r, c| F64x4::from_lanes(|i| v[i][(r, c)]))
 }
 
 /// e^x in four lanes at once, with no branch and no table, so it vectorises.

@@ -7,15 +7,17 @@ use nalgebra::{Matrix3, Matrix6, SMatrix, SVector, Vector3};
 use crate::control::task::Desired;
 use crate::error::{check, Result};
 use crate::robot::{
-    Jacobian, JointMatrix, JointVector, Kinematics, RobotModel, TaskOptions, TaskVector,
+    Dynamics, Jacobian, JointMatrix, JointVector, Kinematics, RobotModel, TaskOptions, TaskVector,
 };
+use crate::scalar::{choose_vector, no_lane, F64x4, Real, LANES};
 
 /// Gains of eq. (39): V = K_A⁻¹ (Ẍ_d + K_D (Ẋ_d − Ẋ) + K_P (X_d − X)), each a scalar times I.
+/// Over `f64`, or four runs' gains in lanes (one `scale_feedforward`).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PositionGains {
-    pub ka: f64,
-    pub kd: f64,
-    pub kp: f64,
+pub struct PositionGains<T: Real = f64> {
+    pub ka: T,
+    pub kd: T,
+    pub kp: T,
     /// `true` (SPEC §4, the paper as written): K_A⁻¹ multiplies the feed-forward Ẍ_d too.
     /// `false`: V = Ẍ_d + K_A⁻¹ (K_D ė + K_P e), a reading under which computed torque
     /// tracks X_d exactly; offered as a labelled variant, never the default.
@@ -39,15 +41,29 @@ impl PositionGains {
         check::non_negative("kd", self.kd)?;
         check::non_negative("kp", self.kp)
     }
+}
 
+impl PositionGains<F64x4> {
+    /// Four runs' gains in lanes (they share `scale_feedforward`: the lane key).
+    pub fn pack(g: [&PositionGains; LANES]) -> Self {
+        Self {
+            ka: F64x4::from_lanes(|i| g[i].ka),
+            kd: F64x4::from_lanes(|i| g[i].kd),
+            kp: F64x4::from_lanes(|i| g[i].kp),
+            scale_feedforward: g[0].scale_feedforward,
+        }
+    }
+}
+
+impl<T: Real> PositionGains<T> {
     /// eq. (39)
     #[inline]
     pub fn command(
         &self,
-        desired: &Desired,
-        position: &TaskVector,
-        velocity: &TaskVector,
-    ) -> TaskVector {
+        desired: &Desired<T>,
+        position: &Vector3<T>,
+        velocity: &Vector3<T>,
+    ) -> Vector3<T> {
         let feedback =
             (desired.velocity - velocity) * self.kd + (desired.position - position) * self.kp;
         if self.scale_feedforward {
@@ -347,8 +363,10 @@ pub const PSEUDO_INVERSE_DAMPING: f64 = 1e-3;
 
 /// Joint accelerations for a task acceleration (eqs. 7 and 17): J⁻¹ rhs for a square
 /// Jacobian (three joints, position task, as the paper writes it); the damped
-/// pseudo-inverse Jᵀ (J Jᵀ + λ² I)⁻¹ rhs of SPEC §11 for any other joint count.
-#[inline]
+/// pseudo-inverse Jᵀ (J Jᵀ + λ² I)⁻¹ rhs of SPEC §11 for any other joint count. (The
+/// controller calls `solve_square` and `damped_pseudo_inverse` directly; this keeps both
+/// reachable for the tests.)
+#[cfg(test)]
 fn solve_jacobian<const N: usize>(
     j: &Jacobian<N>,
     rhs: &TaskVector,
@@ -361,17 +379,111 @@ fn solve_jacobian<const N: usize>(
             .filter(|qdd| qdd.iter().all(|v| v.is_finite()))
             .ok_or(ControlFailure::SingularJacobian);
     }
-    let j: Matrix3<f64> = j.fixed_view::<3, 3>(0, 0).into_owned();
-    let bound = j.column(0).norm() * j.column(1).norm() * j.column(2).norm();
-    let det = j.determinant().abs();
-    if det.is_nan() || det <= SINGULAR_RATIO * bound {
+    let (x, singular) = solve_square(j, rhs);
+    if singular {
         return Err(ControlFailure::SingularJacobian);
     }
-    let x: Vector3<f64> = j
-        .try_inverse()
-        .map(|inv| inv * rhs)
-        .ok_or(ControlFailure::SingularJacobian)?;
-    Ok(JointVector::<N>::from_fn(|i, _| x[i]))
+    Ok(x)
+}
+
+/// J⁻¹ rhs for the square 3×3 Jacobian of a three-joint position task (eqs. 7 and 17), with
+/// the lanes where J counts as singular: |det J| at most `SINGULAR_RATIO` times its Hadamard
+/// bound, NaN or exactly 0. The inverse is nalgebra's 3×3 cofactor formula written out
+/// over any scalar (the same operations, so the same bits for `f64`; tested).
+#[inline]
+pub(crate) fn solve_square<T: Real, const N: usize>(
+    j: &SMatrix<T, 3, N>,
+    rhs: &Vector3<T>,
+) -> (SVector<T, N>, T::SimdBool) {
+    let j: Matrix3<T> = j.fixed_view::<3, 3>(0, 0).into_owned();
+    let bound = j.column(0).norm() * j.column(1).norm() * j.column(2).norm();
+    let (m11, m12, m13) = (j[(0, 0)], j[(0, 1)], j[(0, 2)]);
+    let (m21, m22, m23) = (j[(1, 0)], j[(1, 1)], j[(1, 2)]);
+    let (m31, m32, m33) = (j[(2, 0)], j[(2, 1)], j[(2, 2)]);
+    let minor_m12_m23 = m22 * m33 - m32 * m23;
+    let minor_m11_m23 = m21 * m33 - m31 * m23;
+    let minor_m11_m22 = m21 * m32 - m31 * m22;
+    let signed = m11 * minor_m12_m23 - m12 * minor_m11_m23 + m13 * minor_m11_m22;
+    let det = signed.simd_abs();
+    let zero = T::zero();
+    let singular =
+        det.simd_ne(det) | det.simd_le(T::splat(SINGULAR_RATIO) * bound) | signed.simd_eq(zero);
+    if T::all(singular) {
+        return (SVector::zeros(), singular);
+    }
+    #[rustfmt::skip]
+    let inv = Matrix3::new(
+        minor_m12_m23 / signed, (m13 * m32 - m33 * m12) / signed, (m12 * m23 - m22 * m13) / signed,
+        -minor_m11_m23 / signed, (m11 * m33 - m31 * m13) / signed, (m13 * m21 - m23 * m11) / signed,
+        minor_m11_m22 / signed, (m12 * m31 - m32 * m11) / signed, (m11 * m22 - m21 * m12) / signed,
+    );
+    let x = inv * rhs;
+    (SVector::<T, N>::from_fn(|i, _| x[i]), singular)
+}
+
+/// Eq. (7) mapped to joint space with eq. (4): τ = D̂ J⁻¹ (V − J̇q̇) + Ĉ + Ĝ + τ̂_f, plus
+/// f Jᵀ n when the measured contact force is compensated. `model` gives the controller
+/// model's (D̂, Ĉ, Ĝ) and τ̂_f at the measured state. Returns τ and the singular lanes.
+#[inline(always)]
+pub(crate) fn computed_torque<T: Real, const N: usize>(
+    k: &Kinematics<N, T>,
+    v: &Vector3<T>,
+    model: impl FnOnce() -> (Dynamics<N, T>, SVector<T, N>),
+    compensation: Option<(&Vector3<T>, T)>,
+) -> (SVector<T, N>, T::SimdBool) {
+    let (qdd, singular) = solve_square(&k.jacobian, &(v - k.jdot_qd));
+    if T::all(singular) {
+        return (qdd, singular);
+    }
+    let (d, friction) = model();
+    let mut tau = d.inertia * qdd + d.coriolis + d.gravity + friction;
+    if let Some((normal, force)) = compensation {
+        // The plant feels Jᵀ(−f n); add it back.
+        tau += k.jacobian.transpose() * normal * force;
+    }
+    (tau, singular)
+}
+
+/// Model-free control, eq. (18) without the delay estimate: τ = D̄ K_t Jᵀ V (D̄ = α I).
+#[inline(always)]
+pub(crate) fn model_free<T: Real, const N: usize>(
+    k: &Kinematics<N, T>,
+    v: &Vector3<T>,
+    inertia: T,
+    torque_constant: T,
+) -> SVector<T, N> {
+    k.jacobian.transpose() * v * (inertia * torque_constant)
+}
+
+/// Time-delayed control, eq. (18) or eq. (17) (D̄ = α I), with the memory τ_{k−1} and
+/// q̇_{k−1} (`started`: the lanes that have a q̇_{k−1}). Returns τ_k and the singular lanes;
+/// the caller stores τ_k and q̇_k as the next memory.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(crate) fn time_delay<T: Real, const N: usize>(
+    k: &Kinematics<N, T>,
+    v: &Vector3<T>,
+    qd: &SVector<T, N>,
+    (inertia, torque_constant, period): (T, T, T),
+    law: TdcLaw,
+    tau_prev: &SVector<T, N>,
+    qd_prev: &SVector<T, N>,
+    started: T::SimdBool,
+) -> (SVector<T, N>, T::SimdBool) {
+    // eq. (14): ĥ ≈ τ_{k−1} − D̄ q̈_{k−1}, with q̈_{k−1} = (q̇_k − q̇_{k−1})/T, q̈_{−1} = 0.
+    let qdd_prev = choose_vector(started, || (qd - qd_prev) / period, SVector::zeros);
+    let h_hat = tau_prev - qdd_prev * inertia;
+    let (u, singular) = match law {
+        TdcLaw::JacobianTranspose => (
+            k.jacobian.transpose() * v * (inertia * torque_constant),
+            no_lane::<T>(),
+        ),
+        TdcLaw::InverseJacobian => {
+            let (qdd, singular) = solve_square(&k.jacobian, &(v - k.jdot_qd));
+            (qdd * inertia, singular)
+        }
+    };
+    (u + h_hat, singular)
 }
 
 /// A position controller as a state machine over an arm model `R` of `N` joints.
@@ -468,21 +580,28 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
         {
             return self.step_task(m, &v);
         }
+        let failed = |singular: bool| {
+            if singular {
+                Err(ControlFailure::SingularJacobian)
+            } else {
+                Ok(())
+            }
+        };
         match self {
             Controller::ComputedTorque { params, model } => {
-                // eq. (7) mapped to joint space with eq. (4).
-                let qdd = solve_jacobian(&k.jacobian, &(v - k.jdot_qd))?;
-                let d = model.dynamics(&model.configure(m.q), m.qd);
-                let mut tau = d.inertia * qdd + d.coriolis + d.gravity + model.friction(m.qd);
-                if params.contact_compensation {
-                    // The plant feels Jᵀ(−f n); add it back.
-                    tau += k.jacobian.transpose() * m.normal * m.force;
-                }
+                let (tau, singular) = computed_torque(
+                    k,
+                    &v,
+                    || {
+                        let d = model.dynamics(&model.configure(m.q), m.qd);
+                        (d, model.friction(m.qd))
+                    },
+                    params.contact_compensation.then_some((m.normal, m.force)),
+                );
+                failed(singular)?;
                 Ok(tau)
             }
-            Controller::ModelFree(p) => {
-                Ok(k.jacobian.transpose() * v * (p.inertia * p.torque_constant))
-            }
+            Controller::ModelFree(p) => Ok(model_free(k, &v, p.inertia, p.torque_constant)),
             Controller::TimeDelay {
                 params,
                 period,
@@ -490,18 +609,17 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
                 qd_prev,
                 ..
             } => {
-                // eq. (14): ĥ ≈ τ_{k−1} − D̄ q̈_{k−1}, with q̈_{k−1} = (q̇_k − q̇_{k−1})/T, q̈_{−1} = 0.
-                let qdd_prev = qd_prev.map_or_else(JointVector::zeros, |p| (m.qd - p) / *period);
-                let h_hat = *tau_prev - qdd_prev * params.inertia;
-                let u = match params.law {
-                    TdcLaw::JacobianTranspose => {
-                        k.jacobian.transpose() * v * (params.inertia * params.torque_constant)
-                    }
-                    TdcLaw::InverseJacobian => {
-                        solve_jacobian(&k.jacobian, &(v - k.jdot_qd))? * params.inertia
-                    }
-                };
-                let tau = u + h_hat;
+                let (tau, singular) = time_delay(
+                    k,
+                    &v,
+                    m.qd,
+                    (params.inertia, params.torque_constant, *period),
+                    params.law,
+                    tau_prev,
+                    &qd_prev.unwrap_or_else(JointVector::zeros),
+                    qd_prev.is_some(),
+                );
+                failed(singular)?;
                 *tau_prev = tau;
                 *qd_prev = Some(*m.qd);
                 Ok(tau)
@@ -808,5 +926,137 @@ mod tests {
             .unwrap()
             .iter()
             .all(|v| v.is_finite()));
+    }
+
+    /// The square solve is nalgebra's determinant and 3×3 inverse, bit for bit.
+    #[test]
+    fn square_solve_is_nalgebras_inverse() {
+        let (r, _, _) = at_q0();
+        for i in 0..50 {
+            let q = Vec3::new(
+                0.1 * i as f64,
+                0.3 + 0.02 * i as f64,
+                -0.7 + 0.05 * i as f64,
+            );
+            let k = r.kinematics(&r.configure(&q), &Vec3::zeros());
+            let rhs = Vec3::new(1.0, -2.0 + i as f64, 0.5);
+            let (x, singular) = solve_square(&k.jacobian, &rhs);
+            if singular {
+                continue;
+            }
+            let expected = k.jacobian.try_inverse().unwrap() * rhs;
+            assert_eq!(x, expected, "q = {q:?}");
+            assert!(k.jacobian.determinant().abs() > 0.0);
+        }
+    }
+
+    /// The three laws over four lanes (their own kinematics, gains and memory) give four
+    /// scalar laws' torques bit for bit, and the singular lane is reported in its lane.
+    #[test]
+    fn laws_in_lanes_equal_four_scalar_laws() {
+        use crate::scalar::{lane, lane_of, mask_from, pack_vector};
+        use simba::simd::SimdValue;
+        let (r, _, _) = at_q0();
+        let qs: [Vec3; 4] = [
+            Vec3::new(0.0, 0.8, -0.8),
+            Vec3::new(0.2, 0.5, -1.1),
+            Vec3::new(0.0, 0.3, 0.0), // singular (q3 = 0)
+            Vec3::new(-0.1, 0.9, -0.4),
+        ];
+        let qds: [Vec3; 4] = std::array::from_fn(|i| Vec3::new(0.01 * i as f64, -0.2, 0.3));
+        let prev: [Vec3; 4] =
+            std::array::from_fn(|i| Vec3::new(0.0, -0.21, 0.3 + 0.001 * i as f64));
+        let kins: [Kinematics; 4] =
+            std::array::from_fn(|i| r.kinematics(&r.configure(&qs[i]), &qds[i]));
+        let vs: [Vec3; 4] = std::array::from_fn(|i| Vec3::new(1.0 + i as f64, -0.5, 0.25));
+        let kin = crate::robot::Kinematics::<3, F64x4> {
+            position: pack_vector(kins.each_ref().map(|k| &k.position)),
+            jacobian: pack_vector(kins.each_ref().map(|k| &k.jacobian)),
+            jdot_qd: pack_vector(kins.each_ref().map(|k| &k.jdot_qd)),
+        };
+        let v = pack_vector(vs.each_ref());
+        let qd = pack_vector(qds.each_ref());
+        let lanes4 = |f: fn(usize) -> f64| F64x4::from_lanes(f);
+        // Model-free.
+        let mf = model_free(
+            &kin,
+            &v,
+            lanes4(|i| 0.1 + 0.01 * i as f64),
+            lanes4(|i| 200.0 - i as f64),
+        );
+        for i in 0..4 {
+            let e: Vec3 = model_free(&kins[i], &vs[i], 0.1 + 0.01 * i as f64, 200.0 - i as f64);
+            assert_eq!(lane_of(&mf, i), e);
+        }
+        // TDC, both laws; lane 0 has no q̇_{k−1} yet.
+        for law in [TdcLaw::JacobianTranspose, TdcLaw::InverseJacobian] {
+            let started = mask_from::<F64x4>(|i| i != 0);
+            let taus: [Vec3; 4] = std::array::from_fn(|i| Vec3::new(1.0, 50.0 + i as f64, 9.0));
+            let (tau, singular) = time_delay(
+                &kin,
+                &v,
+                &qd,
+                (
+                    lanes4(|i| 0.1 * (1 + i) as f64),
+                    lanes4(|_| 200.0),
+                    lanes4(|_| 1e-3),
+                ),
+                law,
+                &pack_vector(taus.each_ref()),
+                &pack_vector(prev.each_ref()),
+                started,
+            );
+            for i in 0..4 {
+                let (e, s): (Vec3, bool) = time_delay(
+                    &kins[i],
+                    &vs[i],
+                    &qds[i],
+                    (0.1 * (1 + i) as f64, 200.0, 1e-3),
+                    law,
+                    &taus[i],
+                    &prev[i],
+                    i != 0,
+                );
+                assert_eq!(singular.extract(i), s);
+                if !s {
+                    assert_eq!(lane_of(&tau, i), e, "{law:?} lane {i}");
+                }
+            }
+            assert_eq!(singular.extract(2), law == TdcLaw::InverseJacobian);
+        }
+        // Computed torque with each lane's model terms (fixed here: no exp), compensated.
+        let dyns: [crate::robot::Dynamics<3>; 4] =
+            std::array::from_fn(|i| r.dynamics(&r.configure(&qs[i]), &qds[i]));
+        let fr: [Vec3; 4] = std::array::from_fn(|i| Vec3::new(1.0, 2.0, 3.0 + i as f64));
+        let n = pack_vector([&X; 4]);
+        let force = lanes4(|i| 5.0 * i as f64);
+        let (tau, singular) = computed_torque(
+            &kin,
+            &v,
+            || {
+                (
+                    crate::robot::Dynamics {
+                        inertia: pack_vector(dyns.each_ref().map(|d| &d.inertia)),
+                        coriolis: pack_vector(dyns.each_ref().map(|d| &d.coriolis)),
+                        gravity: pack_vector(dyns.each_ref().map(|d| &d.gravity)),
+                    },
+                    pack_vector(fr.each_ref()),
+                )
+            },
+            Some((&n, force)),
+        );
+        for i in 0..4 {
+            let (e, s): (Vec3, bool) = computed_torque(
+                &kins[i],
+                &vs[i],
+                || (dyns[i], fr[i]),
+                Some((&X, lane(force, i))),
+            );
+            assert_eq!(singular.extract(i), s);
+            assert_eq!(s, i == 2);
+            if !s {
+                assert_eq!(lane_of(&tau, i), e);
+            }
+        }
     }
 }

@@ -5,6 +5,7 @@
 use nalgebra::{Matrix2, Matrix3, Vector2};
 
 use crate::error::{check, Error, Result};
+use crate::scalar::{pack_vector, put, put_vector, F64x4, Real, LANES};
 
 /// Largest b·T/m, k·T²/m or k_a·T/m accepted (see `AdmittanceParams::validate_for_period`).
 pub const MAX_DISCRETE_RATE: f64 = 1e6;
@@ -116,26 +117,61 @@ impl AdmittanceParams {
     }
 }
 
-/// A discretised admittance filter: a small state machine.
+/// A discretised admittance filter (eqs. 30 and 38 by zero-order hold): a small state
+/// machine over `f64`, or four filters with their own parameters in lanes.
 #[derive(Debug, Clone, PartialEq)]
-pub struct AdmittanceFilter {
-    params: AdmittanceParams,
-    ad: Matrix2<f64>,
-    bd: Vector2<f64>,
-    state: Vector2<f64>,
+pub struct AdmittanceFilter<T: Real = f64> {
+    m: T,
+    b: T,
+    k: T,
+    ka: T,
+    ad: Matrix2<T>,
+    bd: Vector2<T>,
+    state: Vector2<T>,
 }
 
 impl AdmittanceFilter {
     pub fn new(params: AdmittanceParams, period: f64) -> Self {
         let (ad, bd) = params.discretize(period);
         Self {
-            params,
+            m: params.m,
+            b: params.b,
+            k: params.k,
+            ka: params.ka,
             ad,
             bd,
             state: Vector2::zeros(),
         }
     }
+}
 
+impl AdmittanceFilter<F64x4> {
+    /// Four filters in lanes.
+    pub fn pack(f: [&AdmittanceFilter; LANES]) -> Self {
+        Self {
+            m: F64x4::from_lanes(|i| f[i].m),
+            b: F64x4::from_lanes(|i| f[i].b),
+            k: F64x4::from_lanes(|i| f[i].k),
+            ka: F64x4::from_lanes(|i| f[i].ka),
+            ad: pack_vector(f.map(|f| &f.ad)),
+            bd: pack_vector(f.map(|f| &f.bd)),
+            state: pack_vector(f.map(|f| &f.state)),
+        }
+    }
+
+    /// Lane `l` takes the filter `f` (parameters and state).
+    pub fn put_lane(&mut self, l: usize, f: &AdmittanceFilter) {
+        put(&mut self.m, l, f.m);
+        put(&mut self.b, l, f.b);
+        put(&mut self.k, l, f.k);
+        put(&mut self.ka, l, f.ka);
+        put_vector(&mut self.ad, l, &f.ad);
+        put_vector(&mut self.bd, l, &f.bd);
+        put_vector(&mut self.state, l, &f.state);
+    }
+}
+
+impl<T: Real> AdmittanceFilter<T> {
     pub fn reset(&mut self) {
         self.state = Vector2::zeros();
     }
@@ -143,14 +179,15 @@ impl AdmittanceFilter {
     /// Output at t_k, then advance to t_{k+1}. The filter is strictly proper: x_a,k and
     /// ẋ_a,k depend on e_f up to k−1; the feed-forward ẍ_a,k uses the current sample.
     #[inline]
-    pub fn step(&mut self, force_error: f64) -> Sample {
-        let p = &self.params;
+    pub fn step(&mut self, force_error: T) -> Sample<T> {
         let (xa, xa_dot) = (self.state[0], self.state[1]);
         let out = Sample {
             value: xa,
             rate: xa_dot,
-            accel: (p.ka * force_error - p.b * xa_dot - p.k * xa) / p.m,
+            // ẍ_a from eq. (30) (eq. 38: k = 0) at the current error.
+            accel: (self.ka * force_error - self.b * xa_dot - self.k * xa) / self.m,
         };
+        // [x_a, ẋ_a]_{k+1} = Ad [x_a, ẋ_a]_k + Bd e_f,k
         self.state = self.ad * self.state + self.bd * force_error;
         out
     }
@@ -194,11 +231,57 @@ impl ForceControlParams {
     }
 }
 
-/// The outer force loop as a state machine.
+/// The outer force loop as a state machine (over `f64`, or lanes of one kind).
 #[derive(Debug, Clone, PartialEq)]
-pub enum ForceControl {
-    Admittance(AdmittanceFilter),
-    Impedance { effective_stiffness: f64 },
+pub enum ForceControl<T: Real = f64> {
+    Admittance(AdmittanceFilter<T>),
+    Impedance { effective_stiffness: T },
+}
+
+impl ForceControl<F64x4> {
+    /// Four outer loops of one kind in lanes; `None` if the kinds differ.
+    pub fn pack(f: [&ForceControl; LANES]) -> Option<Self> {
+        match f {
+            [ForceControl::Admittance(a0), ForceControl::Admittance(a1), ForceControl::Admittance(a2), ForceControl::Admittance(a3)] => {
+                Some(ForceControl::Admittance(AdmittanceFilter::pack([
+                    a0, a1, a2, a3,
+                ])))
+            }
+            [ForceControl::Impedance {
+                effective_stiffness: k0,
+            }, ForceControl::Impedance {
+                effective_stiffness: k1,
+            }, ForceControl::Impedance {
+                effective_stiffness: k2,
+            }, ForceControl::Impedance {
+                effective_stiffness: k3,
+            }] => {
+                let k = [k0, k1, k2, k3];
+                Some(ForceControl::Impedance {
+                    effective_stiffness: F64x4::from_lanes(|i| *k[i]),
+                })
+            }
+            _ => None,
+        }
+    }
+
+    /// Lane `l` takes `f` (of this kind: the lane key guarantees it); false if the kinds
+    /// differ.
+    pub fn put_lane(&mut self, l: usize, f: &ForceControl) -> bool {
+        match (self, f) {
+            (ForceControl::Admittance(a), ForceControl::Admittance(b)) => a.put_lane(l, b),
+            (
+                ForceControl::Impedance {
+                    effective_stiffness: a,
+                },
+                ForceControl::Impedance {
+                    effective_stiffness: b,
+                },
+            ) => put(a, l, *b),
+            _ => return false,
+        }
+        true
+    }
 }
 
 impl ForceControl {
@@ -210,12 +293,6 @@ impl ForceControl {
             ForceControlParams::Impedance(i) => ForceControl::Impedance {
                 effective_stiffness: i.effective_stiffness(),
             },
-        }
-    }
-
-    pub fn reset(&mut self) {
-        if let ForceControl::Admittance(f) = self {
-            f.reset();
         }
     }
 
@@ -243,10 +320,19 @@ impl ForceControl {
             ForceControl::Impedance { .. } => 0,
         }
     }
+}
 
-    /// x_a (with rate and acceleration) from the desired force and the measured force.
+impl<T: Real> ForceControl<T> {
+    pub fn reset(&mut self) {
+        if let ForceControl::Admittance(f) = self {
+            f.reset();
+        }
+    }
+
+    /// x_a (with rate and acceleration) from the desired force and the measured force:
+    /// the admittance filter fed by e_f = f_d − f̃, or eq. (20)'s x_a = f_d / k_eff.
     #[inline]
-    pub fn step(&mut self, desired: &Sample, measured: f64) -> Sample {
+    pub fn step(&mut self, desired: &Sample<T>, measured: T) -> Sample<T> {
         match self {
             ForceControl::Admittance(f) => f.step(desired.value - measured),
             ForceControl::Impedance {
@@ -279,7 +365,7 @@ mod tests {
     #[test]
     fn step_response_is_exact_at_samples() {
         let (m, b, k, ka, ef) = (1.0, 800.0, 400.0, 0.1, 10.0);
-        let mut f = AdmittanceFilter::new(AdmittanceParams { m, b, k, ka }, 1e-3);
+        let mut f: AdmittanceFilter = AdmittanceFilter::new(AdmittanceParams { m, b, k, ka }, 1e-3);
         let disc = (b * b - 4.0 * m * k).sqrt();
         let (p1, p2) = ((-b + disc) / (2.0 * m), (-b - disc) / (2.0 * m));
         let fin = ka * ef / k;
@@ -372,5 +458,52 @@ mod tests {
         edge.validate_for_period(t).unwrap();
         let (ad, bd) = edge.discretize(t);
         assert!(ad.iter().chain(bd.iter()).all(|v| v.is_finite()));
+    }
+
+    /// Four filters with their own parameters in lanes step as four scalar filters, bit
+    /// for bit (the ZOH matrices are each run's own, discretised once in f64).
+    #[test]
+    fn lanes_step_as_four_scalar_filters() {
+        use crate::scalar::{lane, F64x4};
+        let params = [
+            AdmittanceParams::scheme2(800.0, 0.1),
+            AdmittanceParams::scheme1(800.0, 400.0, 0.1),
+            AdmittanceParams {
+                m: 2.0,
+                b: 300.0,
+                k: 50.0,
+                ka: 1.5,
+            },
+            AdmittanceParams::scheme2(1500.0, 0.02),
+        ];
+        let mut scalar: Vec<ForceControl> = params
+            .iter()
+            .map(|p| ForceControl::new(&ForceControlParams::Admittance(*p), 1e-3))
+            .collect();
+        let mut lanes =
+            ForceControl::<F64x4>::pack([&scalar[0], &scalar[1], &scalar[2], &scalar[3]]).unwrap();
+        for n in 0..200 {
+            let fd: [Sample; 4] = std::array::from_fn(|i| Sample {
+                value: 10.0 + i as f64,
+                ..Sample::default()
+            });
+            let f: [f64; 4] = std::array::from_fn(|i| (n as f64 * 0.1 + i as f64).cos() * 12.0);
+            let out = lanes.step(&Sample::pack(fd.each_ref()), F64x4::from_lanes(|i| f[i]));
+            for i in 0..4 {
+                let e = scalar[i].step(&fd[i], f[i]);
+                assert_eq!(lane(out.value, i).to_bits(), e.value.to_bits());
+                assert_eq!(lane(out.rate, i).to_bits(), e.rate.to_bits());
+                assert_eq!(lane(out.accel, i).to_bits(), e.accel.to_bits());
+            }
+        }
+        // Kinds do not mix in one pack.
+        let imp = ForceControl::new(
+            &ForceControlParams::Impedance(ImpedanceParams {
+                k: 1e4,
+                assumed_stiffness: 3e4,
+            }),
+            1e-3,
+        );
+        assert!(ForceControl::<F64x4>::pack([&scalar[0], &imp, &scalar[2], &scalar[3]]).is_none());
     }
 }

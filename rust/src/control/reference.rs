@@ -1,13 +1,26 @@
 //! Reference signals for the desired force and the z position (SPEC §3).
 
 use crate::error::{check, Error, Result};
+use crate::scalar::{F64x4, Real, LANES};
 
-/// A value with its first and second time derivatives.
+/// A value with its first and second time derivatives: over `f64`, or over lanes.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Sample {
-    pub value: f64,
-    pub rate: f64,
-    pub accel: f64,
+pub struct Sample<T: Real = f64> {
+    pub value: T,
+    pub rate: T,
+    pub accel: T,
+}
+
+impl Sample<F64x4> {
+    /// Four lanes' samples (each lane's signal evaluated at its own time).
+    #[inline]
+    pub fn pack(s: [&Sample; LANES]) -> Self {
+        Self {
+            value: F64x4::from_lanes(|i| s[i].value),
+            rate: F64x4::from_lanes(|i| s[i].rate),
+            accel: F64x4::from_lanes(|i| s[i].accel),
+        }
+    }
 }
 
 /// A scalar signal of time. Derivatives are analytic where the signal has them; a step

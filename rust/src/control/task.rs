@@ -4,31 +4,57 @@
 //! X_d = X0 + (x̂_e + x_a − n·X0) n + s(t) t̂; for n = e_x this is exactly SPEC §3,
 //! X_d = [x̂_e + x_a, y0, z0 + s].
 
+use nalgebra::Vector3;
+
 use crate::control::reference::Sample;
 use crate::robot::TaskVector;
+use crate::scalar::{pack_vector, put, put_vector, F64x4, Real, LANES};
 
-/// Desired tip position, velocity and acceleration at one sample.
+/// Desired tip position, velocity and acceleration at one sample (over `f64` or lanes).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Desired {
-    pub position: TaskVector,
-    pub velocity: TaskVector,
-    pub acceleration: TaskVector,
+pub struct Desired<T: Real = f64> {
+    pub position: Vector3<T>,
+    pub velocity: Vector3<T>,
+    pub acceleration: Vector3<T>,
 }
 
-/// The directions of one task and the fixed part of its reference.
+/// The directions of one task and the fixed part of its reference: one run's (`f64`), or
+/// four runs' in lanes.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TaskFrame {
+pub struct TaskFrame<T: Real = f64> {
     /// Unit normal n: the force direction.
-    pub normal: TaskVector,
+    pub normal: Vector3<T>,
     /// Unit tangent t̂: the motion direction.
-    pub tangent: TaskVector,
+    pub tangent: Vector3<T>,
     /// The start X0.
-    pub start: TaskVector,
+    pub start: Vector3<T>,
     /// X0 − (n·X0) n: the start's part in the plane through the origin, so that
     /// X_d = in_plane + (x̂_e + x_a) n + s t̂ is exact for n = e_x.
-    in_plane: TaskVector,
+    in_plane: Vector3<T>,
     /// The controller's estimate x̂_e of the wall along n.
-    pub wall_estimate: f64,
+    pub wall_estimate: T,
+}
+
+impl TaskFrame<F64x4> {
+    /// Four runs' frames in lanes.
+    pub fn pack(f: [&TaskFrame; LANES]) -> Self {
+        Self {
+            normal: pack_vector(f.map(|f| &f.normal)),
+            tangent: pack_vector(f.map(|f| &f.tangent)),
+            start: pack_vector(f.map(|f| &f.start)),
+            in_plane: pack_vector(f.map(|f| &f.in_plane)),
+            wall_estimate: F64x4::from_lanes(|i| f[i].wall_estimate),
+        }
+    }
+
+    /// Lane `l` takes `f` (a new run).
+    pub fn put_lane(&mut self, l: usize, f: &TaskFrame) {
+        put_vector(&mut self.normal, l, &f.normal);
+        put_vector(&mut self.tangent, l, &f.tangent);
+        put_vector(&mut self.start, l, &f.start);
+        put_vector(&mut self.in_plane, l, &f.in_plane);
+        put(&mut self.wall_estimate, l, f.wall_estimate);
+    }
 }
 
 impl TaskFrame {
@@ -50,28 +76,6 @@ impl TaskFrame {
         }
     }
 
-    /// Force control: the reference from the filter output x_a and the motion s(t).
-    #[inline]
-    pub fn force_reference(&self, x_a: &Sample, s: &Sample) -> Desired {
-        let (n, t) = (&self.normal, &self.tangent);
-        Desired {
-            position: self.in_plane + n * (self.wall_estimate + x_a.value) + t * s.value,
-            velocity: n * x_a.rate + t * s.rate,
-            acceleration: n * x_a.accel + t * s.accel,
-        }
-    }
-
-    /// Position-only control: X_d = X0 + s(t) t̂.
-    #[inline]
-    pub fn motion_reference(&self, s: &Sample) -> Desired {
-        let t = &self.tangent;
-        Desired {
-            position: self.start + t * s.value,
-            velocity: t * s.rate,
-            acceleration: t * s.accel,
-        }
-    }
-
     /// The component of `v` along n.
     #[inline]
     pub fn along_normal(&self, v: &TaskVector) -> f64 {
@@ -82,6 +86,31 @@ impl TaskFrame {
     #[inline]
     pub fn along_tangent(&self, v: &TaskVector) -> f64 {
         self.tangent.dot(v)
+    }
+}
+
+impl<T: Real> TaskFrame<T> {
+    /// Force control (SPEC §10): X_d = X0 + (x̂_e + x_a − n·X0) n + s(t) t̂ from the filter
+    /// output x_a and the motion s(t), with its rate and acceleration.
+    #[inline]
+    pub fn force_reference(&self, x_a: &Sample<T>, s: &Sample<T>) -> Desired<T> {
+        let (n, t) = (&self.normal, &self.tangent);
+        Desired {
+            position: self.in_plane + n * (self.wall_estimate + x_a.value) + t * s.value,
+            velocity: n * x_a.rate + t * s.rate,
+            acceleration: n * x_a.accel + t * s.accel,
+        }
+    }
+
+    /// Position-only control: X_d = X0 + s(t) t̂.
+    #[inline]
+    pub fn motion_reference(&self, s: &Sample<T>) -> Desired<T> {
+        let t = &self.tangent;
+        Desired {
+            position: self.start + t * s.value,
+            velocity: t * s.rate,
+            acceleration: t * s.accel,
+        }
     }
 }
 
@@ -125,5 +154,33 @@ mod tests {
         // n ∥ e_z: motion along e_x.
         let top = TaskFrame::new(TaskVector::z(), x0, 0.9);
         assert_eq!(top.tangent, TaskVector::x());
+    }
+
+    /// Four frames in lanes give four scalar references, bit for bit.
+    #[test]
+    fn lanes_reference_as_four_scalar_frames() {
+        use crate::scalar::{lane_of, F64x4};
+        let frames: [TaskFrame; 4] = std::array::from_fn(|i| {
+            let a = (10.0 * i as f64).to_radians();
+            let n = TaskVector::new(a.cos(), 0.0, -a.sin());
+            let x0 = TaskVector::new(0.7, 0.01 * i as f64, 0.9);
+            TaskFrame::new(n, x0, n.dot(&x0) + 0.001 * i as f64)
+        });
+        let lanes = TaskFrame::<F64x4>::pack(frames.each_ref());
+        let xa: [Sample; 4] =
+            std::array::from_fn(|i| sample(0.001 * i as f64, 0.3, -2.0 + i as f64));
+        let s: [Sample; 4] = std::array::from_fn(|i| sample(0.04 * i as f64, 0.05, -0.04));
+        let d = lanes.force_reference(&Sample::pack(xa.each_ref()), &Sample::pack(s.each_ref()));
+        let m = lanes.motion_reference(&Sample::pack(s.each_ref()));
+        for i in 0..4 {
+            let e = frames[i].force_reference(&xa[i], &s[i]);
+            assert_eq!(lane_of(&d.position, i), e.position);
+            assert_eq!(lane_of(&d.velocity, i), e.velocity);
+            assert_eq!(lane_of(&d.acceleration, i), e.acceleration);
+            assert_eq!(
+                lane_of(&m.position, i),
+                frames[i].motion_reference(&s[i]).position
+            );
+        }
     }
 }

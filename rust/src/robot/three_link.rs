@@ -9,6 +9,7 @@ use nalgebra::{Matrix3, Vector3};
 use super::{JointVector, RobotModel, TaskVector};
 use crate::error::{check, Error, Result};
 use crate::scalar::{F64x4, Real, LANES};
+use simba::simd::SimdValue;
 
 pub type Vec3 = Vector3<f64>;
 pub type Mat3 = Matrix3<f64>;
@@ -329,6 +330,36 @@ impl ClosedForm<F64x4> {
                 g_m3_a3: p(|a| a.k.g_m3_a3),
             },
         }
+    }
+}
+
+impl ClosedForm<F64x4> {
+    /// Lane `l` takes the arm `a` (a new run's, or its controller's model).
+    pub fn put_lane(&mut self, l: usize, a: &ClosedForm) {
+        let one = |x: &mut F64x4, v: f64| x.replace(l, v);
+        one(&mut self.l1, a.l1);
+        one(&mut self.l2, a.l2);
+        one(&mut self.l3, a.l3);
+        one(&mut self.a3, a.a3);
+        one(&mut self.g, a.g);
+        for j in 0..3 {
+            one(&mut self.fv[j], a.fv[j]);
+            one(&mut self.fc[j], a.fc[j]);
+        }
+        one(&mut self.eps, a.eps);
+        one(&mut self.inv_eps, a.inv_eps);
+        one(&mut self.neg_two_inv_eps, a.neg_two_inv_eps);
+        let (k, c) = (&mut self.k, &a.k);
+        one(&mut k.k2, c.k2);
+        one(&mut k.m3_l2, c.m3_l2);
+        one(&mut k.m3_a3, c.m3_a3);
+        one(&mut k.i3, c.i3);
+        one(&mut k.m3_l2_a3, c.m3_l2_a3);
+        one(&mut k.d22_0, c.d22_0);
+        one(&mut k.d22_c3, c.d22_c3);
+        one(&mut k.d33, c.d33);
+        one(&mut k.g_m2_a2, c.g_m2_a2);
+        one(&mut k.g_m3_a3, c.g_m3_a3);
     }
 }
 

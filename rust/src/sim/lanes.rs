@@ -1,16 +1,19 @@
 //! SIMD lanes for sweeps (SPEC §13): runs of one structure advance four at a time.
 //!
-//! Each lane is one ordinary `Simulation`, built by the ordinary constructor. Stages 1–8 of
-//! a period (environment, sensor, references, filter, controller, actuator, record, online
-//! metrics) run lane by lane; stage 9, the plant's RK4 substeps (about 90 % of a period),
-//! runs once for all four lanes on [`F64x4`]: the same `rk4_period`, `ClosedForm` and
-//! `Wall` code the scalar plant runs, with the four arms' and walls' parameters packed.
+//! Each lane is one ordinary `Simulation`, built by the ordinary constructor; it keeps the
+//! run's trace, online metrics and outcome. Stage 9, the plant's RK4 substeps (about 90 %
+//! of a period), runs once for all four lanes on [`F64x4`]: the same `rk4_period`,
+//! `ClosedForm` and `Wall` code the scalar plant runs, with the four arms' and walls'
+//! parameters packed. Stages 1–8 (environment, sensor, references, filter, controller,
+//! actuator, record) run in lanes too where the arm has a [`Front`] for them (the
+//! three-link arm: `sim::lane_stages`, the same generic stage code `step_to_plant` runs);
+//! otherwise (URDF chains) lane by lane through `Simulation::step_to_plant`.
 //!
-//! A lane whose run ends (completed or diverged) takes the next run at once; at the tail an
-//! idle lane repeats an active one and is discarded. No operation mixes lanes, so a run's
-//! result does not depend on which runs share its group: tables do not depend on grouping,
-//! threads or chunking. They differ from `simulate` of the same run only through `exp`
-//! (a lane polynomial, within 2 ulp of libm's), far below SPEC §13's 1e-9.
+//! A lane whose run ends (completed or diverged) takes the next run at the next period; at
+//! the tail an idle lane repeats an active one and is discarded. No operation mixes lanes,
+//! so a run's result does not depend on which runs share its group: tables do not depend
+//! on grouping, threads or chunking. They differ from `simulate` of the same run only
+//! through `exp` (a lane polynomial, within 2 ulp of libm's), far below SPEC §13's 1e-9.
 
 use nalgebra::{SVector, Vector3};
 
@@ -19,6 +22,7 @@ use crate::robot::chain::{Frames, SerialChain, UrdfArm};
 use crate::robot::three_link::{ClosedForm, Trig};
 use crate::robot::{RobotModel, ThreeLinkArm};
 use crate::scalar::{splat, F64x4, Real, LANES};
+use crate::sim::lane_stages::ThreeLinkStages;
 use crate::sim::plant::{rk4_period, Plant, PlantState, Stages};
 use crate::sim::simulation::{RunResult, Simulation};
 use crate::world::environment::{ContactModel, Wall};
@@ -27,6 +31,9 @@ use crate::world::environment::{ContactModel, Wall};
 pub trait LaneArm<const N: usize>: RobotModel<N> {
     /// The four arms' dynamics in lanes.
     type Lanes: ArmLanes<N>;
+
+    /// Stages 1–8 of a period in lanes, for the structures that have them.
+    type Front: Front<Self, N>;
 
     /// Whether `other` can share lanes with this arm (same joint structure).
     fn same_structure(&self, other: &Self) -> bool;
@@ -67,6 +74,7 @@ pub trait ArmLanes<const N: usize> {
 
 impl LaneArm<3> for ThreeLinkArm {
     type Lanes = ClosedForm<F64x4>;
+    type Front = ThreeLinkStages;
 
     fn same_structure(&self, _: &Self) -> bool {
         true
@@ -122,6 +130,8 @@ pub struct ChainLanes<const N: usize> {
 
 impl<const N: usize> LaneArm<N> for UrdfArm<N> {
     type Lanes = ChainLanes<N>;
+    // A chain's pose task (damped J⁺, null space) has no lane version yet: per lane.
+    type Front = PerLane;
 
     fn same_structure(&self, other: &Self) -> bool {
         self.chain.same_structure(&other.chain)
@@ -182,22 +192,85 @@ impl<const N: usize> ArmLanes<N> for ChainLanes<N> {
     }
 }
 
+/// Stages 1–8 of a period (environment, sensor, references, filter, controller, actuator,
+/// record) for the runs in four lanes.
+pub trait Front<R: LaneArm<N>, const N: usize>: Sized {
+    /// The four runs' stages packed, from their fresh state; `None` if this group's
+    /// structure has no lane version (its stages then run per lane, `step_to_plant`).
+    fn pack(sims: [&Simulation<R, N>; LANES]) -> Option<Self>;
+
+    /// Lane `l` takes the fresh run `sim`.
+    fn put_lane(&mut self, l: usize, sim: &Simulation<R, N>);
+
+    /// Stages 1–8 for the runs in `slot` (`run`: the run each lane computes; an idle lane
+    /// repeats an active one). Each lane's torque to hold, or `None` where the run ended
+    /// at this sample; samples are recorded in the lanes' own simulations.
+    fn step(
+        &mut self,
+        plant: &PackedPlant<R::Lanes>,
+        sims: &mut [Simulation<R, N>],
+        slot: &[Option<usize>; LANES],
+        run: &[usize; LANES],
+    ) -> [Option<SVector<f64, N>>; LANES];
+}
+
+/// No lane version: every lane runs its own scalar stages.
+pub struct PerLane;
+
+impl<R: LaneArm<N>, const N: usize> Front<R, N> for PerLane {
+    fn pack(_: [&Simulation<R, N>; LANES]) -> Option<Self> {
+        None
+    }
+
+    fn put_lane(&mut self, _: usize, _: &Simulation<R, N>) {}
+
+    fn step(
+        &mut self,
+        _: &PackedPlant<R::Lanes>,
+        _: &mut [Simulation<R, N>],
+        _: &[Option<usize>; LANES],
+        _: &[usize; LANES],
+    ) -> [Option<SVector<f64, N>>; LANES] {
+        [None; LANES]
+    }
+}
+
 /// What runs must share to advance in one group of lanes: the arm's structure, the RK4
-/// loop count and the contact law's branch structure. Everything else (parameters,
-/// controllers, filters, sensors, actuators) may differ between lanes.
+/// loop count and the contact law's branch structure, and for the three-link arm, whose
+/// stages 1–8 run in lanes too, the stages' structure ([`StageKey`]). Everything else
+/// (every parameter; for URDF chains, whose stages run per lane, also the kinds of
+/// controller, filter, sensor and actuator) may differ between lanes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LaneKey {
     /// `None`: the three-link arm; else the URDF document, base and tip links.
     pub urdf: Option<(String, Option<String>, String)>,
     pub substeps: usize,
     pub wall: Option<ContactModel>,
+    /// `None` for URDF chains.
+    pub stages: Option<StageKey>,
+}
+
+/// What the lane stages (`sim::lane_stages`) cannot select over: the kinds of controller
+/// and outer loop and the lengths of the sensor's and actuator's buffers. Numbers (gains,
+/// limits, noise, cut-offs, …) and on/off limits are per lane.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StageKey {
+    /// The controller's kind with its structural switches: computed torque (contact
+    /// compensation), model-free, TDC (its law); and whether it takes the general task
+    /// path (a per-joint D̄), which stays per lane.
+    pub controller: (u8, bool, bool),
+    pub scale_feedforward: bool,
+    /// 0: position only, 1: admittance filter, 2: impedance reference (eq. 20).
+    pub force_control: u8,
+    pub sensor_latency: usize,
+    pub actuator_delay: usize,
 }
 
 /// Four plants' parameters in lanes, rebuilt whenever a lane takes a new run.
-struct PackedPlant<A> {
-    arm: A,
-    wall: Option<Wall<F64x4>>,
-    needs_rate: bool,
+pub struct PackedPlant<A> {
+    pub(crate) arm: A,
+    pub(crate) wall: Option<Wall<F64x4>>,
+    pub(crate) needs_rate: bool,
     substep: F64x4,
     substeps: usize,
 }
@@ -288,34 +361,22 @@ unsafe fn lanes_avx2<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>
 
 #[inline(always)]
 fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) {
-    if sims.is_empty() {
-        return;
-    }
     let mut next = 0;
     let mut slot: [Option<usize>; LANES] = [None; LANES];
-    let mut tau = [SVector::<f64, N>::zeros(); LANES];
     let mut packed: Option<(PackedPlant<R::Lanes>, [usize; LANES])> = None;
+    // The lane stages, once packed; `tried`: whether this group's structure has them (the
+    // lane key makes it the same for every run of the group).
+    let (mut front, mut tried): (Option<R::Front>, bool) = (None, false);
     loop {
-        // Stages 1–8 in every lane; a lane whose run is over takes the next one.
-        for l in 0..LANES {
-            loop {
-                let i = match slot[l] {
-                    Some(i) => i,
-                    None if next < sims.len() => {
-                        next += 1;
-                        next - 1
-                    }
-                    None => break,
-                };
-                slot[l] = None;
-                if sims[i].outcome().is_some() {
-                    continue;
+        // A lane whose run is over takes the next one.
+        let mut fresh = [false; LANES];
+        for (l, s) in slot.iter_mut().enumerate() {
+            while s.is_none() && next < sims.len() {
+                if sims[next].outcome().is_none() {
+                    *s = Some(next);
+                    fresh[l] = true;
                 }
-                if let Some(t) = sims[i].step_to_plant() {
-                    tau[l] = t;
-                    slot[l] = Some(i);
-                    break;
-                }
+                next += 1;
             }
         }
         let Some(first) = slot.iter().position(Option::is_some) else {
@@ -323,14 +384,41 @@ fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) {
         };
         // Idle lanes repeat an active run (their results are discarded).
         let run: [usize; LANES] = slot.map(|s| s.or(slot[first]).unwrap_or(0));
-        let lane_tau: [SVector<f64, N>; LANES] =
-            std::array::from_fn(|l| tau[if slot[l].is_some() { l } else { first }]);
-        if packed.as_ref().is_none_or(|(_, runs)| *runs != run) {
-            packed = Some((PackedPlant::new(run.map(|i| sims[i].plant())), run));
+        let plant = repack(&mut packed, sims, run);
+        if !tried {
+            // Only if every run of the group fits one pack (the lane key sees to it in
+            // sweeps; a caller's mixed group still runs, lane by lane).
+            let all_fit = sims.iter().all(|s| {
+                R::Front::pack([&sims[run[0]], &sims[run[0]], &sims[run[0]], s]).is_some()
+            });
+            front = all_fit
+                .then(|| R::Front::pack(run.map(|i| &sims[i])))
+                .flatten();
+            tried = true;
+        } else if let Some(f) = &mut front {
+            for l in (0..LANES).filter(|&l| fresh[l]) {
+                f.put_lane(l, &sims[run[l]]);
+            }
         }
-        let Some((plant, _)) = packed.as_ref() else {
-            break;
+        // Stages 1–8: in lanes, or lane by lane.
+        let tau = match &mut front {
+            Some(f) => f.step(plant, sims, &slot, &run),
+            None => std::array::from_fn(|l| slot[l].and_then(|i| sims[i].step_to_plant())),
         };
+        for (s, t) in slot.iter_mut().zip(&tau) {
+            if t.is_none() {
+                *s = None;
+            }
+        }
+        let Some(first) = slot.iter().position(Option::is_some) else {
+            continue;
+        };
+        let run: [usize; LANES] = slot.map(|s| s.or(slot[first]).unwrap_or(0));
+        let lane_tau: [SVector<f64, N>; LANES] = std::array::from_fn(|l| {
+            tau[if slot[l].is_some() { l } else { first }].unwrap_or_else(SVector::zeros)
+        });
+        let plant = repack(&mut packed, sims, run);
+        // Stage 9 in lanes.
         let pack = |v: [&SVector<f64, N>; LANES]| {
             SVector::<F64x4, N>::from_fn(|j, _| F64x4::from_lanes(|i| v[i][j]))
         };
@@ -346,17 +434,35 @@ fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) {
             &pack(std::array::from_fn(|l| &lane_tau[l])),
         );
         // Stage 9's write-back and the divergence check, per lane.
-        for (l, active) in slot.iter().enumerate() {
-            if let Some(i) = *active {
+        for (l, s) in slot.iter_mut().enumerate() {
+            if let Some(i) = *s {
                 let unpack = |v: &SVector<F64x4, N>| v.map(|x| crate::scalar::lane(x, l));
                 sims[i].plant_mut().set_state(PlantState {
                     q: unpack(&q),
                     qd: unpack(&qd),
                 });
                 sims[i].after_plant();
+                if sims[i].outcome().is_some() {
+                    *s = None;
+                }
             }
         }
     }
+}
+
+/// The plants of `run` packed, rebuilt only when the lanes' runs changed.
+#[inline(always)]
+fn repack<'a, R: LaneArm<N>, const N: usize>(
+    packed: &'a mut Option<(PackedPlant<R::Lanes>, [usize; LANES])>,
+    sims: &[Simulation<R, N>],
+    run: [usize; LANES],
+) -> &'a PackedPlant<R::Lanes> {
+    if packed.as_ref().is_some_and(|(_, runs)| *runs != run) {
+        *packed = None;
+    }
+    &packed
+        .get_or_insert_with(|| (PackedPlant::new(run.map(|i| sims[i].plant())), run))
+        .0
 }
 
 #[cfg(test)]

@@ -7,6 +7,7 @@
 //! `simulation`s, in lanes where their structure allows.
 
 pub mod dispatch;
+pub mod lane_stages;
 pub mod lanes;
 pub mod metrics;
 pub mod outcome;

@@ -96,6 +96,23 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         &mut self.plant
     }
 
+    /// The stages' state machines, for the lanes that pack them (`sim::lane_stages`).
+    pub(crate) fn sensor(&self) -> &ForceSensor {
+        &self.sensor
+    }
+
+    pub(crate) fn force_control(&self) -> Option<&ForceControl> {
+        self.force_control.as_ref()
+    }
+
+    pub(crate) fn controller(&self) -> &Controller<R, N> {
+        &self.controller
+    }
+
+    pub(crate) fn actuator(&self) -> &Actuator<N> {
+        &self.actuator
+    }
+
     /// Builds the pipeline for `robot` (its parameters replace `config.robot`). The rest of
     /// `config` must be valid.
     pub fn with_robot(config: &ScenarioConfig, robot: R) -> Result<Self> {
@@ -364,7 +381,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         self.controller.applied(&tau);
         // 8. record sample k
         let p = kin.position;
-        self.record(&Row {
+        let more = self.close_sample(&Row {
             t,
             q: q.as_slice(),
             qd: qd.as_slice(),
@@ -384,12 +401,21 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             tau_cmd: command.as_slice(),
         });
         // 9. integrate the plant over [t_k, t_{k+1}] with τ_k held
-        self.k = k + 1;
+        more.then_some(tau)
+    }
+
+    /// Stage 8 of the current sample: records `row` (trace and online metrics) and moves
+    /// to the next sample. Returns false if that was the run's last sample. The lanes
+    /// (`sim::lane_stages`) close their samples here too: one bookkeeping for both.
+    #[inline(always)]
+    pub(crate) fn close_sample(&mut self, row: &Row) -> bool {
+        self.record(row);
+        self.k += 1;
         if self.k == self.samples {
             self.outcome = Some(Outcome::Completed);
-            return None;
+            return false;
         }
-        Some(tau)
+        true
     }
 
     /// After stage 9: a diverged state ends the run.
@@ -411,7 +437,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         }
     }
 
-    fn stop(&mut self, time: f64, cause: Divergence) {
+    pub(crate) fn stop(&mut self, time: f64, cause: Divergence) {
         self.outcome = Some(Outcome::Diverged { time, cause });
     }
 

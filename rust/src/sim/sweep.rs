@@ -3,9 +3,11 @@
 
 use rayon::prelude::*;
 
+use crate::control::controller::{ControllerParams, TdcLaw};
+use crate::control::filter::ForceControlParams;
 use crate::error::{Error, Result};
 use crate::sim::dispatch::AnySimulation;
-use crate::sim::lanes::{run_lanes, LaneKey};
+use crate::sim::lanes::{run_lanes, LaneKey, StageKey};
 use crate::sim::metrics::Metrics;
 use crate::sim::scenario::RobotConfig;
 use crate::sim::simulation::{Outcome, RunResult, ScenarioConfig};
@@ -80,16 +82,47 @@ pub fn run_batch_with(
 const LANE_BLOCK: usize = 32;
 
 /// What runs may share lanes: one arm structure (the three-link arm, or one URDF chain),
-/// substep count and contact law. Controllers, filters, sensors, actuators and every
-/// parameter may differ (they run per lane, or in lanes with per-lane parameters).
+/// substep count and contact law; for the three-link arm, whose stages run in lanes, also
+/// one stage structure (`StageKey`). Every parameter may differ (lanes carry their own).
 fn lane_key(c: &ScenarioConfig) -> LaneKey {
+    let (urdf, stages) = match &c.robot {
+        RobotConfig::ThreeLink(_) => (None, Some(stage_key(c))),
+        RobotConfig::Urdf(p) => (
+            Some((p.urdf.clone(), p.base_link.clone(), p.tip_link.clone())),
+            None,
+        ),
+    };
     LaneKey {
-        urdf: match &c.robot {
-            RobotConfig::ThreeLink(_) => None,
-            RobotConfig::Urdf(p) => Some((p.urdf.clone(), p.base_link.clone(), p.tip_link.clone())),
-        },
+        urdf,
         substeps: c.substeps,
         wall: c.wall.as_ref().map(|w| w.model),
+        stages,
+    }
+}
+
+fn stage_key(c: &ScenarioConfig) -> StageKey {
+    let (controller, gains) = match &c.controller {
+        ControllerParams::ComputedTorque(p) => ((0, p.contact_compensation, false), p.gains),
+        ControllerParams::ModelFree(p) => ((1, false, p.joint_inertia.is_some()), p.gains),
+        ControllerParams::TimeDelay(p) => (
+            (
+                2,
+                p.law == TdcLaw::InverseJacobian,
+                p.joint_inertia.is_some(),
+            ),
+            p.gains,
+        ),
+    };
+    StageKey {
+        controller,
+        scale_feedforward: gains.scale_feedforward,
+        force_control: match &c.admittance {
+            None => 0,
+            Some(ForceControlParams::Admittance(_)) => 1,
+            Some(ForceControlParams::Impedance(_)) => 2,
+        },
+        sensor_latency: c.sensor.latency,
+        actuator_delay: c.actuator.delay,
     }
 }
 

@@ -2,7 +2,11 @@
 //! rate-limited, then clamped per joint. The result is the torque the plant feels.
 
 use crate::error::{check, Error, Result};
+use nalgebra::SVector;
+use simba::simd::SimdValue;
+
 use crate::robot::JointVector;
+use crate::scalar::{choose_vector, mask_from, pack_vector, put, put_vector, F64x4, Real, LANES};
 
 /// Longest delay accepted, in samples.
 pub const MAX_DELAY: usize = 100_000;
@@ -54,15 +58,19 @@ impl ActuatorParams {
 }
 
 /// The actuator as a state machine: the commands in flight and the last applied torque.
+/// Over `f64` for one run, or four runs' actuators (their own limits, one delay) in lanes.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Actuator<const N: usize> {
-    limit: Option<JointVector<N>>,
-    /// Largest change per period, rate_limit·T.
-    max_step: Option<f64>,
+pub struct Actuator<const N: usize, T: Real = f64> {
+    /// Lanes with a torque limit, and the limit per joint (∞ where there is none).
+    limited: T::SimdBool,
+    limit: SVector<T, N>,
+    /// Lanes with a rate limit, and their largest change per period, rate_limit·T.
+    rate_limited: T::SimdBool,
+    max_step: T,
     /// τ_cmd,k−1 … τ_cmd,k−D (most recent first).
-    in_flight: Vec<JointVector<N>>,
+    in_flight: Vec<SVector<T, N>>,
     /// The torque applied in the previous period.
-    applied: JointVector<N>,
+    applied: SVector<T, N>,
 }
 
 impl<const N: usize> Actuator<N> {
@@ -76,55 +84,111 @@ impl<const N: usize> Actuator<N> {
             }
         });
         Self {
-            limit,
-            max_step: p.rate_limit.map(|r| r * period),
+            limited: limit.is_some(),
+            limit: limit.unwrap_or_else(|| JointVector::repeat(f64::INFINITY)),
+            rate_limited: p.rate_limit.is_some(),
+            max_step: p.rate_limit.map_or(f64::INFINITY, |r| r * period),
             in_flight: vec![JointVector::<N>::zeros(); p.delay],
             applied: JointVector::<N>::zeros(),
         }
     }
 
-    pub fn reset(&mut self) {
-        self.in_flight
-            .iter_mut()
-            .for_each(|v| *v = JointVector::zeros());
-        self.applied = JointVector::zeros();
-    }
-
     /// The torque applied at sample `k` for the command `command`.
     #[inline(always)]
     pub fn apply(&mut self, k: usize, command: &JointVector<N>) -> JointVector<N> {
+        self.apply_lanes(k == 0, command)
+    }
+
+    /// Samples of delay.
+    pub fn delay(&self) -> usize {
+        self.in_flight.len()
+    }
+}
+
+impl<const N: usize> Actuator<N, F64x4> {
+    /// Four actuators of one delay in lanes.
+    pub fn pack(a: [&Actuator<N>; LANES]) -> Self {
+        debug_assert!(a.iter().all(|x| x.in_flight.len() == a[0].in_flight.len()));
+        Self {
+            limited: mask_from::<F64x4>(|i| a[i].limited),
+            limit: pack_vector(a.map(|a| &a.limit)),
+            rate_limited: mask_from::<F64x4>(|i| a[i].rate_limited),
+            max_step: F64x4::from_lanes(|i| a[i].max_step),
+            in_flight: (0..a[0].in_flight.len())
+                .map(|d| pack_vector(a.map(|a| &a.in_flight[d])))
+                .collect(),
+            applied: pack_vector(a.map(|a| &a.applied)),
+        }
+    }
+
+    /// Lane `l` takes the actuator `a` (limits and state; the same delay).
+    pub fn put_lane(&mut self, l: usize, a: &Actuator<N>) {
+        self.limited.replace(l, a.limited);
+        put_vector(&mut self.limit, l, &a.limit);
+        self.rate_limited.replace(l, a.rate_limited);
+        put(&mut self.max_step, l, a.max_step);
+        for (v, x) in self.in_flight.iter_mut().zip(&a.in_flight) {
+            put_vector(v, l, x);
+        }
+        put_vector(&mut self.applied, l, &a.applied);
+    }
+}
+
+impl<const N: usize, T: Real> Actuator<N, T> {
+    pub fn reset(&mut self) {
+        self.in_flight
+            .iter_mut()
+            .for_each(|v| *v = SVector::zeros());
+        self.applied = SVector::zeros();
+    }
+
+    /// The torque applied for the command `command`; `first`: the lanes at sample 0.
+    /// SPEC §10: delayed by whole samples, then |Δτ| ≤ rate_limit·T, then |τ_j| ≤ limit_j.
+    #[inline(always)]
+    pub fn apply_lanes(&mut self, first: T::SimdBool, command: &SVector<T, N>) -> SVector<T, N> {
         let delay = self.in_flight.len();
         let mut tau = if delay == 0 {
             *command
         } else {
-            if k == 0 {
-                // Before the first command arrives the motors hold it.
-                self.in_flight.iter_mut().for_each(|v| *v = *command);
+            // Before the first command arrives the motors hold it.
+            if !T::none(first) {
+                self.in_flight
+                    .iter_mut()
+                    .for_each(|v| *v = choose_vector(first, || *command, || *v));
             }
             let out = self.in_flight[delay - 1];
             self.in_flight.rotate_right(1);
             self.in_flight[0] = *command;
             out
         };
-        if let (Some(step), true) = (self.max_step, k > 0) {
-            let prev = self.applied;
-            tau = tau.zip_map(&prev, |t, p| t.clamp(p - step, p + step));
-        }
-        if let Some(limit) = &self.limit {
-            tau = tau.zip_map(limit, |t, l| t.clamp(-l, l));
-        }
+        let (prev, step) = (self.applied, self.max_step);
+        tau = choose_vector(
+            self.rate_limited & !first,
+            || tau.zip_map(&prev, |t, p| t.simd_clamp(p - step, p + step)),
+            || tau,
+        );
+        let limit = self.limit;
+        tau = choose_vector(
+            self.limited,
+            || tau.zip_map(&limit, |t, l| t.simd_clamp(-l, l)),
+            || tau,
+        );
         self.applied = tau;
         tau
     }
 
-    /// Whether any joint of `tau` sits at its torque limit.
+    /// The lanes where any joint of `tau` sits at its torque limit.
     #[inline]
-    pub fn saturated(&self, tau: &JointVector<N>) -> bool {
-        self.limit
-            .as_ref()
-            .is_some_and(|l| tau.iter().zip(l.iter()).any(|(t, l)| t.abs() >= *l))
+    pub fn saturated(&self, tau: &SVector<T, N>) -> T::SimdBool {
+        let mut at = tau[0].simd_abs().simd_ge(self.limit[0]);
+        for j in 1..N {
+            at = at | tau[j].simd_abs().simd_ge(self.limit[j]);
+        }
+        at & self.limited
     }
+}
 
+impl<const N: usize> Actuator<N> {
     pub fn state_labels(&self) -> Vec<String> {
         let mut out: Vec<String> = (1..=N).map(|j| format!("actuator.applied{j}")).collect();
         for d in 1..=self.in_flight.len() {
@@ -210,5 +274,59 @@ mod tests {
             .unwrap_err()
             .to_string()
             .starts_with("torque_limit = [1.0, 2.0]"));
+    }
+
+    /// Four actuators (their own limits, some unlimited; one delay) in lanes apply what
+    /// four scalar actuators apply, bit for bit, lane 2 restarting midway.
+    #[test]
+    fn lanes_apply_as_four_scalar_actuators() {
+        use crate::scalar::{lane_of, mask_from, F64x4};
+        let params = [
+            ActuatorParams {
+                delay: 1,
+                ..ActuatorParams::default()
+            },
+            ActuatorParams {
+                torque_limit: Some(vec![10.0, 20.0]),
+                rate_limit: Some(1000.0),
+                delay: 1,
+            },
+            ActuatorParams {
+                torque_limit: Some(vec![4.0]),
+                delay: 1,
+                ..ActuatorParams::default()
+            },
+            ActuatorParams {
+                rate_limit: Some(3000.0),
+                delay: 1,
+                ..ActuatorParams::default()
+            },
+        ];
+        let mut scalar: Vec<Actuator<2>> = params.iter().map(|p| Actuator::new(p, 1e-3)).collect();
+        let mut lanes =
+            Actuator::<2, F64x4>::pack([&scalar[0], &scalar[1], &scalar[2], &scalar[3]]);
+        let mut k = [0usize; 4];
+        for step in 0..30 {
+            if step == 11 {
+                scalar[2] = Actuator::new(&params[2], 1e-3);
+                lanes.put_lane(2, &scalar[2]);
+                k[2] = 0;
+            }
+            let c: [V; 4] = std::array::from_fn(|i| {
+                V::new(
+                    (step as f64 + i as f64).sin() * 30.0,
+                    (step as f64 * 0.5).cos() * 25.0,
+                )
+            });
+            let first = mask_from::<F64x4>(|i| k[i] == 0);
+            let out = lanes.apply_lanes(first, &pack_vector([&c[0], &c[1], &c[2], &c[3]]));
+            let saturated = lanes.saturated(&out);
+            for i in 0..4 {
+                let e = scalar[i].apply(k[i], &c[i]);
+                assert_eq!(lane_of(&out, i), e, "step {step} lane {i}");
+                assert_eq!(saturated.extract(i), scalar[i].saturated(&e));
+                k[i] += 1;
+            }
+        }
     }
 }

@@ -136,22 +136,10 @@ impl Wall {
         })
     }
 
-    /// Penetration δ = n·X − x_e (positive inside the wall).
-    #[inline(always)]
-    pub fn penetration(&self, position: &TaskVector) -> f64 {
-        self.normal.dot(position) - self.position
-    }
-
     /// Whether the force reads the tip's rate along n (it does only with damping).
     #[inline(always)]
     pub fn needs_rate(&self) -> bool {
         self.damping != 0.0
-    }
-
-    /// Contact force along n [N] at tip position X and velocity Ẋ: 0 while δ ≤ 0.
-    #[inline(always)]
-    pub fn force(&self, position: &TaskVector, velocity: &TaskVector) -> f64 {
-        self.force_along(self.normal.dot(position), self.normal.dot(velocity))
     }
 
     /// x̂_e: where the controller believes the wall is, along n.
@@ -162,6 +150,18 @@ impl Wall {
 }
 
 impl<T: Real> Wall<T> {
+    /// Penetration δ = n·X − x_e (positive inside the wall).
+    #[inline(always)]
+    pub fn penetration(&self, position: &Vector3<T>) -> T {
+        self.normal.dot(position) - self.position
+    }
+
+    /// Contact force along n [N] at tip position X and velocity Ẋ: 0 while δ ≤ 0.
+    #[inline(always)]
+    pub fn force(&self, position: &Vector3<T>, velocity: &Vector3<T>) -> T {
+        self.force_along(self.normal.dot(position), self.normal.dot(velocity))
+    }
+
     /// Contact force along n [N] from the tip's displacement s = n·X and rate ṡ = n·Ẋ.
     /// Lanes out of contact (or undamped) take their branch by select.
     #[inline(always)]

@@ -9,6 +9,8 @@ use rand_distr::{Distribution, StandardNormal};
 use rand_pcg::Pcg64Mcg;
 
 use crate::error::{check, Error, Result};
+use crate::scalar::{choose, mask_from, put, F64x4, Real, LANES};
+use simba::simd::SimdValue;
 
 /// Longest latency accepted, in samples.
 pub const MAX_LATENCY: usize = 100_000;
@@ -52,17 +54,23 @@ impl SensorParams {
     }
 }
 
-/// The sensor as a state machine: the low-pass output and the samples in flight.
+/// The sensor as a state machine: the low-pass output and the samples in flight. Over
+/// `f64` for one run, or four runs' sensors (their own parameters, one latency) in lanes.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ForceSensor {
-    params: SensorParams,
+pub struct ForceSensor<T: Real = f64> {
+    bias: T,
+    noise_std: T,
+    resolution: T,
+    /// Lanes with a low-pass (a cut-off).
+    filtering: T::SimdBool,
+    /// The noise generator's seed (one run's; lanes are handed each run's own draws).
     seed: u64,
     /// α = 1 − exp(−2π f_c T); 1 without a low-pass.
-    alpha: f64,
+    alpha: T,
     /// y_{k−1}, the low-pass output of the previous sample.
-    filtered: f64,
+    filtered: T,
     /// y_{k−1}, …, y_{k−L} (most recent first): the outputs still in flight.
-    in_flight: Vec<f64>,
+    in_flight: Vec<T>,
 }
 
 impl ForceSensor {
@@ -71,17 +79,15 @@ impl ForceSensor {
             1.0 - (-2.0 * std::f64::consts::PI * fc * period).exp()
         });
         Self {
-            params: *params,
+            bias: params.bias,
+            noise_std: params.noise_std,
+            resolution: params.resolution,
+            filtering: params.cutoff.is_some(),
             seed,
             alpha,
             filtered: 0.0,
             in_flight: vec![0.0; params.latency],
         }
-    }
-
-    pub fn reset(&mut self) {
-        self.filtered = 0.0;
-        self.in_flight.iter_mut().for_each(|v| *v = 0.0);
     }
 
     /// The low-pass coefficient α.
@@ -97,38 +103,102 @@ impl ForceSensor {
         StandardNormal.sample(&mut rng)
     }
 
+    /// The draw sample `k` adds (0 for a noiseless sensor, which draws nothing).
+    #[inline(always)]
+    pub fn noise_draw(&self, k: usize) -> f64 {
+        if self.noise_std > 0.0 {
+            self.noise(k)
+        } else {
+            0.0
+        }
+    }
+
     /// The reading at sample `k` of the true force `force` [N].
     #[inline(always)]
     pub fn measure(&mut self, k: usize, force: f64) -> f64 {
-        let p = &self.params;
-        let mut u = force + p.bias;
-        if p.noise_std > 0.0 {
-            u += p.noise_std * self.noise(k);
+        let noise = self.noise_draw(k);
+        self.read(k == 0, force, noise)
+    }
+
+    /// Samples of latency.
+    pub fn latency(&self) -> usize {
+        self.in_flight.len()
+    }
+}
+
+impl ForceSensor<F64x4> {
+    /// Four sensors of one latency in lanes.
+    pub fn pack(s: [&ForceSensor; LANES]) -> Self {
+        debug_assert!(s.iter().all(|x| x.in_flight.len() == s[0].in_flight.len()));
+        Self {
+            bias: F64x4::from_lanes(|i| s[i].bias),
+            noise_std: F64x4::from_lanes(|i| s[i].noise_std),
+            resolution: F64x4::from_lanes(|i| s[i].resolution),
+            filtering: mask_from::<F64x4>(|i| s[i].filtering),
+            seed: s[0].seed,
+            alpha: F64x4::from_lanes(|i| s[i].alpha),
+            filtered: F64x4::from_lanes(|i| s[i].filtered),
+            in_flight: (0..s[0].in_flight.len())
+                .map(|d| F64x4::from_lanes(|i| s[i].in_flight[d]))
+                .collect(),
         }
-        if p.resolution > 0.0 {
-            u = (u / p.resolution).round() * p.resolution;
+    }
+
+    /// Lane `l` takes the sensor `s` (parameters and state; the same latency).
+    pub fn put_lane(&mut self, l: usize, s: &ForceSensor) {
+        put(&mut self.bias, l, s.bias);
+        put(&mut self.noise_std, l, s.noise_std);
+        put(&mut self.resolution, l, s.resolution);
+        self.filtering.replace(l, s.filtering);
+        put(&mut self.alpha, l, s.alpha);
+        put(&mut self.filtered, l, s.filtered);
+        for (v, x) in self.in_flight.iter_mut().zip(&s.in_flight) {
+            put(v, l, *x);
         }
-        // y_0 = u_0, then y_k = y_{k−1} + α (u_k − y_{k−1}).
-        let y = if k == 0 || p.cutoff.is_none() {
-            u
-        } else {
-            self.filtered + self.alpha * (u - self.filtered)
-        };
+    }
+}
+
+impl<T: Real> ForceSensor<T> {
+    pub fn reset(&mut self) {
+        self.filtered = T::zero();
+        self.in_flight.iter_mut().for_each(|v| *v = T::zero());
+    }
+
+    /// The reading of the true force `force` [N] given the standard normal draw `noise`
+    /// of this sample; `first`: the lanes at sample 0. SPEC §10: u = f + β + σ n, rounded
+    /// to the resolution; y_0 = u_0, y_k = y_{k−1} + α (u_k − y_{k−1}); then the latency.
+    #[inline(always)]
+    pub fn read(&mut self, first: T::SimdBool, force: T, noise: T) -> T {
+        let zero = T::zero();
+        let mut u = force + self.bias;
+        let (std, res) = (self.noise_std, self.resolution);
+        u = choose(std.simd_gt(zero), || u + std * noise, || u);
+        u = choose(res.simd_gt(zero), || (u / res).simd_round() * res, || u);
+        let (filtered, alpha) = (self.filtered, self.alpha);
+        let y = choose(
+            first | !self.filtering,
+            || u,
+            || filtered + alpha * (u - filtered),
+        );
         self.filtered = y;
         let latency = self.in_flight.len();
         if latency == 0 {
             return y;
         }
-        if k == 0 {
-            // Before the first reading arrives the output holds y_0.
-            self.in_flight.iter_mut().for_each(|v| *v = y);
+        // Before the first reading arrives the output holds y_0.
+        if !T::none(first) {
+            self.in_flight
+                .iter_mut()
+                .for_each(|v| *v = choose(first, || y, || *v));
         }
         let out = self.in_flight[latency - 1];
         self.in_flight.rotate_right(1);
         self.in_flight[0] = y;
         out
     }
+}
 
+impl ForceSensor {
     /// Labels of the sensor's state, in the order of `state`.
     pub fn state_labels(&self) -> Vec<String> {
         let mut out = vec!["sensor.filtered".to_owned()];
@@ -265,5 +335,64 @@ mod tests {
         .validate()
         .unwrap_err();
         assert!(e.to_string().starts_with("cutoff = 0"), "{e}");
+    }
+
+    /// Four sensors with their own parameters in lanes read what four scalar sensors read,
+    /// bit for bit, with lanes at different samples (lane 3 takes a new run midway).
+    #[test]
+    fn lanes_read_as_four_scalar_sensors() {
+        use crate::scalar::{lane, F64x4};
+        let params = [
+            SensorParams {
+                latency: 2,
+                ..SensorParams::default()
+            },
+            SensorParams {
+                bias: 0.3,
+                noise_std: 0.5,
+                cutoff: Some(30.0),
+                latency: 2,
+                ..SensorParams::default()
+            },
+            SensorParams {
+                resolution: 0.25,
+                cutoff: Some(80.0),
+                latency: 2,
+                ..SensorParams::default()
+            },
+            SensorParams {
+                noise_std: 0.2,
+                resolution: 0.1,
+                latency: 2,
+                ..SensorParams::default()
+            },
+        ];
+        let mut scalar: Vec<ForceSensor> = (0..4)
+            .map(|i| ForceSensor::new(&params[i], 1e-3, 11 + i as u64))
+            .collect();
+        let mut lanes =
+            ForceSensor::<F64x4>::pack([&scalar[0], &scalar[1], &scalar[2], &scalar[3]]);
+        let mut k = [0usize; 4];
+        for step in 0..40 {
+            if step == 17 {
+                scalar[3] = ForceSensor::new(&params[3], 1e-3, 99);
+                lanes.put_lane(3, &scalar[3]);
+                k[3] = 0;
+            }
+            let force: [f64; 4] =
+                std::array::from_fn(|i| (step as f64 * 0.37 + i as f64).sin() * 20.0);
+            let noise = F64x4::from_lanes(|i| scalar[i].noise_draw(k[i]));
+            let first = mask_from::<F64x4>(|i| k[i] == 0);
+            let out = lanes.read(first, F64x4::from_lanes(|i| force[i]), noise);
+            for i in 0..4 {
+                let expected = scalar[i].measure(k[i], force[i]);
+                assert_eq!(
+                    lane(out, i).to_bits(),
+                    expected.to_bits(),
+                    "step {step} lane {i}"
+                );
+                k[i] += 1;
+            }
+        }
     }
 }
