@@ -21,6 +21,7 @@ import itertools
 import json
 import math
 import os
+import time
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -602,6 +603,10 @@ def _finished_runs(
     return _assemble(pieces, plan)[0]
 
 
+# Target wall time of one in-process Rust call of a sweep [s].
+_CALL_SECONDS = 0.3
+
+
 def _run_local(
     plan: _Plan,
     todo: list[tuple[int, range]],
@@ -612,18 +617,30 @@ def _run_local(
     bar: Any,
     lanes: bool = True,
 ) -> None:
-    # Small Rust calls so that Ctrl-C (seen between calls) stops within a second or two;
-    # each thread gets 16 runs, four lanes' worth of the three-link arm's SIMD lanes.
-    step = 16 * (threads or os.cpu_count() or 1)
+    # Rust calls of about `_CALL_SECONDS` each: short enough that Ctrl-C (seen between
+    # calls) stops the sweep within a second or so, long enough that the Python work around
+    # a call (configs in, tables out) stays a few per cent. The first call runs one lane
+    # group per thread; later ones are sized from the rate measured so far. Results do not
+    # depend on the sizes (every run's numbers depend on its scenario alone).
+    group = 4 * (threads or os.cpu_count() or 1)
+    step, done, spent = group, 0, 0.0
     for index, ids in todo:
         pieces = partial.setdefault(index, [])
-        for start in range(ids.start, ids.stop, step):
+        start = ids.start
+        while start < ids.stop:
             sub = range(start, min(start + step, ids.stop))
             rows = plan.rows[sub.start : sub.stop]
+            began = time.perf_counter()
             pieces.append(
                 _run_chunk(plan.base, rows, list(sub), plan.seed, threads, traces, lanes)
             )
+            spent += time.perf_counter() - began
+            done += len(sub)
             bar.update(len(sub))
+            start = sub.stop
+            # Whole lane groups per thread, between one group and 64.
+            want = done / max(spent, 1e-9) * _CALL_SECONDS
+            step = group * min(max(round(want / group), 1), 64)
         finish(index, _concat(pieces))
         del partial[index]
 

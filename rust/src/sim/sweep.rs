@@ -56,7 +56,10 @@ pub fn run_batch_with(
     }
     let workers = threads.unwrap_or_else(rayon::current_num_threads).max(1);
     let size = if lanes {
-        configs.len().div_ceil(workers).clamp(1, LANE_BLOCK)
+        // Every thread gets the same number of equal blocks (a thread with one block more
+        // than another would leave a core idle at the end of the call).
+        let per_worker = configs.len().div_ceil(workers).max(1);
+        per_worker.div_ceil(per_worker.div_ceil(LANE_BLOCK))
     } else {
         1
     };
@@ -79,7 +82,7 @@ pub fn run_batch_with(
 /// Most runs per block of the lane scheduler: a block's runs of one [`LaneKey`] advance four
 /// at a time (`sim::lanes`); blocks are the parallel tasks, so a batch is cut into blocks of
 /// at most its share per thread.
-const LANE_BLOCK: usize = 32;
+const LANE_BLOCK: usize = 64;
 
 /// What runs may share lanes: one arm structure (the three-link arm, or one URDF chain),
 /// substep count and contact law; for the three-link arm, whose stages run in lanes, also
