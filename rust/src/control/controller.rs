@@ -770,6 +770,21 @@ mod tests {
         (arm, q, k)
     }
 
+    /// The paper's TDC at q0, its set point 1 cm along x from the tip.
+    fn tdc_pulled_along_x() -> (ThreeLinkArm, Vec3, Kinematics, Ctl, Desired) {
+        let (r, q, k) = at_q0();
+        let c = Ctl::new(
+            &ControllerParams::TimeDelay(TimeDelayParams::default()),
+            &r,
+            1e-3,
+        );
+        let d = Desired {
+            position: k.position + Vec3::new(0.01, 0.0, 0.0),
+            ..Desired::default()
+        };
+        (r, q, k, c, d)
+    }
+
     /// The measurement of a controller test: no contact force, the paper's wall normal.
     fn measured<'a>(q: &'a Vec3, qd: &'a Vec3, k: &'a Kinematics) -> Measurement<'a, 3> {
         Measurement {
@@ -825,16 +840,7 @@ mod tests {
 
     #[test]
     fn tdc_first_step_is_gravity_plus_transpose_term() {
-        let (r, q, k) = at_q0();
-        let mut c = Ctl::new(
-            &ControllerParams::TimeDelay(TimeDelayParams::default()),
-            &r,
-            1e-3,
-        );
-        let d = Desired {
-            position: k.position + Vec3::new(0.01, 0.0, 0.0),
-            ..Desired::default()
-        };
+        let (r, q, k, mut c, d) = tdc_pulled_along_x();
         let qd = Vec3::zeros();
         let m = measured(&q, &qd, &k);
         let tau0 = c.step(&m, &d).unwrap();
@@ -873,16 +879,7 @@ mod tests {
     /// TDC's τ_{k−1} is the torque the actuator applied, not the one commanded.
     #[test]
     fn tdc_remembers_the_applied_torque() {
-        let (r, q, k) = at_q0();
-        let mut c = Ctl::new(
-            &ControllerParams::TimeDelay(TimeDelayParams::default()),
-            &r,
-            1e-3,
-        );
-        let d = Desired {
-            position: k.position + Vec3::new(0.01, 0.0, 0.0),
-            ..Desired::default()
-        };
+        let (r, q, k, mut c, d) = tdc_pulled_along_x();
         let m = measured(&q, &REST, &k);
         let tau0 = c.step(&m, &d).unwrap();
         let applied = tau0.map(|t| t.clamp(-20.0, 20.0));
@@ -892,11 +889,7 @@ mod tests {
         assert_eq!(&state[..3], applied.as_slice());
         // Same measurement again: u is unchanged, ĥ = τ_{k−1} − 0 is the applied torque.
         let tau1 = c.step(&m, &d).unwrap();
-        assert!((tau1 - (tau0 - g_of(&r, &q) + applied)).abs().max() < 1e-12);
-    }
-
-    fn g_of(arm: &ThreeLinkArm, q: &Vec3) -> Vec3 {
-        gravity(arm, q)
+        assert!((tau1 - (tau0 - gravity(&r, &q) + applied)).abs().max() < 1e-12);
     }
 
     /// For a redundant arm (3×4 J) the damped pseudo-inverse reaches the task acceleration

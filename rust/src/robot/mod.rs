@@ -24,6 +24,15 @@ pub type TaskVector = Vector3<f64>;
 /// The tip's translational Jacobian, 3×N.
 pub type Jacobian<const N: usize> = SMatrix<f64, 3, N>;
 
+/// A controller's friction model error: viscous and Coulomb coefficients scaled alike
+/// (`with_model_error` of every arm's parameters).
+pub(crate) fn scale_friction(viscous: &mut [f64], coulomb: &mut [f64], scale: f64) {
+    viscous
+        .iter_mut()
+        .chain(coulomb.iter_mut())
+        .for_each(|f| *f *= scale);
+}
+
 /// Tip position, Jacobian and the velocity-product acceleration J̇q̇ at one state.
 /// Over `f64` by default; over lanes (`crate::scalar::F64x4`) for runs advancing together.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -100,12 +100,11 @@ impl RobotParams {
     pub fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {
         let mut p = self.clone();
         p.masses.iter_mut().for_each(|m| *m *= mass_scale);
-        p.viscous_friction
-            .iter_mut()
-            .for_each(|f| *f *= friction_scale);
-        p.coulomb_friction
-            .iter_mut()
-            .for_each(|f| *f *= friction_scale);
+        super::scale_friction(
+            &mut p.viscous_friction,
+            &mut p.coulomb_friction,
+            friction_scale,
+        );
         p
     }
 }

@@ -126,12 +126,11 @@ impl UrdfArmParams {
 
     pub fn with_model_error(&self, friction_scale: f64) -> Self {
         let mut p = self.clone();
-        p.viscous_friction
-            .iter_mut()
-            .for_each(|f| *f *= friction_scale);
-        p.coulomb_friction
-            .iter_mut()
-            .for_each(|f| *f *= friction_scale);
+        crate::robot::scale_friction(
+            &mut p.viscous_friction,
+            &mut p.coulomb_friction,
+            friction_scale,
+        );
         p
     }
 }
