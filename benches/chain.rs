@@ -7,7 +7,11 @@
 //! | `chain_crba/<arm>`       | CRBA: D(q)                                                 |
 //! | `chain_aba/<arm>`        | ABA: q̈ with a tip force (friction-free τ)                 |
 //! | `chain_jacobian/<arm>`   | frames (FK) + 6×n tip Jacobian + J̇q̇                       |
+//! | `chain_eval/<arm>_scalar4` | one RK4 stage's work four times (frames + contact + friction + ABA), scalar, AVX2 |
+//! | `chain_eval/<arm>_lanes4`  | the same four evaluations at once in SIMD lanes ([`F64x4`]), AVX2 |
 //! | `chain_run/panda_10s`    | a 10-s TDC + Scheme 2 run of the Panda: 10 001 samples, 100 000 RK4 substeps |
+//! | `chain_sweep/panda_lanes_16x2s` | 16 two-second Panda runs (wall stiffness 1e4 … 1e5) as a sweep in SIMD lanes, 1 thread |
+//! | `chain_sweep/panda_scalar_16x2s` | … and on the scalar path (issue #12's target: lanes ≥ 2.5× scalar) |
 //!
 //! `<arm>` is `three_link3`, `ur5_6` or `panda7` (the files in `examples/data`). The per-call
 //! benches cycle through 1024 pseudo-random states drawn once outside the timing, so no
@@ -21,10 +25,15 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, Criterion};
 
 use admit_rs::control::controller::{ControllerParams, PerJoint, PositionGains, TimeDelayParams};
-use admit_rs::robot::chain::{Frames, UrdfArm, UrdfArmParams};
+use admit_rs::robot::chain::arm::{accelerate, JointFriction};
+use admit_rs::robot::chain::{Frames, SerialChain, UrdfArm, UrdfArmParams};
 use admit_rs::robot::{JointVector, RobotModel};
+use admit_rs::scalar::{F64x4, Real};
 use admit_rs::sim::scenario::RobotConfig;
+use admit_rs::sim::sweep::run_batch_with;
+use admit_rs::world::environment::WallParams;
 use admit_rs::{ScenarioConfig, Simulation};
+use nalgebra::{SVector, Vector3};
 
 const THREE: &str = include_str!("../examples/data/three_link.urdf");
 const UR5: &str = include_str!("../examples/data/ur5.urdf");
@@ -94,6 +103,89 @@ fn bench_arm<const N: usize>(c: &mut Criterion, name: &str, urdf: &str, tip: &st
         });
 }
 
+/// One RK4 stage's plant evaluation: frames at q, then q̈ with the wall's force at the tip
+/// (a penalty wall along x at 0.3 m; the chain's own friction). Generic over the scalar,
+/// as the plant runs it.
+#[inline(always)]
+fn evaluate<T: Real, const N: usize>(
+    chain: &SerialChain<T, N>,
+    friction: &JointFriction<T, N>,
+    q: &SVector<T, N>,
+    qd: &SVector<T, N>,
+    tau: &SVector<T, N>,
+) -> SVector<T, N> {
+    let f = chain.frames(q);
+    let normal = Vector3::new(T::one(), T::zero(), T::zero());
+    let wall = |along: T, _rate: T| (along - T::splat(0.3)).simd_max(T::zero()) * T::splat(3e4);
+    accelerate(chain, friction, &f, qd, tau, &wall, &normal, false).0
+}
+
+/// Four evaluations one after the other, in the dispatched AVX2 + FMA code the lanes run in.
+#[target_feature(enable = "avx2,fma")]
+unsafe fn scalar4_avx2<const N: usize>(
+    chain: &SerialChain<f64, N>,
+    friction: &JointFriction<f64, N>,
+    x: &[(JointVector<N>, JointVector<N>, JointVector<N>); 4],
+) -> [JointVector<N>; 4] {
+    std::array::from_fn(|l| evaluate(chain, friction, &x[l].0, &x[l].1, &x[l].2))
+}
+
+/// The same four evaluations in lanes.
+#[target_feature(enable = "avx2,fma")]
+unsafe fn lanes4_avx2<const N: usize>(
+    chain: &SerialChain<F64x4, N>,
+    friction: &JointFriction<F64x4, N>,
+    x: &(SVector<F64x4, N>, SVector<F64x4, N>, SVector<F64x4, N>),
+) -> SVector<F64x4, N> {
+    evaluate(chain, friction, &x.0, &x.1, &x.2)
+}
+
+fn bench_eval<const N: usize>(c: &mut Criterion, name: &str, urdf: &str, tip: &str) {
+    if !is_x86_feature_detected!("avx2") || !is_x86_feature_detected!("fma") {
+        return;
+    }
+    let arm = UrdfArm::<N>::new(&params(urdf, tip)).expect("valid URDF");
+    let states = states::<N>();
+    let quads: Vec<[(JointVector<N>, JointVector<N>, JointVector<N>); 4]> = states
+        .chunks_exact(4)
+        .map(|q| [q[0], q[1], q[2], q[3]])
+        .collect();
+    let pack = |v: [&JointVector<N>; 4]| {
+        SVector::<F64x4, N>::from_fn(|j, _| F64x4::from_lanes(|l| v[l][j]))
+    };
+    let packed: Vec<_> = quads
+        .iter()
+        .map(|q| {
+            (
+                pack([&q[0].0, &q[1].0, &q[2].0, &q[3].0]),
+                pack([&q[0].1, &q[1].1, &q[2].1, &q[3].1]),
+                pack([&q[0].2, &q[1].2, &q[2].2, &q[3].2]),
+            )
+        })
+        .collect();
+    let chains = SerialChain::pack([&arm.chain; 4]);
+    let frictions = JointFriction::pack([&arm.friction; 4]);
+    let mut i = 0usize;
+    let mut next = move || {
+        i = (i + 1) & 255;
+        i
+    };
+    let mut g = c.benchmark_group("chain_eval");
+    // SAFETY (both): AVX2 and FMA were detected above.
+    g.bench_function(format!("{name}_scalar4"), |b| {
+        b.iter(|| unsafe { black_box(scalar4_avx2(&arm.chain, &arm.friction, &quads[next()])) })
+    });
+    g.bench_function(format!("{name}_lanes4"), |b| {
+        b.iter(|| unsafe { black_box(lanes4_avx2(&chains, &frictions, &packed[next()])) })
+    });
+    g.finish();
+}
+
+fn evals(c: &mut Criterion) {
+    bench_eval::<6>(c, "ur5_6", UR5, "tool0");
+    bench_eval::<7>(c, "panda7", PANDA, "panda_hand_tcp");
+}
+
 fn arms(c: &mut Criterion) {
     bench_arm::<3>(c, "three_link3", THREE, "tip");
     bench_arm::<6>(c, "ur5_6", UR5, "tool0");
@@ -144,5 +236,31 @@ fn run(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, arms, run);
+/// The 7-DOF sweep of issue #12: 16 Panda runs in lanes against the scalar path, on one
+/// thread.
+fn sweep(c: &mut Criterion) {
+    let configs: Vec<ScenarioConfig> = (0..16)
+        .map(|i| {
+            let base = panda_config();
+            ScenarioConfig {
+                wall: Some(WallParams {
+                    stiffness: 1e4 + 6e3 * i as f64,
+                    ..base.wall.clone().unwrap_or_default()
+                }),
+                duration: 2.0,
+                ..base
+            }
+        })
+        .collect();
+    let mut g = c.benchmark_group("chain_sweep");
+    g.sample_size(10).measurement_time(Duration::from_secs(10));
+    for (name, lanes) in [("panda_lanes_16x2s", true), ("panda_scalar_16x2s", false)] {
+        g.bench_function(name, |b| {
+            b.iter(|| run_batch_with(black_box(&configs), Some(1), false, lanes).expect("valid"))
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, arms, evals, run, sweep);
 criterion_main!(benches);

@@ -1,15 +1,18 @@
 //! Articulated-body algorithm (Featherstone Table 7.1): forward dynamics q̈ = FD(q, q̇, τ,
 //! f_ext) in O(N), with a spatial force on the last body (the environment's push on the tip).
 
-use nalgebra::{Matrix6, SVector, Vector6};
+use nalgebra::SVector;
 
 use super::kinematics::Frames;
-use super::model::SerialChain;
-use super::spatial::{Real, SVec};
+use super::model::{JointKind, SerialChain};
+use super::spatial::{mul3tv, mul3v, Real, SVec, SpatialInertia};
 
 impl<T: Real, const N: usize> SerialChain<T, N> {
     /// q̈ for joint torques `tau` (friction already subtracted) with `tip_wrench` acting on
     /// body N (its frame) and gravity along −z.
+    ///
+    /// Inertias are kept as 3×3 blocks ([`SpatialInertia`]) and S_i = [s; 0] (revolute) or
+    /// [0; s] (prismatic) is applied by picking blocks, so no 6×6 product is formed.
     #[inline(always)]
     pub fn aba(
         &self,
@@ -18,10 +21,9 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
         tau: &SVector<T, N>,
         tip_wrench: &SVec<T>,
     ) -> SVector<T, N> {
-        let mut ia = [Matrix6::<T>::zeros(); N];
-        let mut pa = [Vector6::<T>::zeros(); N];
+        let mut pa = [SVec::<T>::zero(); N];
         let mut c = [SVec::<T>::zero(); N];
-        let mut u_vec = [Vector6::<T>::zeros(); N];
+        let mut u_vec = [SVec::<T>::zero(); N];
         let mut d_inv = [T::zero(); N];
         let mut u = [T::zero(); N];
         // Pass 1: velocities, velocity-product accelerations c_i = v_i ×ₘ S_i q̇_i and the
@@ -32,32 +34,44 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
             v = f.up[i].motion_to_child(&v).add(&vj);
             c[i] = v.cross_motion(&vj);
             let inertia = &self.bodies[i].inertia;
-            ia[i] = inertia.matrix();
             let mut p = v.cross_force(&inertia.apply(&v));
             if i == N - 1 {
                 p = p.sub(tip_wrench);
             }
-            pa[i] = p.to_vector6();
+            pa[i] = p;
         }
         // Pass 2: articulated inertias from the tip down. U_i = I^A_i S_i, d_i = S_iᵀ U_i,
         // u_i = τ_i − S_iᵀ p^A_i; the parent gets Xᵀ (I^A − U Uᵀ/d) X and
-        // Xᵀ (p^A + I^a c_i + U u_i/d_i).
+        // Xᵀ (p^A + I^a c_i + U u_i/d_i). Only the child's contribution is carried down
+        // (no array of inertias: in lanes each is 27 vectors, and copies went to memcpy).
+        let mut carried: Option<SpatialInertia<T>> = None;
         for i in (0..N).rev() {
-            let s = self.subspace(i).to_vector6();
-            let ui = ia[i] * s;
-            let di = s.dot(&ui);
+            let axis = self.bodies[i].axis;
+            let rigid = SpatialInertia::rigid(&self.bodies[i].inertia);
+            let ia = match &carried {
+                Some(child) => rigid.add(child),
+                None => rigid,
+            };
+            let (ui, di, bias) = match self.bodies[i].kind {
+                JointKind::Revolute => {
+                    let ui = SVec::new(mul3v(&ia.a, &axis), mul3tv(&ia.b, &axis));
+                    (ui, axis.dot(&ui.ang), axis.dot(&pa[i].ang))
+                }
+                JointKind::Prismatic => {
+                    let ui = SVec::new(mul3v(&ia.b, &axis), mul3v(&ia.c, &axis));
+                    (ui, axis.dot(&ui.lin), axis.dot(&pa[i].lin))
+                }
+            };
             let inv = T::one() / di;
-            u[i] = tau[i] - s.dot(&pa[i]);
+            u[i] = tau[i] - bias;
             u_vec[i] = ui;
             d_inv[i] = inv;
             if i > 0 {
-                let ia_a = ia[i] - ui * ui.transpose() * inv;
-                let pa_a = pa[i] + ia_a * c[i].to_vector6() + ui * (u[i] * inv);
+                let ia_a = ia.minus_outer(&ui, inv);
+                let pa_a = pa[i].add(&ia_a.apply(&c[i])).add(&ui.scale(u[i] * inv));
                 let up = &f.up[i];
-                ia[i - 1] += up.inertia_to_parent(&ia_a);
-                pa[i - 1] += up
-                    .force_to_parent(&SVec::from_matrix_column(&pa_a))
-                    .to_vector6();
+                carried = Some(ia_a.to_parent(up));
+                pa[i - 1] = pa[i - 1].add(&up.force_to_parent(&pa_a));
             }
         }
         // Pass 3: accelerations from the base up, a_0 = −a_g.
@@ -65,8 +79,7 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
         let mut qdd = SVector::<T, N>::zeros();
         for i in 0..N {
             let a_prime = f.up[i].motion_to_child(&a).add(&c[i]);
-            let ap = a_prime.to_vector6();
-            qdd[i] = (u[i] - u_vec[i].dot(&ap)) * d_inv[i];
+            qdd[i] = (u[i] - a_prime.dot(&u_vec[i])) * d_inv[i];
             a = a_prime.add(&self.subspace(i).scale(qdd[i]));
         }
         qdd

@@ -106,10 +106,12 @@ pub struct Pose<T: Real> {
 }
 
 impl<T: Real> Pose<T> {
+    #[inline(always)]
     pub fn identity() -> Self {
+        let (zero, one) = (T::zero(), T::one());
         Self {
-            rot: Matrix3::identity(),
-            pos: Vector3::zeros(),
+            rot: mat3(|i, j| if i == j { one } else { zero }),
+            pos: Vector3::new(zero, zero, zero),
         }
     }
 
@@ -117,53 +119,37 @@ impl<T: Real> Pose<T> {
     #[inline(always)]
     pub fn compose(&self, child: &Pose<T>) -> Pose<T> {
         Pose {
-            rot: self.rot * child.rot,
-            pos: self.pos + self.rot * child.pos,
+            rot: mul3(&self.rot, &child.rot),
+            pos: self.pos + mul3v(&self.rot, &child.pos),
         }
     }
 
     /// A point given in this frame, in the parent's coordinates.
     #[inline(always)]
     pub fn transform_point(&self, p: &Vector3<T>) -> Vector3<T> {
-        self.pos + self.rot * p
+        self.pos + mul3v(&self.rot, p)
     }
 
     /// Motion vector from parent to child coordinates: X m (eq. 2.24).
     #[inline(always)]
     pub fn motion_to_child(&self, m: &SVec<T>) -> SVec<T> {
-        let rt = self.rot.transpose();
-        SVec::new(rt * m.ang, rt * (m.lin - self.pos.cross(&m.ang)))
+        SVec::new(
+            mul3tv(&self.rot, &m.ang),
+            mul3tv(&self.rot, &(m.lin - self.pos.cross(&m.ang))),
+        )
     }
 
     /// Force vector from child to parent coordinates: Xᵀ f (= X* of the inverse, eq. 2.25).
     #[inline(always)]
     pub fn force_to_parent(&self, f: &SVec<T>) -> SVec<T> {
-        let lin = self.rot * f.lin;
-        SVec::new(self.rot * f.ang + self.pos.cross(&lin), lin)
+        let lin = mul3v(&self.rot, &f.lin);
+        SVec::new(mul3v(&self.rot, &f.ang) + self.pos.cross(&lin), lin)
     }
 
     /// A symmetric 6×6 (articulated) inertia from child to parent coordinates: Xᵀ I X.
-    ///
-    /// By 3×3 blocks instead of two 6×6 products (about a third of the work): with
-    /// I = [[A, B], [Bᵀ, C]], the rotated blocks A' = R A Rᵀ (B', C' alike) and P = [p]×,
-    /// Xᵀ I X = [[A' − B'P + P B'ᵀ − P C'P, B' + P C'], [(B' + P C')ᵀ, C']].
-    #[inline(always)]
+    /// (By blocks: [`SpatialInertia::to_parent`], which ABA uses.)
     pub fn inertia_to_parent(&self, ia: &Matrix6<T>) -> Matrix6<T> {
-        let r = self.rot;
-        let rt = r.transpose();
-        let block = |i: usize, j: usize| r * ia.fixed_view::<3, 3>(i, j) * rt;
-        let (a, b, c) = (block(0, 0), block(0, 3), block(3, 3));
-        let p = skew(&self.pos);
-        let pc = p * c;
-        let upper = b + pc;
-        let corner = a - b * p + p * b.transpose() - pc * p;
-        let mut out = Matrix6::zeros();
-        out.fixed_view_mut::<3, 3>(0, 0).copy_from(&corner);
-        out.fixed_view_mut::<3, 3>(0, 3).copy_from(&upper);
-        out.fixed_view_mut::<3, 3>(3, 0)
-            .copy_from(&upper.transpose());
-        out.fixed_view_mut::<3, 3>(3, 3).copy_from(&c);
-        out
+        SpatialInertia::from_matrix(ia).to_parent(self).matrix()
     }
 
     /// The 6×6 motion transform X (parent → child).
@@ -183,7 +169,153 @@ impl<T: Real> Pose<T> {
 #[inline(always)]
 pub fn axis_angle<T: Real>(axis: &Vector3<T>, (s, c): (T, T)) -> Matrix3<T> {
     let k = skew(axis);
-    Matrix3::identity() + k * s + k * k * (T::one() - c)
+    Pose::identity().rot + k * s + mul3(&k, &k) * (T::one() - c)
+}
+
+/// The 3×3 products the articulated-body pass runs, written out entry by entry. Why not
+/// nalgebra's `*`: in the lanes' AVX2 function LLVM declined to inline its generic product
+/// for [`crate::scalar::F64x4`], and a product left out of line runs as baseline x86-64
+/// code (two-wide, through the stack) — a third of the lane ABA's time (measured).
+#[inline(always)]
+fn mat3<T: Real>(f: impl Fn(usize, usize) -> T) -> Matrix3<T> {
+    Matrix3::new(
+        f(0, 0),
+        f(0, 1),
+        f(0, 2),
+        f(1, 0),
+        f(1, 1),
+        f(1, 2),
+        f(2, 0),
+        f(2, 1),
+        f(2, 2),
+    )
+}
+
+/// a b.
+#[inline(always)]
+pub(crate) fn mul3<T: Real>(a: &Matrix3<T>, b: &Matrix3<T>) -> Matrix3<T> {
+    mat3(|i, j| a[(i, 0)] * b[(0, j)] + a[(i, 1)] * b[(1, j)] + a[(i, 2)] * b[(2, j)])
+}
+
+/// a bᵀ.
+#[inline(always)]
+pub(crate) fn mul3_t<T: Real>(a: &Matrix3<T>, b: &Matrix3<T>) -> Matrix3<T> {
+    mat3(|i, j| a[(i, 0)] * b[(j, 0)] + a[(i, 1)] * b[(j, 1)] + a[(i, 2)] * b[(j, 2)])
+}
+
+/// a v.
+#[inline(always)]
+pub(crate) fn mul3v<T: Real>(a: &Matrix3<T>, v: &Vector3<T>) -> Vector3<T> {
+    Vector3::new(
+        a[(0, 0)] * v[0] + a[(0, 1)] * v[1] + a[(0, 2)] * v[2],
+        a[(1, 0)] * v[0] + a[(1, 1)] * v[1] + a[(1, 2)] * v[2],
+        a[(2, 0)] * v[0] + a[(2, 1)] * v[1] + a[(2, 2)] * v[2],
+    )
+}
+
+/// aᵀ v.
+#[inline(always)]
+pub(crate) fn mul3tv<T: Real>(a: &Matrix3<T>, v: &Vector3<T>) -> Vector3<T> {
+    Vector3::new(
+        a[(0, 0)] * v[0] + a[(1, 0)] * v[1] + a[(2, 0)] * v[2],
+        a[(0, 1)] * v[0] + a[(1, 1)] * v[1] + a[(2, 1)] * v[2],
+        a[(0, 2)] * v[0] + a[(1, 2)] * v[1] + a[(2, 2)] * v[2],
+    )
+}
+
+/// A symmetric spatial (rigid or articulated) inertia by 3×3 blocks, I = [[A, B], [Bᵀ, C]]
+/// (A, C symmetric): the force of a motion [ω; v] is [A ω + B v; Bᵀ ω + C v]. Three
+/// blocks instead of a 6×6 matrix: 27 numbers, and the products ABA needs touch only the
+/// blocks they use (in lanes, 36 vectors of a 6×6 do not fit the registers).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpatialInertia<T: Real> {
+    pub a: Matrix3<T>,
+    pub b: Matrix3<T>,
+    pub c: Matrix3<T>,
+}
+
+impl<T: Real> SpatialInertia<T> {
+    /// A rigid body's inertia [[Ī, [h]×], [[h]×ᵀ, m 1]] (eq. 2.63).
+    #[inline(always)]
+    pub fn rigid(i: &RigidInertia<T>) -> Self {
+        let hx = skew(&i.h);
+        Self {
+            a: i.ibar,
+            b: hx,
+            c: Matrix3::identity() * i.mass,
+        }
+    }
+
+    /// The blocks of a 6×6 matrix (its upper-right and diagonal blocks).
+    pub fn from_matrix(m: &Matrix6<T>) -> Self {
+        Self {
+            a: m.fixed_view::<3, 3>(0, 0).into_owned(),
+            b: m.fixed_view::<3, 3>(0, 3).into_owned(),
+            c: m.fixed_view::<3, 3>(3, 3).into_owned(),
+        }
+    }
+
+    /// The 6×6 matrix.
+    pub fn matrix(&self) -> Matrix6<T> {
+        let mut m = Matrix6::zeros();
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.a);
+        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&self.b);
+        m.fixed_view_mut::<3, 3>(3, 0)
+            .copy_from(&self.b.transpose());
+        m.fixed_view_mut::<3, 3>(3, 3).copy_from(&self.c);
+        m
+    }
+
+    /// I m, a force.
+    #[inline(always)]
+    pub fn apply(&self, m: &SVec<T>) -> SVec<T> {
+        SVec::new(
+            mul3v(&self.a, &m.ang) + mul3v(&self.b, &m.lin),
+            mul3tv(&self.b, &m.ang) + mul3v(&self.c, &m.lin),
+        )
+    }
+
+    /// I − U Uᵀ s for U = [u_ang; u_lin] (ABA's articulated → apparent inertia).
+    #[inline(always)]
+    pub fn minus_outer(&self, u: &SVec<T>, s: T) -> Self {
+        let outer = |x: &Vector3<T>, y: &Vector3<T>| mat3(|i, j| x[i] * y[j] * s);
+        Self {
+            a: self.a - outer(&u.ang, &u.ang),
+            b: self.b - outer(&u.ang, &u.lin),
+            c: self.c - outer(&u.lin, &u.lin),
+        }
+    }
+
+    #[inline(always)]
+    pub fn add(&self, o: &Self) -> Self {
+        Self {
+            a: self.a + o.a,
+            b: self.b + o.b,
+            c: self.c + o.c,
+        }
+    }
+
+    /// Xᵀ I X: this inertia, given in the child frame that `pose` places, in the parent's
+    /// coordinates. With the rotated blocks A' = R A Rᵀ (B', C' alike) and P = [p]×,
+    /// Xᵀ I X = [[A' − B'P + P B'ᵀ − P C'P, B' + P C'], [(B' + P C')ᵀ, C']].
+    #[inline(always)]
+    pub fn to_parent(&self, pose: &Pose<T>) -> Self {
+        let r = &pose.rot;
+        let (a, b, c) = (
+            mul3_t(&mul3(r, &self.a), r),
+            mul3_t(&mul3(r, &self.b), r),
+            mul3_t(&mul3(r, &self.c), r),
+        );
+        let p = skew(&pose.pos);
+        let pc = mul3(&p, &c);
+        let upper = b + pc;
+        let corner = a - mul3(&b, &p) + mul3_t(&p, &b) - mul3(&pc, &p);
+        Self {
+            a: corner,
+            b: upper,
+            c,
+        }
+    }
 }
 
 /// A rigid body's spatial inertia about a frame's origin: mass m, first moment h = m c and
@@ -259,14 +391,7 @@ impl<T: Real> RigidInertia<T> {
 
     /// The 6×6 matrix [[Ī, [h]×], [[h]×ᵀ, m 1]].
     pub fn matrix(&self) -> Matrix6<T> {
-        let mut m = Matrix6::zeros();
-        let hx = skew(&self.h);
-        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.ibar);
-        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&hx);
-        m.fixed_view_mut::<3, 3>(3, 0).copy_from(&hx.transpose());
-        m.fixed_view_mut::<3, 3>(3, 3)
-            .copy_from(&(Matrix3::identity() * self.mass));
-        m
+        SpatialInertia::rigid(self).matrix()
     }
 }
 
