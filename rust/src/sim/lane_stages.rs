@@ -1,9 +1,16 @@
-//! Stages 1–8 of a period in lanes for the three-link arm (SPEC §10, §13): four runs'
-//! sensors, filters, task frames, control laws and actuators packed into [`F64x4`] and
-//! stepped once per period by the same generic stage code the scalar pipeline runs
-//! (`ForceSensor::read`, `ForceControl::step`, `TaskFrame::force_reference`,
-//! `PositionGains::command`, `computed_torque` / `model_free` / `time_delay`,
-//! `Actuator::apply_lanes`).
+//! Stages 1–8 of a period in lanes (SPEC §10, §13): four runs' sensors, filters, task
+//! frames, control laws and actuators packed into [`F64x4`] and stepped once per period by
+//! the same generic stage code the scalar pipeline runs (`ForceSensor::read`,
+//! `ForceControl::step`, `TaskFrame::force_reference`, `PositionGains::command`, the square
+//! laws `computed_torque` / `model_free` / `time_delay` and the general task path
+//! `TaskTerms` of SPEC §11, `Actuator::apply_lanes`).
+//!
+//! One orchestration, [`LaneStages`], serves every arm; an arm brings what differs through
+//! [`StageArm`]: its kinematics in lanes (the three-link closed form here; URDF chains'
+//! frames, 6×N Jacobian and tip rotation in `sim::chain_stages`) and its controller model
+//! for computed torque. The law takes the square path (J⁻¹, three joints, position task,
+//! scalar D̄) or the general task path (damped J⁺, orientation, posture, matrix D̄) exactly
+//! where `Controller::step` does.
 //!
 //! What stays per lane, and why: each run's noise draw (its own seeded generator at its own
 //! sample index), its references (a run's signals may be of different kinds, each a
@@ -12,115 +19,212 @@
 //! mirrors `Simulation::step_to_plant`, which it cannot call: that one reads and writes one
 //! run's state; this one packs four. It holds no physics or control law of its own.
 
-use nalgebra::Vector3;
-use simba::simd::{AutoBoolx4, SimdValue};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+use simba::simd::{AutoBoolx4, SimdBool, SimdValue};
 
 use crate::control::controller::{
-    computed_torque, model_free, time_delay, Controller, PositionGains, TdcLaw,
+    computed_torque, constant_inertia, model_free, time_delay, Controller, OrientationTask,
+    PositionGains, TaskInputs, TaskTerms, TdcLaw,
 };
 use crate::control::filter::ForceControl;
 use crate::control::reference::Sample;
 use crate::control::task::TaskFrame;
+use crate::robot::chain::arm::rotation_vector;
 use crate::robot::three_link::{ClosedForm, Trig};
-use crate::robot::ThreeLinkArm;
+use crate::robot::{Dynamics, Kinematics, ThreeLinkArm};
 use crate::scalar::{
     finite, lane, lane_of, mask_from, pack_vector, put, put_vector, F64x4, Real, LANES,
 };
-use crate::sim::lanes::{Front, PackedPlant};
+use crate::sim::lanes::{Front, LaneArm, PackedPlant};
 use crate::sim::outcome::Divergence;
 use crate::sim::simulation::Simulation;
 use crate::sim::trace::Row;
 use crate::world::actuator::Actuator;
 use crate::world::sensor::ForceSensor;
 
-type Sim = Simulation<ThreeLinkArm, 3>;
+/// A pose task's tip terms in lanes: the rotation R, the angular Jacobian and its J̇q̇.
+pub type TipRotation<const N: usize> = (Matrix3<F64x4>, SMatrix<F64x4, 3, N>, Vector3<F64x4>);
 
-/// The three-link control laws of one kind in lanes (the square path: J⁻¹, no posture).
-/// One per lane group, built once and never moved in the loop: its size does not matter.
+/// What an arm brings to the lane stages besides its plant.
+pub trait StageArm<const N: usize>: LaneArm<N> {
+    /// Four controllers' models (computed torque's D̂, Ĉ, Ĝ, τ̂_f) in lanes.
+    type Model;
+    /// What the lanes' kinematics leave for the model (the three-link arm's trig).
+    type At;
+
+    fn pack_model(arms: [&Self; LANES]) -> Self::Model;
+
+    /// Lane `l` takes the model `arm`.
+    fn put_model(model: &mut Self::Model, l: usize, arm: &Self);
+
+    /// Tip position, 3×N Jacobian and J̇q̇ at the lanes' state (q, q̇), and, for a pose
+    /// task (`pose`), the tip rotation terms.
+    fn lane_kinematics(
+        plant: &PackedPlant<Self::Lanes>,
+        lanes: [&Simulation<Self, N>; LANES],
+        q: &SVector<F64x4, N>,
+        qd: &SVector<F64x4, N>,
+        pose: bool,
+    ) -> (Kinematics<N, F64x4>, Option<TipRotation<N>>, Self::At);
+
+    /// The model's (D̂, Ĉ q̇, Ĝ) and τ̂_f at the lanes' state.
+    fn model_terms(
+        model: &Self::Model,
+        at: &Self::At,
+        q: &SVector<F64x4, N>,
+        qd: &SVector<F64x4, N>,
+    ) -> (Dynamics<N, F64x4>, SVector<F64x4, N>);
+}
+
+/// The kind of law, with its own memory. One per lane group, built once and never moved in
+/// the loop: its size does not matter.
 #[allow(clippy::large_enum_variant)]
-enum LaneLaw {
+enum LawKind<M, const N: usize> {
     /// Eq. (7); the controllers' own models (with their model errors) packed.
-    ComputedTorque {
-        compensation: bool,
-        model: ClosedForm<F64x4>,
-    },
+    ComputedTorque { compensation: bool, model: M },
     /// Eq. (18) without the delay estimate.
-    ModelFree {
-        inertia: F64x4,
-        torque_constant: F64x4,
-    },
+    ModelFree,
     /// Eqs. (17) and (18) with their memory.
     TimeDelay {
-        inertia: F64x4,
-        torque_constant: F64x4,
         period: F64x4,
         law: TdcLaw,
-        tau_prev: Vector3<F64x4>,
-        qd_prev: Vector3<F64x4>,
+        tau_prev: SVector<F64x4, N>,
+        qd_prev: SVector<F64x4, N>,
         started: AutoBoolx4,
     },
 }
 
-impl LaneLaw {
-    /// The laws of four controllers of one kind; `None` if the kinds or their structure
-    /// differ, or a law takes the general task path (a per-joint D̄).
-    fn pack(c: [&Controller<ThreeLinkArm, 3>; LANES]) -> Option<Self> {
-        if c.iter().any(|c| c.joint_inertia().is_some()) {
+/// The general task's per-lane terms (SPEC §11): R0 for a pose task with its orientation
+/// (K_P, K_D), q0 for a redundant arm's posture, J⁺'s damping λ.
+struct TaskLanes<const N: usize> {
+    start_rotation: Option<Matrix3<F64x4>>,
+    orientation_gains: (F64x4, F64x4),
+    posture: Option<SVector<F64x4, N>>,
+    damping: F64x4,
+}
+
+impl<const N: usize> TaskLanes<N> {
+    /// The four runs' task terms (their structure checked by `LaneLaw::pack`).
+    fn pack<R: StageArm<N>>(sims: [&Simulation<R, N>; LANES]) -> Self {
+        let mut task = TaskLanes {
+            start_rotation: sims[0].start_rotation().map(|_| Matrix3::zeros()),
+            orientation_gains: (F64x4::splat(0.0), F64x4::splat(0.0)),
+            posture: sims[0].posture().map(|_| SVector::zeros()),
+            damping: F64x4::splat(0.0),
+        };
+        for (l, s) in sims.iter().enumerate() {
+            task.put_lane(l, s);
+        }
+        task
+    }
+
+    fn put_lane<R: StageArm<N>>(&mut self, l: usize, sim: &Simulation<R, N>) {
+        if let (Some(r), Some(r0)) = (&mut self.start_rotation, sim.start_rotation()) {
+            put_vector(r, l, r0);
+        }
+        if let (Some(p), Some(q0)) = (&mut self.posture, sim.posture()) {
+            put_vector(p, l, q0);
+        }
+        let gains = sim.controller().gains();
+        let options = sim.task_options();
+        let (kp, kd) = options.orientation_gains.unwrap_or((gains.kp, gains.kd));
+        put(&mut self.orientation_gains.0, l, kp);
+        put(&mut self.orientation_gains.1, l, kd);
+        put(&mut self.damping, l, options.damping);
+    }
+}
+
+/// Whether `Controller::step` takes the general task path for this run.
+fn takes_task_path<R: StageArm<N>, const N: usize>(s: &Simulation<R, N>) -> bool {
+    N != 3
+        || s.start_rotation().is_some()
+        || s.posture().is_some()
+        || s.controller().joint_inertia().is_some()
+}
+
+/// The control laws of one kind in lanes, on the square path or the general task path.
+struct LaneLaw<M, const N: usize> {
+    kind: LawKind<M, N>,
+    /// D̄ = α I's α (square path; computed torque: unused).
+    inertia: F64x4,
+    /// D̄ as a matrix, α I or the per-joint D̄ (task path).
+    dbar: SMatrix<F64x4, N, N>,
+    torque_constant: F64x4,
+    /// `None`: the square path.
+    task: Option<TaskLanes<N>>,
+}
+
+impl<M, const N: usize> LaneLaw<M, N> {
+    /// The laws of four runs' controllers of one kind; `None` if their kinds, structure or
+    /// path differ.
+    fn pack<R: StageArm<N, Model = M>>(sims: [&Simulation<R, N>; LANES]) -> Option<Self> {
+        let task_path = takes_task_path(sims[0]);
+        if sims.iter().any(|s| {
+            takes_task_path(*s) != task_path
+                || s.start_rotation().is_some() != sims[0].start_rotation().is_some()
+                || s.posture().is_some() != sims[0].posture().is_some()
+        }) {
             return None;
         }
-        let mut law = match c[0] {
-            Controller::ComputedTorque { params, model } => LaneLaw::ComputedTorque {
+        let kind = match sims[0].controller() {
+            Controller::ComputedTorque { params, .. } => LawKind::ComputedTorque {
                 compensation: params.contact_compensation,
-                model: ClosedForm::pack([model.closed_form(); LANES]),
+                // A lane of another kind takes its plant's arm here and fails `put_lane`.
+                model: R::pack_model(sims.map(|s| match s.controller() {
+                    Controller::ComputedTorque { model, .. } => model,
+                    _ => s.plant().arm(),
+                })),
             },
-            Controller::ModelFree(p) => LaneLaw::ModelFree {
-                inertia: F64x4::splat(p.inertia),
-                torque_constant: F64x4::splat(p.torque_constant),
-            },
-            Controller::TimeDelay { params, period, .. } => LaneLaw::TimeDelay {
-                inertia: F64x4::splat(params.inertia),
-                torque_constant: F64x4::splat(params.torque_constant),
-                period: F64x4::splat(*period),
+            Controller::ModelFree(_) => LawKind::ModelFree,
+            Controller::TimeDelay { params, .. } => LawKind::TimeDelay {
+                period: F64x4::splat(0.0),
                 law: params.law,
-                tau_prev: Vector3::zeros(),
-                qd_prev: Vector3::zeros(),
+                tau_prev: SVector::zeros(),
+                qd_prev: SVector::zeros(),
                 started: AutoBoolx4::splat(false),
             },
         };
-        for (l, c) in c.iter().enumerate() {
-            if !law.put_lane(l, c) {
+        let mut law = LaneLaw {
+            kind,
+            inertia: F64x4::splat(0.0),
+            dbar: SMatrix::zeros(),
+            torque_constant: F64x4::splat(0.0),
+            task: task_path.then(|| TaskLanes::pack(sims)),
+        };
+        for (l, s) in sims.iter().enumerate() {
+            if !law.put_lane(l, s) {
                 return None;
             }
         }
         Some(law)
     }
 
-    /// Lane `l` takes the controller `c`; false if its kind or structure differs.
-    fn put_lane(&mut self, l: usize, c: &Controller<ThreeLinkArm, 3>) -> bool {
-        match (self, c) {
+    /// Lane `l` takes the run `sim`; false if its kind or structure differs.
+    fn put_lane<R: StageArm<N, Model = M>>(&mut self, l: usize, sim: &Simulation<R, N>) -> bool {
+        if let Some(task) = &mut self.task {
+            task.put_lane(l, sim);
+        }
+        let (inertia, joint, torque_constant) = match sim.controller() {
+            Controller::ComputedTorque { .. } => (1.0, None, 0.0),
+            Controller::ModelFree(p) => (p.inertia, p.joint_inertia, p.torque_constant),
+            Controller::TimeDelay { params, .. } => {
+                (params.inertia, params.joint_inertia, params.torque_constant)
+            }
+        };
+        put(&mut self.inertia, l, inertia);
+        put_vector(&mut self.dbar, l, &constant_inertia::<N>(inertia, &joint));
+        put(&mut self.torque_constant, l, torque_constant);
+        match (&mut self.kind, sim.controller()) {
             (
-                LaneLaw::ComputedTorque {
+                LawKind::ComputedTorque {
                     compensation,
                     model,
                 },
                 Controller::ComputedTorque { params, model: m },
-            ) if *compensation == params.contact_compensation => {
-                model.put_lane(l, m.closed_form());
-            }
+            ) if *compensation == params.contact_compensation => R::put_model(model, l, m),
+            (LawKind::ModelFree, Controller::ModelFree(_)) => {}
             (
-                LaneLaw::ModelFree {
-                    inertia,
-                    torque_constant,
-                },
-                Controller::ModelFree(p),
-            ) => {
-                put(inertia, l, p.inertia);
-                put(torque_constant, l, p.torque_constant);
-            }
-            (
-                LaneLaw::TimeDelay {
-                    inertia,
-                    torque_constant,
+                LawKind::TimeDelay {
                     period,
                     law,
                     tau_prev,
@@ -135,31 +239,203 @@ impl LaneLaw {
                     ..
                 },
             ) if *law == params.law => {
-                put(inertia, l, params.inertia);
-                put(torque_constant, l, params.torque_constant);
                 put(period, l, *p);
                 put_vector(tau_prev, l, t);
-                put_vector(qd_prev, l, &q.unwrap_or_else(Vector3::zeros));
+                put_vector(qd_prev, l, &q.unwrap_or_else(SVector::zeros));
                 started.replace(l, q.is_some());
             }
             _ => return false,
         }
         true
     }
+
+    /// Stage 6: the commanded torque and the lanes whose Jacobian failed (J⁻¹ singular, or
+    /// J⁺'s Cholesky or J⁺ itself not finite), as `Controller::step`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn torque<R: StageArm<N, Model = M>>(
+        &self,
+        kin: &Kinematics<N, F64x4>,
+        rotation: Option<&TipRotation<N>>,
+        at: &R::At,
+        (q, qd): (&SVector<F64x4, N>, &SVector<F64x4, N>),
+        v: &Vector3<F64x4>,
+        gains: &PositionGains<F64x4>,
+        contact: (&Vector3<F64x4>, F64x4),
+    ) -> (SVector<F64x4, N>, AutoBoolx4) {
+        let Some(task) = &self.task else {
+            return self.square::<R>(kin, at, (q, qd), v, contact);
+        };
+        // e_o = log(R0 Rᵀ), generic with its small-angle branch a lane select.
+        let orientation = match (&task.start_rotation, rotation) {
+            (Some(r0), Some((r, jacobian, jdot_qd))) => Some(OrientationTask {
+                error: rotation_vector(&(r0 * r.transpose())),
+                jacobian: *jacobian,
+                jdot_qd: *jdot_qd,
+            }),
+            _ => None,
+        };
+        let input = TaskInputs {
+            q,
+            qd,
+            orientation: orientation.as_ref().map(|o| (o, task.orientation_gains)),
+            posture: task.posture.as_ref(),
+            gains: (gains.ka, gains.kd, gains.kp),
+            damping: task.damping,
+        };
+        let (terms, failed) = TaskTerms::new(kin, v, &input);
+        let tau = match &self.kind {
+            LawKind::ComputedTorque {
+                compensation,
+                model,
+            } => {
+                if failed.all() {
+                    return (SVector::zeros(), failed);
+                }
+                terms.computed_torque(
+                    R::model_terms(model, at, q, qd),
+                    &kin.jacobian,
+                    compensation.then_some(contact),
+                )
+            }
+            LawKind::ModelFree => terms.model_free(&self.dbar, self.torque_constant),
+            LawKind::TimeDelay {
+                period,
+                law,
+                tau_prev,
+                qd_prev,
+                started,
+            } => terms.time_delay(
+                qd,
+                &self.dbar,
+                (self.torque_constant, *period),
+                *law,
+                tau_prev,
+                qd_prev,
+                *started,
+            ),
+        };
+        (tau, failed)
+    }
+
+    /// The square path (three joints, position task, D̄ = α I): J⁻¹ as the paper writes it.
+    #[inline(always)]
+    fn square<R: StageArm<N, Model = M>>(
+        &self,
+        kin: &Kinematics<N, F64x4>,
+        at: &R::At,
+        (q, qd): (&SVector<F64x4, N>, &SVector<F64x4, N>),
+        v: &Vector3<F64x4>,
+        contact: (&Vector3<F64x4>, F64x4),
+    ) -> (SVector<F64x4, N>, AutoBoolx4) {
+        match &self.kind {
+            LawKind::ComputedTorque {
+                compensation,
+                model,
+            } => computed_torque(
+                kin,
+                v,
+                || R::model_terms(model, at, q, qd),
+                compensation.then_some(contact),
+            ),
+            LawKind::ModelFree => (
+                model_free(kin, v, self.inertia, self.torque_constant),
+                AutoBoolx4::splat(false),
+            ),
+            LawKind::TimeDelay {
+                period,
+                law,
+                tau_prev,
+                qd_prev,
+                started,
+            } => time_delay(
+                kin,
+                v,
+                qd,
+                (self.inertia, self.torque_constant, *period),
+                *law,
+                tau_prev,
+                qd_prev,
+                *started,
+            ),
+        }
+    }
+
+    /// Whether the task holds the tip's orientation (a pose task).
+    fn pose(&self) -> bool {
+        self.task
+            .as_ref()
+            .is_some_and(|t| t.start_rotation.is_some())
+    }
+
+    /// Stage 7's write-back: TDC remembers the applied torque and q̇_k.
+    #[inline(always)]
+    fn applied(&mut self, tau: &SVector<F64x4, N>, qd: &SVector<F64x4, N>) {
+        if let LawKind::TimeDelay {
+            tau_prev,
+            qd_prev,
+            started,
+            ..
+        } = &mut self.kind
+        {
+            *tau_prev = *tau;
+            *qd_prev = *qd;
+            *started = AutoBoolx4::splat(true);
+        }
+    }
 }
 
-/// Four three-link runs' stages 1–8 in lanes.
-pub struct ThreeLinkStages {
+/// Four runs' stages 1–8 in lanes, for any arm with a [`StageArm`].
+pub struct LaneStages<R: StageArm<N>, const N: usize> {
     sensor: ForceSensor<F64x4>,
     force_control: Option<ForceControl<F64x4>>,
     frame: TaskFrame<F64x4>,
     gains: PositionGains<F64x4>,
-    law: LaneLaw,
-    actuator: Actuator<3, F64x4>,
+    law: LaneLaw<R::Model, N>,
+    actuator: Actuator<N, F64x4>,
 }
 
-impl Front<ThreeLinkArm, 3> for ThreeLinkStages {
-    fn pack(sims: [&Sim; LANES]) -> Option<Self> {
+/// The three-link arm's lane stages.
+pub type ThreeLinkStages = LaneStages<ThreeLinkArm, 3>;
+
+impl StageArm<3> for ThreeLinkArm {
+    type Model = ClosedForm<F64x4>;
+    type At = Trig<F64x4>;
+
+    fn pack_model(arms: [&Self; LANES]) -> ClosedForm<F64x4> {
+        ClosedForm::pack(arms.map(|a| a.closed_form()))
+    }
+
+    fn put_model(model: &mut ClosedForm<F64x4>, l: usize, arm: &Self) {
+        model.put_lane(l, arm.closed_form());
+    }
+
+    #[inline(always)]
+    fn lane_kinematics(
+        plant: &PackedPlant<ClosedForm<F64x4>>,
+        lanes: [&Simulation<Self, 3>; LANES],
+        _: &Vector3<F64x4>,
+        qd: &Vector3<F64x4>,
+        _: bool,
+    ) -> (Kinematics<3, F64x4>, Option<TipRotation<3>>, Trig<F64x4>) {
+        // Each lane's fresh trig of q, as the scalar plant holds it.
+        let trig = Trig::pack(lanes.map(|s| s.plant().config()));
+        (plant.arm.kinematics(&trig, qd), None, trig)
+    }
+
+    #[inline(always)]
+    fn model_terms(
+        model: &ClosedForm<F64x4>,
+        trig: &Trig<F64x4>,
+        _: &Vector3<F64x4>,
+        qd: &Vector3<F64x4>,
+    ) -> (Dynamics<3, F64x4>, Vector3<F64x4>) {
+        (model.dynamics(trig, qd), model.friction(qd))
+    }
+}
+
+impl<R: StageArm<N>, const N: usize> Front<R, N> for LaneStages<R, N> {
+    fn pack(sims: [&Simulation<R, N>; LANES]) -> Option<Self> {
         // The lane key (`sweep::lane_key`) groups runs of one structure; checked again
         // here so that a group that is not uniform still runs, per lane.
         let s0 = sims[0];
@@ -186,12 +462,12 @@ impl Front<ThreeLinkArm, 3> for ThreeLinkStages {
             force_control,
             frame: TaskFrame::pack(sims.map(|s| s.frame())),
             gains: PositionGains::pack(sims.map(|s| s.controller().gains())),
-            law: LaneLaw::pack(sims.map(|s| s.controller()))?,
+            law: LaneLaw::pack(sims)?,
             actuator: Actuator::pack(sims.map(|s| s.actuator())),
         })
     }
 
-    fn put_lane(&mut self, l: usize, sim: &Sim) {
+    fn put_lane(&mut self, l: usize, sim: &Simulation<R, N>) {
         self.sensor.put_lane(l, sim.sensor());
         if let (Some(f), Some(g)) = (&mut self.force_control, sim.force_control()) {
             f.put_lane(l, g);
@@ -201,27 +477,27 @@ impl Front<ThreeLinkArm, 3> for ThreeLinkStages {
         put(&mut self.gains.ka, l, g.ka);
         put(&mut self.gains.kd, l, g.kd);
         put(&mut self.gains.kp, l, g.kp);
-        self.law.put_lane(l, sim.controller());
+        self.law.put_lane(l, sim);
         self.actuator.put_lane(l, sim.actuator());
     }
 
     #[inline(always)]
     fn step(
         &mut self,
-        plant: &PackedPlant<ClosedForm<F64x4>>,
-        sims: &mut [Sim],
+        plant: &PackedPlant<R::Lanes>,
+        sims: &mut [Simulation<R, N>],
         slot: &[Option<usize>; LANES],
         run: &[usize; LANES],
-    ) -> [Option<Vector3<f64>>; LANES] {
+    ) -> [Option<SVector<f64, N>>; LANES] {
         let lanes = run.map(|i| &sims[i]);
         let k = lanes.map(|s| s.sample());
         let t = F64x4::from_lanes(|l| k[l] as f64 * lanes[l].config().period);
         let first = mask_from::<F64x4>(|l| k[l] == 0);
-        // 1. plant state (the encoders), with each lane's fresh trig of q
+        // 1. plant state (the encoders)
         let states = lanes.map(|s| *s.plant().state());
+        let q = pack_vector(states.each_ref().map(|s| &s.q));
         let qd = pack_vector(states.each_ref().map(|s| &s.qd));
-        let trig = Trig::pack(lanes.map(|s| s.plant().config()));
-        let kin = plant.arm.kinematics(&trig, &qd);
+        let (kin, rotation, at) = R::lane_kinematics(plant, lanes, &q, &qd, self.law.pose());
         // 2. environment: the true force along n
         let (force, penetration) = match &plant.wall {
             Some(w) => {
@@ -254,59 +530,24 @@ impl Front<ThreeLinkArm, 3> for ThreeLinkStages {
             }
             None => (Sample::default(), self.frame.motion_reference(&s)),
         };
-        // 6. control law (square path, eq. 39's V)
+        // 6. control law (eq. 39's V, then the square or the general task path)
         let velocity = kin.jacobian * qd;
         let v = self.gains.command(&desired, &kin.position, &velocity);
-        let (command, singular) = match &mut self.law {
-            LaneLaw::ComputedTorque {
-                compensation,
-                model,
-            } => computed_torque(
-                &kin,
-                &v,
-                || (model.dynamics(&trig, &qd), model.friction(&qd)),
-                compensation.then_some((&self.frame.normal, measured)),
-            ),
-            LaneLaw::ModelFree {
-                inertia,
-                torque_constant,
-            } => (
-                model_free(&kin, &v, *inertia, *torque_constant),
-                AutoBoolx4::splat(false),
-            ),
-            LaneLaw::TimeDelay {
-                inertia,
-                torque_constant,
-                period,
-                law,
-                tau_prev,
-                qd_prev,
-                started,
-            } => time_delay(
-                &kin,
-                &v,
-                &qd,
-                (*inertia, *torque_constant, *period),
-                *law,
-                tau_prev,
-                qd_prev,
-                *started,
-            ),
-        };
-        let finite_command = finite(command[0]) & finite(command[1]) & finite(command[2]);
+        let (command, singular) = self.law.torque::<R>(
+            &kin,
+            rotation.as_ref(),
+            &at,
+            (&q, &qd),
+            &v,
+            &self.gains,
+            (&self.frame.normal, measured),
+        );
+        let finite_command = command
+            .iter()
+            .fold(AutoBoolx4::splat(true), |m, c| m & finite(*c));
         // 7. actuator; TDC remembers what was applied
         let tau = self.actuator.apply_lanes(first, &command);
-        if let LaneLaw::TimeDelay {
-            tau_prev,
-            qd_prev,
-            started,
-            ..
-        } = &mut self.law
-        {
-            *tau_prev = tau;
-            *qd_prev = qd;
-            *started = AutoBoolx4::splat(true);
-        }
+        self.law.applied(&tau, &qd);
         // 8. record sample k, per lane (a lane whose law failed ends its run instead)
         std::array::from_fn(|l| {
             let i = slot[l]?;
@@ -346,6 +587,8 @@ impl Front<ThreeLinkArm, 3> for ThreeLinkStages {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    type Sim = Simulation<ThreeLinkArm, 3>;
     use crate::control::controller::{ControllerParams, TimeDelayParams};
     use crate::sim::lanes::run_lanes;
     use crate::sim::simulation::{RunResult, ScenarioConfig};

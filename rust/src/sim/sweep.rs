@@ -84,22 +84,25 @@ pub fn run_batch_with(
 /// at most its share per thread.
 const LANE_BLOCK: usize = 64;
 
-/// What runs may share lanes: one arm structure (the three-link arm, or one URDF chain),
-/// substep count and contact law; for the three-link arm, whose stages run in lanes, also
-/// one stage structure (`StageKey`). Every parameter may differ (lanes carry their own).
+/// What runs may share lanes: one arm structure (the three-link arm, or one URDF chain with
+/// one task kind), substep count and contact law, and one stage structure (`StageKey`), as
+/// every arm's stages 1–8 run in lanes. Every parameter may differ (lanes carry their own).
 fn lane_key(c: &ScenarioConfig) -> LaneKey {
-    let (urdf, stages) = match &c.robot {
-        RobotConfig::ThreeLink(_) => (None, Some(stage_key(c))),
-        RobotConfig::Urdf(p) => (
-            Some((p.urdf.clone(), p.base_link.clone(), p.tip_link.clone())),
-            None,
-        ),
+    let urdf = match &c.robot {
+        RobotConfig::ThreeLink(_) => None,
+        // The task kind decides the orientation rows and the posture term (SPEC §11).
+        RobotConfig::Urdf(p) => Some((
+            p.urdf.clone(),
+            p.base_link.clone(),
+            p.tip_link.clone(),
+            p.task,
+        )),
     };
     LaneKey {
         urdf,
         substeps: c.substeps,
         wall: c.wall.as_ref().map(|w| w.model),
-        stages,
+        stages: stage_key(c),
     }
 }
 
