@@ -40,7 +40,7 @@ pub fn run_batch(
 }
 
 /// `run_batch`, with the SIMD lanes (`sim::lanes`) on or off. Off is the scalar path, each
-/// run bit-identical to `simulate`; on, three-link runs agree with it to SPEC §13's 1e-9
+/// run bit-identical to `simulate`; on, runs agree with it to SPEC §13's 1e-9
 /// (`exp` differs in the last bits). Either way a run's result does not depend on the
 /// batch, its chunking or the thread count.
 pub fn run_batch_with(
