@@ -85,13 +85,17 @@ enum LawKind<M, const N: usize> {
     /// Eq. (18) without the delay estimate.
     ModelFree,
     /// Eqs. (17) and (18) with their memory.
-    TimeDelay {
-        period: F64x4,
-        law: TdcLaw,
-        tau_prev: SVector<F64x4, N>,
-        qd_prev: SVector<F64x4, N>,
-        started: AutoBoolx4,
-    },
+    TimeDelay(TdcLanes<N>),
+}
+
+/// TDC's law, period and memory τ_{k−1}, q̇_{k−1} in lanes (`started`: the lanes that have a
+/// q̇_{k−1}).
+struct TdcLanes<const N: usize> {
+    period: F64x4,
+    law: TdcLaw,
+    tau_prev: SVector<F64x4, N>,
+    qd_prev: SVector<F64x4, N>,
+    started: AutoBoolx4,
 }
 
 /// The general task's per-lane terms (SPEC §11): R0 for a pose task with its orientation
@@ -176,13 +180,13 @@ impl<M, const N: usize> LaneLaw<M, N> {
                 })),
             },
             Controller::ModelFree(_) => LawKind::ModelFree,
-            Controller::TimeDelay { params, .. } => LawKind::TimeDelay {
+            Controller::TimeDelay { params, .. } => LawKind::TimeDelay(TdcLanes {
                 period: F64x4::splat(0.0),
                 law: params.law,
                 tau_prev: SVector::zeros(),
                 qd_prev: SVector::zeros(),
                 started: AutoBoolx4::splat(false),
-            },
+            }),
         };
         let mut law = LaneLaw {
             kind,
@@ -224,25 +228,19 @@ impl<M, const N: usize> LaneLaw<M, N> {
             ) if *compensation == params.contact_compensation => R::put_model(model, l, m),
             (LawKind::ModelFree, Controller::ModelFree(_)) => {}
             (
-                LawKind::TimeDelay {
-                    period,
-                    law,
-                    tau_prev,
-                    qd_prev,
-                    started,
-                },
+                LawKind::TimeDelay(m),
                 Controller::TimeDelay {
                     params,
-                    period: p,
-                    tau_prev: t,
-                    qd_prev: q,
+                    period,
+                    tau_prev,
+                    qd_prev,
                     ..
                 },
-            ) if *law == params.law => {
-                put(period, l, *p);
-                put_vector(tau_prev, l, t);
-                put_vector(qd_prev, l, &q.unwrap_or_else(SVector::zeros));
-                started.replace(l, q.is_some());
+            ) if m.law == params.law => {
+                put(&mut m.period, l, *period);
+                put_vector(&mut m.tau_prev, l, tau_prev);
+                put_vector(&mut m.qd_prev, l, &qd_prev.unwrap_or_else(SVector::zeros));
+                m.started.replace(l, qd_prev.is_some());
             }
             _ => return false,
         }
@@ -299,20 +297,14 @@ impl<M, const N: usize> LaneLaw<M, N> {
                 )
             }
             LawKind::ModelFree => terms.model_free(&self.dbar, self.torque_constant),
-            LawKind::TimeDelay {
-                period,
-                law,
-                tau_prev,
-                qd_prev,
-                started,
-            } => terms.time_delay(
+            LawKind::TimeDelay(m) => terms.time_delay(
                 qd,
                 &self.dbar,
-                (self.torque_constant, *period),
-                *law,
-                tau_prev,
-                qd_prev,
-                *started,
+                (self.torque_constant, m.period),
+                m.law,
+                &m.tau_prev,
+                &m.qd_prev,
+                m.started,
             ),
         };
         (tau, failed)
@@ -342,21 +334,15 @@ impl<M, const N: usize> LaneLaw<M, N> {
                 model_free(kin, v, self.inertia, self.torque_constant),
                 AutoBoolx4::splat(false),
             ),
-            LawKind::TimeDelay {
-                period,
-                law,
-                tau_prev,
-                qd_prev,
-                started,
-            } => time_delay(
+            LawKind::TimeDelay(m) => time_delay(
                 kin,
                 v,
                 qd,
-                (self.inertia, self.torque_constant, *period),
-                *law,
-                tau_prev,
-                qd_prev,
-                *started,
+                (self.inertia, self.torque_constant, m.period),
+                m.law,
+                &m.tau_prev,
+                &m.qd_prev,
+                m.started,
             ),
         }
     }
@@ -371,16 +357,10 @@ impl<M, const N: usize> LaneLaw<M, N> {
     /// Stage 7's write-back: TDC remembers the applied torque and q̇_k.
     #[inline(always)]
     fn applied(&mut self, tau: &SVector<F64x4, N>, qd: &SVector<F64x4, N>) {
-        if let LawKind::TimeDelay {
-            tau_prev,
-            qd_prev,
-            started,
-            ..
-        } = &mut self.kind
-        {
-            *tau_prev = *tau;
-            *qd_prev = *qd;
-            *started = AutoBoolx4::splat(true);
+        if let LawKind::TimeDelay(m) = &mut self.kind {
+            m.tau_prev = *tau;
+            m.qd_prev = *qd;
+            m.started = AutoBoolx4::splat(true);
         }
     }
 }
@@ -585,7 +565,7 @@ impl<R: StageArm<N>, const N: usize> Front<R, N> for LaneStages<R, N> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     type Sim = Simulation<ThreeLinkArm, 3>;
@@ -596,36 +576,69 @@ mod tests {
     use crate::world::environment::WallParams;
     use crate::world::sensor::SensorParams;
 
-    /// Six TDC runs (a ragged group) with their own wall, sensor, actuator and gains.
+    /// Run `i` of a ragged group: its own wall, seed, sensor (noise, cut-off, resolution)
+    /// and actuator limits; one sensor latency (the lane key).
+    pub(crate) fn varied(i: usize, controller: ControllerParams) -> ScenarioConfig {
+        let f = i as f64;
+        ScenarioConfig {
+            seed: 3 + i as u64,
+            wall: Some(WallParams {
+                stiffness: 1e4 * (1.0 + f),
+                ..WallParams::default()
+            }),
+            controller,
+            sensor: SensorParams {
+                noise_std: 0.05 * f,
+                cutoff: i.is_multiple_of(2).then_some(80.0),
+                resolution: if i == 3 { 0.05 } else { 0.0 },
+                latency: 1,
+                ..SensorParams::default()
+            },
+            actuator: ActuatorParams {
+                torque_limit: (i % 3 == 1).then(|| vec![100.0]),
+                rate_limit: (i == 2).then_some(5e4),
+                ..ActuatorParams::default()
+            },
+            ..ScenarioConfig::default()
+        }
+    }
+
+    /// The worst gap between a lane run's trace and `simulate`'s, column by column relative
+    /// to the column's largest value (at least `floor`); asserts it is within 1e-9.
+    pub(crate) fn worst_trace_gap(alone: &RunResult, lanes: &RunResult, floor: f64) -> f64 {
+        assert_eq!(lanes.trace.len(), alone.trace.len());
+        let mut worst_of_all = 0.0_f64;
+        for ((name, x), (_, y)) in alone
+            .trace
+            .clone()
+            .into_named_columns()
+            .into_iter()
+            .zip(lanes.trace.clone().into_named_columns())
+        {
+            let scale = x.iter().fold(floor, |m, v| m.max(v.abs()));
+            let worst = x
+                .iter()
+                .zip(&y)
+                .filter(|(p, _)| !p.is_nan())
+                .fold(0.0_f64, |m, (p, q)| m.max((p - q).abs()));
+            assert!(worst <= 1e-9 * scale, "{name}: {worst:e} of {scale:e}");
+            worst_of_all = worst_of_all.max(worst / scale);
+        }
+        worst_of_all
+    }
+
+    /// Six TDC runs (a ragged group).
     fn configs() -> Vec<ScenarioConfig> {
         (0..6)
-            .map(|i| {
-                let f = i as f64;
-                ScenarioConfig {
-                    duration: 0.3,
-                    seed: 3 + i as u64,
-                    wall: Some(WallParams {
-                        stiffness: 1e4 * (1.0 + f),
-                        ..WallParams::default()
-                    }),
-                    controller: ControllerParams::TimeDelay(TimeDelayParams {
-                        inertia: 0.1 + 0.01 * f,
+            .map(|i| ScenarioConfig {
+                duration: 0.3,
+                ..varied(
+                    i,
+                    ControllerParams::TimeDelay(TimeDelayParams {
+                        inertia: 0.1 + 0.01 * i as f64,
                         ..TimeDelayParams::default()
                     }),
-                    sensor: SensorParams {
-                        noise_std: 0.1 * f,
-                        cutoff: (i % 2 == 0).then_some(60.0),
-                        resolution: if i == 3 { 0.05 } else { 0.0 },
-                        latency: 1,
-                        ..SensorParams::default()
-                    },
-                    actuator: ActuatorParams {
-                        torque_limit: (i % 3 == 1).then(|| vec![120.0]),
-                        rate_limit: (i == 4).then_some(3e4),
-                        ..ActuatorParams::default()
-                    },
-                    ..ScenarioConfig::default()
-                }
+                )
             })
             .collect()
     }
@@ -644,21 +657,7 @@ mod tests {
         for (cfg, r) in c.iter().zip(&all) {
             let alone = crate::sim::simulation::simulate(cfg).unwrap();
             assert_eq!(r.outcome, alone.outcome);
-            for ((name, x), (_, y)) in alone
-                .trace
-                .clone()
-                .into_named_columns()
-                .into_iter()
-                .zip(r.trace.clone().into_named_columns())
-            {
-                let scale = x.iter().fold(1e-12_f64, |m, v| m.max(v.abs()));
-                let worst = x
-                    .iter()
-                    .zip(&y)
-                    .filter(|(p, _)| !p.is_nan())
-                    .fold(0.0_f64, |m, (p, q)| m.max((p - q).abs()));
-                assert!(worst <= 1e-9 * scale, "{name}: {worst:e} of {scale:e}");
-            }
+            worst_trace_gap(&alone, r, 1e-12);
         }
         // The last run with other neighbours, and alone: the same bits.
         let other = lanes(&[c[1].clone(), c[5].clone()]);
