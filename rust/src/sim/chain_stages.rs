@@ -103,8 +103,9 @@ mod tests {
     };
     use crate::robot::chain::{UrdfArm, UrdfArmParams};
     use crate::robot::RobotModel;
+    use crate::sim::chain_stages::ChainStages;
     use crate::sim::lane_stages::tests::{varied, worst_trace_gap};
-    use crate::sim::lanes::run_lanes;
+    use crate::sim::lanes::{run_lanes, Front};
     use crate::sim::outcome::Outcome;
     use crate::sim::scenario::RobotConfig;
     use crate::sim::simulation::{simulate, RunResult, ScenarioConfig, Simulation};
@@ -137,11 +138,15 @@ mod tests {
             .collect()
     }
 
+    /// The runs of `configs` advanced by `run_lanes`, after checking that their stages
+    /// pack into lanes (else `run_lanes` would step them lane by lane, unseen).
     fn lanes<const N: usize>(arm: &UrdfArmParams, configs: &[ScenarioConfig]) -> Vec<RunResult> {
         let mut sims: Vec<Simulation<UrdfArm<N>, N>> = configs
             .iter()
             .map(|c| Simulation::with_robot(c, UrdfArm::<N>::new(arm).unwrap()).unwrap())
             .collect();
+        let four: [&Simulation<UrdfArm<N>, N>; 4] = std::array::from_fn(|l| &sims[l % sims.len()]);
+        assert!(<ChainStages<N> as Front<UrdfArm<N>, N>>::pack(four).is_some());
         run_lanes(&mut sims)
     }
 

@@ -325,4 +325,42 @@ mod tests {
         assert!(e.error.to_string().starts_with("period = -1"));
         assert!(run_batch(&configs(), Some(0), false).is_err());
     }
+
+    /// URDF runs group by their stage structure and task kind as well as their chain (their
+    /// stages 1–8 run in lanes); parameters do not split groups.
+    #[test]
+    fn urdf_lane_key_holds_the_stage_structure() {
+        use crate::control::controller::{ModelFreeParams, TimeDelayParams};
+        use crate::robot::chain::{TaskKind, UrdfArmParams};
+        let arm = UrdfArmParams {
+            urdf: "<robot name='r'/>".to_owned(),
+            tip_link: "tip".to_owned(),
+            ..UrdfArmParams::default()
+        };
+        let run = |arm: &UrdfArmParams, controller: ControllerParams, latency: usize| {
+            let mut c = ScenarioConfig {
+                robot: RobotConfig::Urdf(arm.clone()),
+                controller,
+                ..ScenarioConfig::default()
+            };
+            c.sensor.latency = latency;
+            lane_key(&c)
+        };
+        let tdc = |inertia: f64| {
+            ControllerParams::TimeDelay(TimeDelayParams {
+                inertia,
+                ..TimeDelayParams::default()
+            })
+        };
+        let key = run(&arm, tdc(0.1), 0);
+        assert_eq!(key, run(&arm, tdc(0.2), 0));
+        assert_ne!(key, run(&arm, tdc(0.1), 1));
+        let mf = ControllerParams::ModelFree(ModelFreeParams::default());
+        assert_ne!(key, run(&arm, mf, 0));
+        let position = UrdfArmParams {
+            task: Some(TaskKind::Position),
+            ..arm.clone()
+        };
+        assert_ne!(key, run(&position, tdc(0.1), 0));
+    }
 }
