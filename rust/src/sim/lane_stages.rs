@@ -664,4 +664,47 @@ pub(crate) mod tests {
         assert_eq!(other[1].trace, all[5].trace);
         assert_eq!(lanes(&c[5..])[0].trace, all[5].trace);
     }
+
+    /// A three-link arm with a per-joint D̄ takes the general task path (as
+    /// `Controller::step` does), in lanes too: the same runs as `simulate`.
+    #[test]
+    fn per_joint_inertia_takes_the_task_path_in_lanes() {
+        use crate::control::controller::{ModelFreeParams, PerJoint, TdcLaw};
+        let runs: Vec<Vec<ScenarioConfig>> = [false, true]
+            .into_iter()
+            .map(|tdc| {
+                (0..5)
+                    .map(|i| {
+                        let joint = PerJoint::from_slice(&[0.1, 0.08 + 0.01 * i as f64, 0.05]);
+                        let controller = if tdc {
+                            ControllerParams::TimeDelay(TimeDelayParams {
+                                joint_inertia: joint,
+                                law: TdcLaw::InverseJacobian,
+                                ..TimeDelayParams::default()
+                            })
+                        } else {
+                            ControllerParams::ModelFree(ModelFreeParams {
+                                joint_inertia: joint,
+                                ..ModelFreeParams::default()
+                            })
+                        };
+                        ScenarioConfig {
+                            duration: 0.3,
+                            ..varied(i, controller)
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        for c in runs {
+            let sims: Vec<Sim> = c.iter().map(|c| Sim::new(c).unwrap()).collect();
+            let packed = LaneStages::pack([&sims[0], &sims[1], &sims[2], &sims[3]]);
+            assert!(packed.is_some_and(|p| p.law.task.is_some()));
+            for (cfg, r) in c.iter().zip(lanes(&c)) {
+                let alone = crate::sim::simulation::simulate(cfg).unwrap();
+                assert_eq!(r.outcome, alone.outcome);
+                worst_trace_gap(&alone, &r, 1e-12);
+            }
+        }
+    }
 }
