@@ -225,7 +225,8 @@ def test_urdf_stages_in_lanes_agree_with_simulate(arm_name):
     The Panda's draws keep the actuator undelayed: with one sample of actuator delay its tuned
     TDC flails (torque at the limit, contact lost) and the lanes' last-bit ``exp`` grows about
     100× per 0.1 s, so a run may hit the velocity limit in one path and not the other, while
-    the metrics still call a 0.5-s flailing run stable (its oscillation window is empty)."""
+    the metrics still call such a 0.5-s flailing run stable (its oscillation and contact-loss
+    metrics are NaN)."""
     arm = _urdf_arms()[arm_name]
     vary = URDF_VARY if arm_name == "ur5" else URDF_VARY | {"actuator.delay": ar.Choice([0])}
     worst = 0.0
