@@ -2,14 +2,14 @@
 //! delay estimate) and time-delayed control (eqs. 17 and 18), all driven by the Cartesian
 //! command V of eq. (39). Each is a state machine with `reset()` and `step()`.
 
-use nalgebra::{Matrix3, Matrix6, SMatrix, SVector, Vector3};
+use nalgebra::{Cholesky, Matrix3, Matrix6, SMatrix, SVector, Vector3};
 
 use crate::control::task::Desired;
 use crate::error::{check, Result};
 use crate::robot::{
-    Dynamics, Jacobian, JointMatrix, JointVector, Kinematics, RobotModel, TaskOptions, TaskVector,
+    Dynamics, JointMatrix, JointVector, Kinematics, RobotModel, TaskOptions, TaskVector,
 };
-use crate::scalar::{choose_vector, no_lane, F64x4, Real, LANES};
+use crate::scalar::{choose_vector, finite, no_lane, F64x4, Real, LANES};
 
 /// Gains of eq. (39): V = K_A⁻¹ (Ẍ_d + K_D (Ẋ_d − Ẋ) + K_P (X_d − X)), each a scalar times I.
 /// Over `f64`, or four runs' gains in lanes (one `scale_feedforward`).
@@ -179,7 +179,10 @@ impl PerJoint {
 /// D̄ of eqs. 17/18: `inertia`·I, or the per-joint D̄ when given (a URDF arm whose wrist
 /// inertias are far below its shoulder's needs one: TDC is stable only while the spectral
 /// radius of I − D⁻¹D̄ stays below 1).
-fn constant_inertia<const N: usize>(inertia: f64, joint: &Option<PerJoint>) -> JointMatrix<N> {
+pub(crate) fn constant_inertia<const N: usize>(
+    inertia: f64,
+    joint: &Option<PerJoint>,
+) -> JointMatrix<N> {
     joint.map_or_else(
         || JointMatrix::<N>::identity() * inertia,
         |p| p.matrix::<N>(),
@@ -324,27 +327,165 @@ pub struct Measurement<'a, const N: usize> {
 }
 
 /// The orientation part of a pose task: the error e_o = log(R0 Rᵀ) as a rotation vector
-/// (the orientation is held at its start R0), the angular Jacobian and its J̇q̇.
+/// (the orientation is held at its start R0), the angular Jacobian and its J̇q̇. Over `f64`,
+/// or four runs' terms in lanes.
 #[derive(Debug, Clone, Copy)]
-pub struct OrientationTask<const N: usize> {
-    pub error: TaskVector,
-    pub jacobian: Jacobian<N>,
-    pub jdot_qd: TaskVector,
+pub struct OrientationTask<const N: usize, T: Real = f64> {
+    pub error: Vector3<T>,
+    pub jacobian: SMatrix<T, 3, N>,
+    pub jdot_qd: Vector3<T>,
 }
 
-/// The damped pseudo-inverse J⁺ = Jᵀ (J Jᵀ + λ² I)⁻¹ of a 6×N task Jacobian (SPEC §11).
+/// The damped pseudo-inverse J⁺ = Jᵀ (J Jᵀ + λ² I)⁻¹ of a 6×N task Jacobian (SPEC §11),
+/// with the lanes where it failed: a Cholesky pivot of J Jᵀ + λ² I that is not positive
+/// (zero, negative or NaN), or a J⁺ that is not finite.
+///
+/// nalgebra's `cholesky()` needs a `ComplexField` (it returns `None` at a bad pivot), which
+/// SIMD lanes are not; its `Cholesky::new_unchecked` and `solve` are the same loops over any
+/// `SimdComplexField` (same operations, so the `f64` bits of `cholesky()`, tested), and the
+/// pivots it leaves on L's diagonal (√pivot) are tested here instead, lane by lane.
 #[inline]
-fn damped_pseudo_inverse<const N: usize>(
-    j: &SMatrix<f64, 6, N>,
-    damping: f64,
-) -> std::result::Result<SMatrix<f64, N, 6>, ControlFailure> {
-    let a = j * j.transpose() + Matrix6::identity() * (damping * damping);
-    let chol = a.cholesky().ok_or(ControlFailure::SingularJacobian)?;
+pub(crate) fn damped_pseudo_inverse<T: Real, const N: usize>(
+    j: &SMatrix<T, 6, N>,
+    damping: T,
+) -> (SMatrix<T, N, 6>, T::SimdBool) {
+    let a = j * j.transpose() + Matrix6::<T>::identity() * (damping * damping);
+    let chol = Cholesky::new_unchecked(a);
+    let l = chol.l_dirty();
+    let mut failed = no_lane::<T>();
+    for i in 0..6 {
+        // √pivot > 0 exactly when the pivot is positive (NaN and 0 fail).
+        failed = failed | !l[(i, i)].simd_gt(T::zero());
+    }
     let pinv = chol.solve(j).transpose();
-    if pinv.iter().all(|v| v.is_finite()) {
-        Ok(pinv)
-    } else {
-        Err(ControlFailure::SingularJacobian)
+    for v in pinv.iter() {
+        failed = failed | !finite(*v);
+    }
+    (pinv, failed)
+}
+
+/// The terms of the general task (SPEC §11) at one state: the 6×N task Jacobian J (rows
+/// 0–2 linear, 3–5 angular, zero for a position task, which the damped J⁺ then ignores),
+/// the task command V and J̇q̇, J⁺, and the null-space posture term a_n.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct TaskTerms<T: Real, const N: usize> {
+    jacobian: SMatrix<T, 6, N>,
+    command: SVector<T, 6>,
+    jdot_qd: SVector<T, 6>,
+    pinv: SMatrix<T, N, 6>,
+    null: SVector<T, N>,
+}
+
+/// What the general task reads besides the kinematics and V of eq. (39): the measured
+/// joint state, a pose task's orientation with its (K_P, K_D), the posture q0 of a
+/// redundant arm, K_A, the posture's (K_P, K_D) and J⁺'s damping λ.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct TaskInputs<'a, T: Real, const N: usize> {
+    pub q: &'a SVector<T, N>,
+    pub qd: &'a SVector<T, N>,
+    pub orientation: Option<(&'a OrientationTask<N, T>, (T, T))>,
+    pub posture: Option<&'a SVector<T, N>>,
+    pub gains: (T, T, T),
+    pub damping: T,
+}
+
+impl<T: Real, const N: usize> TaskTerms<T, N> {
+    /// The task's J, V, J̇q̇, J⁺ and a_n = (I − J⁺J) K_A⁻¹ (K_P (q0 − q) − K_D q̇), with the
+    /// lanes where J⁺ failed (`damped_pseudo_inverse`).
+    #[inline(always)]
+    pub(crate) fn new(
+        k: &Kinematics<N, T>,
+        v_position: &Vector3<T>,
+        input: &TaskInputs<T, N>,
+    ) -> (Self, T::SimdBool) {
+        let (ka, kd, kp) = input.gains;
+        let mut j = SMatrix::<T, 6, N>::zeros();
+        let mut v = SVector::<T, 6>::zeros();
+        let mut jdot_qd = SVector::<T, 6>::zeros();
+        j.fixed_rows_mut::<3>(0).copy_from(&k.jacobian);
+        v.fixed_rows_mut::<3>(0).copy_from(v_position);
+        jdot_qd.fixed_rows_mut::<3>(0).copy_from(&k.jdot_qd);
+        if let Some((o, (kp_o, kd_o))) = input.orientation {
+            // eq. (39) for the orientation, held at R0: no feed-forward, Ẋ_d = 0.
+            let omega = o.jacobian * input.qd;
+            let v_o = (o.error * kp_o - omega * kd_o) / ka;
+            j.fixed_rows_mut::<3>(3).copy_from(&o.jacobian);
+            v.fixed_rows_mut::<3>(3).copy_from(&v_o);
+            jdot_qd.fixed_rows_mut::<3>(3).copy_from(&o.jdot_qd);
+        }
+        let (pinv, failed) = damped_pseudo_inverse(&j, input.damping);
+        let null = match input.posture {
+            Some(q0) => {
+                let projector = SMatrix::<T, N, N>::identity() - pinv * j;
+                projector * ((q0 - input.q) * kp - input.qd * kd) / ka
+            }
+            None => SVector::<T, N>::zeros(),
+        };
+        let terms = Self {
+            jacobian: j,
+            command: v,
+            jdot_qd,
+            pinv,
+            null,
+        };
+        (terms, failed)
+    }
+
+    /// J⁺ (V − J̇q̇) + a_n: eqs. 7 and 17's joint acceleration.
+    #[inline(always)]
+    fn inverse(&self) -> SVector<T, N> {
+        self.pinv * (self.command - self.jdot_qd) + self.null
+    }
+
+    /// K_t Jᵀ V + a_n: eq. 18's.
+    #[inline(always)]
+    fn transpose(&self, torque_constant: T) -> SVector<T, N> {
+        self.jacobian.transpose() * self.command * torque_constant + self.null
+    }
+
+    /// Eq. (7) over the task: τ = D̂ (J⁺ (V − J̇q̇) + a_n) + Ĉ + Ĝ + τ̂_f, plus the measured
+    /// contact force's f J_xᵀ n when compensated (`linear`: the 3×N position Jacobian).
+    #[inline(always)]
+    pub(crate) fn computed_torque(
+        &self,
+        (d, friction): (Dynamics<N, T>, SVector<T, N>),
+        linear: &SMatrix<T, 3, N>,
+        compensation: Option<(&Vector3<T>, T)>,
+    ) -> SVector<T, N> {
+        let mut tau = d.inertia * self.inverse() + d.coriolis + d.gravity + friction;
+        if let Some((normal, force)) = compensation {
+            tau += linear.transpose() * normal * force;
+        }
+        tau
+    }
+
+    /// Model-free control over the task: τ = D̄ (K_t Jᵀ V + a_n).
+    #[inline(always)]
+    pub(crate) fn model_free(&self, dbar: &SMatrix<T, N, N>, torque_constant: T) -> SVector<T, N> {
+        dbar * self.transpose(torque_constant)
+    }
+
+    /// TDC over the task, eq. (18) or eq. (17) times D̄, plus ĥ = τ_{k−1} − D̄ q̈_{k−1}
+    /// (`started`: the lanes that have a q̇_{k−1}; q̈_{−1} = 0).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub(crate) fn time_delay(
+        &self,
+        qd: &SVector<T, N>,
+        dbar: &SMatrix<T, N, N>,
+        (torque_constant, period): (T, T),
+        law: TdcLaw,
+        tau_prev: &SVector<T, N>,
+        qd_prev: &SVector<T, N>,
+        started: T::SimdBool,
+    ) -> SVector<T, N> {
+        let qdd_prev = choose_vector(started, || (qd - qd_prev) / period, SVector::zeros);
+        let h_hat = tau_prev - dbar * qdd_prev;
+        let u = match law {
+            TdcLaw::JacobianTranspose => dbar * self.transpose(torque_constant),
+            TdcLaw::InverseJacobian => dbar * self.inverse(),
+        };
+        u + h_hat
     }
 }
 
@@ -368,7 +509,7 @@ pub const PSEUDO_INVERSE_DAMPING: f64 = 1e-3;
 /// reachable for the tests.)
 #[cfg(test)]
 fn solve_jacobian<const N: usize>(
-    j: &Jacobian<N>,
+    j: &SMatrix<f64, 3, N>,
     rhs: &TaskVector,
 ) -> std::result::Result<JointVector<N>, ControlFailure> {
     if N != 3 {
@@ -640,42 +781,35 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
     ) -> std::result::Result<JointVector<N>, ControlFailure> {
         let k = m.kinematics;
         let gains = *self.gains();
-        let mut j = SMatrix::<f64, 6, N>::zeros();
-        let mut v = SVector::<f64, 6>::zeros();
-        let mut jdot_qd = SVector::<f64, 6>::zeros();
-        j.fixed_rows_mut::<3>(0).copy_from(&k.jacobian);
-        v.fixed_rows_mut::<3>(0).copy_from(v_position);
-        jdot_qd.fixed_rows_mut::<3>(0).copy_from(&k.jdot_qd);
-        if let Some(o) = &m.orientation {
-            // eq. (39) for the orientation, held at R0: no feed-forward, Ẋ_d = 0.
-            let omega = o.jacobian * m.qd;
-            let (kp, kd) = m.options.orientation_gains.unwrap_or((gains.kp, gains.kd));
-            let v_o = (o.error * kp - omega * kd) / gains.ka;
-            j.fixed_rows_mut::<3>(3).copy_from(&o.jacobian);
-            v.fixed_rows_mut::<3>(3).copy_from(&v_o);
-            jdot_qd.fixed_rows_mut::<3>(3).copy_from(&o.jdot_qd);
-        }
-        let pinv = damped_pseudo_inverse(&j, m.options.damping)?;
-        let null = match m.posture {
-            Some(q0) => {
-                let projector = JointMatrix::<N>::identity() - pinv * j;
-                projector * ((q0 - m.q) * gains.kp - m.qd * gains.kd) / gains.ka
-            }
-            None => JointVector::<N>::zeros(),
+        let input = TaskInputs {
+            q: m.q,
+            qd: m.qd,
+            orientation: m.orientation.as_ref().map(|o| {
+                (
+                    o,
+                    m.options.orientation_gains.unwrap_or((gains.kp, gains.kd)),
+                )
+            }),
+            posture: m.posture,
+            gains: (gains.ka, gains.kd, gains.kp),
+            damping: m.options.damping,
         };
-        let inverse = || pinv * (v - jdot_qd) + null;
+        let (task, failed) = TaskTerms::new(k, v_position, &input);
+        if failed {
+            return Err(ControlFailure::SingularJacobian);
+        }
         match self {
             Controller::ComputedTorque { params, model } => {
                 let d = model.dynamics(&model.configure(m.q), m.qd);
-                let mut tau = d.inertia * inverse() + d.coriolis + d.gravity + model.friction(m.qd);
-                if params.contact_compensation {
-                    tau += k.jacobian.transpose() * m.normal * m.force;
-                }
-                Ok(tau)
+                Ok(task.computed_torque(
+                    (d, model.friction(m.qd)),
+                    &k.jacobian,
+                    params.contact_compensation.then_some((m.normal, m.force)),
+                ))
             }
             Controller::ModelFree(p) => {
                 let dbar = constant_inertia::<N>(p.inertia, &p.joint_inertia);
-                Ok(dbar * (j.transpose() * v * p.torque_constant + null))
+                Ok(task.model_free(&dbar, p.torque_constant))
             }
             Controller::TimeDelay {
                 params,
@@ -684,16 +818,16 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
                 qd_prev,
                 ..
             } => {
-                let qdd_prev = qd_prev.map_or_else(JointVector::zeros, |p| (m.qd - p) / *period);
                 let dbar = constant_inertia::<N>(params.inertia, &params.joint_inertia);
-                let h_hat = *tau_prev - dbar * qdd_prev;
-                let u = match params.law {
-                    TdcLaw::JacobianTranspose => {
-                        dbar * (j.transpose() * v * params.torque_constant + null)
-                    }
-                    TdcLaw::InverseJacobian => dbar * inverse(),
-                };
-                let tau = u + h_hat;
+                let tau = task.time_delay(
+                    m.qd,
+                    &dbar,
+                    (params.torque_constant, *period),
+                    params.law,
+                    tau_prev,
+                    &qd_prev.unwrap_or_else(JointVector::zeros),
+                    qd_prev.is_some(),
+                );
                 *tau_prev = tau;
                 *qd_prev = Some(*m.qd);
                 Ok(tau)
@@ -757,7 +891,10 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
 mod tests {
     use super::*;
     use crate::robot::three_link::{Kinematics, Vec3};
+    use crate::robot::Jacobian;
     use crate::robot::{RobotParams, ThreeLinkArm};
+    use crate::scalar::lane_of;
+    use simba::simd::SimdValue;
 
     type Ctl = Controller<ThreeLinkArm, 3>;
     const X: TaskVector = TaskVector::new(1.0, 0.0, 0.0);
@@ -1049,6 +1186,254 @@ mod tests {
             assert_eq!(s, i == 2);
             if !s {
                 assert_eq!(lane_of(&tau, i), e);
+            }
+        }
+    }
+
+    /// A few deterministic numbers in [−1, 1) (a linear congruential generator).
+    fn numbers(seed: u64) -> impl FnMut() -> f64 {
+        let mut x = seed;
+        move || {
+            x = x
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        }
+    }
+
+    /// The generic J⁺ (nalgebra's Cholesky loops over any scalar) gives `cholesky()`'s bits
+    /// and fails exactly where it returns `None`, one run or four lanes.
+    #[test]
+    fn damped_pseudo_inverse_is_nalgebras_cholesky() {
+        use crate::scalar::pack_vector;
+        let reference = |j: &SMatrix<f64, 6, 7>, lambda: f64| {
+            let a = j * j.transpose() + Matrix6::identity() * (lambda * lambda);
+            let pinv = a.cholesky()?.solve(j).transpose();
+            pinv.iter().all(|v| v.is_finite()).then_some(pinv)
+        };
+        let mut next = numbers(7);
+        let (mut ok, mut failed_cases) = (0, 0);
+        for case in 0..64 {
+            let cases: [(SMatrix<f64, 6, 7>, f64); 4] = std::array::from_fn(|l| {
+                let mut j = SMatrix::<f64, 6, 7>::from_fn(|_, _| next());
+                let lambda = [1e-3, 0.1, 0.0, 1e-3][l];
+                if (case + l) % 3 == 0 {
+                    // A position task: the angular rows are zero (λ = 0: a zero pivot).
+                    j.fixed_rows_mut::<3>(3).fill(0.0);
+                }
+                if case % 11 == l {
+                    j[(1, 2)] = f64::NAN;
+                }
+                (j, lambda)
+            });
+            let lanes = damped_pseudo_inverse(
+                &pack_vector(cases.each_ref().map(|c| &c.0)),
+                F64x4::from_lanes(|l| cases[l].1),
+            );
+            for (l, (j, lambda)) in cases.iter().enumerate() {
+                let (pinv, failed) = damped_pseudo_inverse(j, *lambda);
+                assert_eq!(lanes.1.extract(l), failed);
+                match reference(j, *lambda) {
+                    Some(expected) => {
+                        assert!(!failed);
+                        assert_eq!(pinv, expected);
+                        assert_eq!(lane_of(&lanes.0, l), expected);
+                        ok += 1;
+                    }
+                    None => {
+                        assert!(failed, "case {case} lane {l}");
+                        failed_cases += 1;
+                    }
+                }
+            }
+        }
+        assert!(
+            ok > 100 && failed_cases > 20,
+            "{ok} solved, {failed_cases} failed"
+        );
+    }
+
+    /// The general task law (SPEC §11) over four lanes (each with its own state, orientation,
+    /// posture, gains, λ, D̄ and memory) gives four scalar calls' torques, and a lane whose
+    /// J⁺ fails (zero angular rows with λ = 0) is reported in its lane only.
+    #[test]
+    fn task_law_in_lanes_equals_four_scalar_calls() {
+        use crate::robot::chain::arm::rotation_vector;
+        use crate::robot::chain::{UrdfArm, UrdfArmParams};
+        use crate::scalar::{mask_from, pack_vector};
+        let arm = UrdfArm::<7>::new(&UrdfArmParams {
+            urdf: include_str!("../../../examples/data/panda.urdf").to_owned(),
+            tip_link: "panda_hand_tcp".to_owned(),
+            ..UrdfArmParams::default()
+        })
+        .unwrap();
+        let mut next = numbers(11);
+        let q0 = arm.initial_position();
+        let qs: [SVector<f64, 7>; 4] =
+            std::array::from_fn(|_| q0 + SVector::<f64, 7>::from_fn(|_, _| 0.4 * next()));
+        let qds: [SVector<f64, 7>; 4] =
+            std::array::from_fn(|_| SVector::<f64, 7>::from_fn(|_, _| next()));
+        let prev: [SVector<f64, 7>; 4] = std::array::from_fn(|l| qds[l] * 0.99);
+        let taus: [SVector<f64, 7>; 4] =
+            std::array::from_fn(|_| SVector::<f64, 7>::from_fn(|_, _| 10.0 * next()));
+        let r0 = nalgebra::Rotation3::from_scaled_axis(Vector3::new(0.1, -0.2, 0.3)).into_inner();
+        let kins: [crate::robot::Kinematics<7>; 4] =
+            std::array::from_fn(|l| arm.kinematics(&arm.configure(&qs[l]), &qds[l]));
+        let orientations: [OrientationTask<7>; 4] = std::array::from_fn(|l| {
+            let o = arm.orientation(&arm.configure(&qs[l]), &qds[l]).unwrap();
+            let jacobian = if l == 2 {
+                Jacobian::zeros()
+            } else {
+                o.jacobian
+            };
+            OrientationTask {
+                error: rotation_vector(&(r0 * o.rotation.transpose())),
+                jacobian,
+                jdot_qd: o.jdot_qd,
+            }
+        });
+        let vs: [Vector3<f64>; 4] = std::array::from_fn(|_| Vector3::from_fn(|_, _| next()));
+        let gains: [(f64, f64, f64); 4] = std::array::from_fn(|l| (5.0, 20.0 + l as f64, 100.0));
+        let orientation_gains: [(f64, f64); 4] = std::array::from_fn(|l| (80.0 + l as f64, 15.0));
+        let damping: [f64; 4] = [1e-3, 2e-3, 0.0, 1e-2];
+        let dbars: [JointMatrix<7>; 4] = std::array::from_fn(|l| {
+            let a = JointMatrix::<7>::from_fn(|_, _| 0.1 * next());
+            a * a.transpose() + JointMatrix::<7>::identity() * (0.05 * (1 + l) as f64)
+        });
+        let dyns: [Dynamics<7>; 4] =
+            std::array::from_fn(|l| arm.dynamics(&arm.configure(&qs[l]), &qds[l]));
+        let frictions: [SVector<f64, 7>; 4] = std::array::from_fn(|l| taus[l] * 0.01);
+        let normal = Vector3::new(1.0, 0.0, 0.0);
+        let force = F64x4::from_lanes(|l| 3.0 * l as f64);
+        let started = mask_from::<F64x4>(|l| l != 1);
+        let four = |f: &dyn Fn(usize) -> f64| F64x4::from_lanes(f);
+
+        let kin = crate::robot::Kinematics::<7, F64x4> {
+            position: pack_vector(kins.each_ref().map(|k| &k.position)),
+            jacobian: pack_vector(kins.each_ref().map(|k| &k.jacobian)),
+            jdot_qd: pack_vector(kins.each_ref().map(|k| &k.jdot_qd)),
+        };
+        let orientation = OrientationTask::<7, F64x4> {
+            error: pack_vector(orientations.each_ref().map(|o| &o.error)),
+            jacobian: pack_vector(orientations.each_ref().map(|o| &o.jacobian)),
+            jdot_qd: pack_vector(orientations.each_ref().map(|o| &o.jdot_qd)),
+        };
+        let (q, qd) = (pack_vector(qs.each_ref()), pack_vector(qds.each_ref()));
+        let posture = pack_vector([&q0; 4]);
+        let input = TaskInputs {
+            q: &q,
+            qd: &qd,
+            orientation: Some((
+                &orientation,
+                (
+                    four(&|l| orientation_gains[l].0),
+                    four(&|l| orientation_gains[l].1),
+                ),
+            )),
+            posture: Some(&posture),
+            gains: (
+                four(&|l| gains[l].0),
+                four(&|l| gains[l].1),
+                four(&|l| gains[l].2),
+            ),
+            damping: four(&|l| damping[l]),
+        };
+        let (terms, failed) = TaskTerms::new(&kin, &pack_vector(vs.each_ref()), &input);
+        let dbar = pack_vector(dbars.each_ref());
+        let kt = four(&|l| 150.0 + l as f64);
+        let model_free = terms.model_free(&dbar, kt);
+        let tdc = [TdcLaw::JacobianTranspose, TdcLaw::InverseJacobian].map(|law| {
+            terms.time_delay(
+                &qd,
+                &dbar,
+                (kt, four(&|_| 1e-3)),
+                law,
+                &pack_vector(taus.each_ref()),
+                &pack_vector(prev.each_ref()),
+                started,
+            )
+        });
+        let computed = terms.computed_torque(
+            (
+                Dynamics {
+                    inertia: pack_vector(dyns.each_ref().map(|d| &d.inertia)),
+                    coriolis: pack_vector(dyns.each_ref().map(|d| &d.coriolis)),
+                    gravity: pack_vector(dyns.each_ref().map(|d| &d.gravity)),
+                },
+                pack_vector(frictions.each_ref()),
+            ),
+            &kin.jacobian,
+            Some((&pack_vector([&normal; 4]), force)),
+        );
+        let close = |a: &SVector<f64, 7>, b: &SVector<f64, 7>| {
+            (a - b).abs().max() <= 1e-12 * b.abs().max().max(1e-300)
+        };
+        for l in 0..4 {
+            let input = TaskInputs {
+                q: &qs[l],
+                qd: &qds[l],
+                orientation: Some((&orientations[l], orientation_gains[l])),
+                posture: Some(&q0),
+                gains: gains[l],
+                damping: damping[l],
+            };
+            let (e, f) = TaskTerms::new(&kins[l], &vs[l], &input);
+            assert_eq!(failed.extract(l), f);
+            assert_eq!(f, l == 2, "lane {l}");
+            if f {
+                continue;
+            }
+            let kt = 150.0 + l as f64;
+            assert!(close(
+                &lane_of(&model_free, l),
+                &e.model_free(&dbars[l], kt)
+            ));
+            for (i, law) in [TdcLaw::JacobianTranspose, TdcLaw::InverseJacobian]
+                .into_iter()
+                .enumerate()
+            {
+                let expected = e.time_delay(
+                    &qds[l],
+                    &dbars[l],
+                    (kt, 1e-3),
+                    law,
+                    &taus[l],
+                    &prev[l],
+                    l != 1,
+                );
+                assert!(close(&lane_of(&tdc[i], l), &expected), "{law:?} lane {l}");
+            }
+            let expected = e.computed_torque(
+                (dyns[l], frictions[l]),
+                &kins[l].jacobian,
+                Some((&normal, 3.0 * l as f64)),
+            );
+            assert!(close(&lane_of(&computed, l), &expected), "CT lane {l}");
+        }
+    }
+
+    /// The generic rotation vector is nalgebra's `scaled_axis` bit for bit (no rotation
+    /// included), and its lanes are the scalar's.
+    #[test]
+    fn rotation_vector_is_nalgebras_log_map() {
+        use crate::robot::chain::arm::rotation_vector;
+        use crate::scalar::pack_vector;
+        let mut next = numbers(3);
+        for case in 0..50 {
+            let rs: [Matrix3<f64>; 4] = std::array::from_fn(|l| {
+                let scale = [1.0, 1e-3, 1e-9, 3.0][l];
+                let axis = if case % 7 == l {
+                    Vector3::zeros()
+                } else {
+                    Vector3::from_fn(|_, _| scale * next())
+                };
+                nalgebra::Rotation3::from_scaled_axis(axis).into_inner()
+            });
+            let lanes = rotation_vector(&pack_vector(rs.each_ref()));
+            for (l, r) in rs.iter().enumerate() {
+                let expected = nalgebra::Rotation3::from_matrix_unchecked(*r).scaled_axis();
+                assert_eq!(rotation_vector(r), expected);
+                assert_eq!(lane_of(&lanes, l), expected);
             }
         }
     }

@@ -1,13 +1,15 @@
 //! SIMD lanes for sweeps (SPEC §13): runs of one structure advance four at a time.
 //!
 //! Each lane is one ordinary `Simulation`, built by the ordinary constructor; it keeps the
-//! run's trace, online metrics and outcome. Stage 9, the plant's RK4 substeps (about 90 %
-//! of a period), runs once for all four lanes on [`F64x4`]: the same `rk4_period`,
-//! `ClosedForm` and `Wall` code the scalar plant runs, with the four arms' and walls'
-//! parameters packed. Stages 1–8 (environment, sensor, references, filter, controller,
-//! actuator, record) run in lanes too where the arm has a [`Front`] for them (the
-//! three-link arm: `sim::lane_stages`, the same generic stage code `step_to_plant` runs);
-//! otherwise (URDF chains) lane by lane through `Simulation::step_to_plant`.
+//! run's trace, online metrics and outcome. Stage 9, the plant's RK4 substeps, runs once
+//! for all four lanes on [`F64x4`]: the same `rk4_period`, `ClosedForm` / chain ABA and
+//! `Wall` code the scalar plant runs, with the four arms' and walls' parameters packed.
+//! Stages 1–8 (environment, sensor, references, filter, controller, actuator, record) run
+//! in lanes too, for every arm ([`Front`]: `sim::lane_stages` with the three-link arm's
+//! kinematics, `sim::chain_stages` with a URDF chain's, including the general task path of
+//! SPEC §11): the same generic stage code `step_to_plant` runs. A group whose runs do not
+//! share one stage structure (a caller's mixed group; sweeps group by [`LaneKey`]) runs
+//! its stages lane by lane through `Simulation::step_to_plant`.
 //!
 //! A lane whose run ends (completed or diverged) takes the next run at the next period; at
 //! the tail an idle lane repeats an active one and is discarded. No operation mixes lanes,
@@ -18,10 +20,11 @@
 use nalgebra::{SVector, Vector3};
 
 use crate::robot::chain::arm::{accelerate as chain_accelerate, JointFriction};
-use crate::robot::chain::{Frames, SerialChain, UrdfArm};
+use crate::robot::chain::{Frames, SerialChain, TaskKind, UrdfArm};
 use crate::robot::three_link::{ClosedForm, Trig};
 use crate::robot::{RobotModel, ThreeLinkArm};
 use crate::scalar::{splat, F64x4, Real, LANES};
+use crate::sim::chain_stages::ChainStages;
 use crate::sim::lane_stages::ThreeLinkStages;
 use crate::sim::plant::{rk4_period, Plant, PlantState, Stages};
 use crate::sim::simulation::{RunResult, Simulation};
@@ -124,14 +127,13 @@ impl ArmLanes<3> for ClosedForm<F64x4> {
 
 /// Four URDF chains of one structure in lanes.
 pub struct ChainLanes<const N: usize> {
-    chain: SerialChain<F64x4, N>,
+    pub(crate) chain: SerialChain<F64x4, N>,
     friction: JointFriction<F64x4, N>,
 }
 
 impl<const N: usize> LaneArm<N> for UrdfArm<N> {
     type Lanes = ChainLanes<N>;
-    // A chain's pose task (damped J⁺, null space) has no lane version yet: per lane.
-    type Front = PerLane;
+    type Front = ChainStages<N>;
 
     fn same_structure(&self, other: &Self) -> bool {
         self.chain.same_structure(&other.chain)
@@ -214,50 +216,28 @@ pub trait Front<R: LaneArm<N>, const N: usize>: Sized {
     ) -> [Option<SVector<f64, N>>; LANES];
 }
 
-/// No lane version: every lane runs its own scalar stages.
-pub struct PerLane;
-
-impl<R: LaneArm<N>, const N: usize> Front<R, N> for PerLane {
-    fn pack(_: [&Simulation<R, N>; LANES]) -> Option<Self> {
-        None
-    }
-
-    fn put_lane(&mut self, _: usize, _: &Simulation<R, N>) {}
-
-    fn step(
-        &mut self,
-        _: &PackedPlant<R::Lanes>,
-        _: &mut [Simulation<R, N>],
-        _: &[Option<usize>; LANES],
-        _: &[usize; LANES],
-    ) -> [Option<SVector<f64, N>>; LANES] {
-        [None; LANES]
-    }
-}
-
 /// What runs must share to advance in one group of lanes: the arm's structure, the RK4
-/// loop count and the contact law's branch structure, and for the three-link arm, whose
-/// stages 1–8 run in lanes too, the stages' structure ([`StageKey`]). Everything else
-/// (every parameter; for URDF chains, whose stages run per lane, also the kinds of
-/// controller, filter, sensor and actuator) may differ between lanes.
+/// loop count, the contact law's branch structure and the stages' structure
+/// ([`StageKey`]). Everything else (every parameter) may differ between lanes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LaneKey {
-    /// `None`: the three-link arm; else the URDF document, base and tip links.
-    pub urdf: Option<(String, Option<String>, String)>,
+    /// `None`: the three-link arm; else the URDF document, base and tip links and the task
+    /// kind (`None`: the chain's default).
+    pub urdf: Option<(String, Option<String>, String, Option<TaskKind>)>,
     pub substeps: usize,
     pub wall: Option<ContactModel>,
-    /// `None` for URDF chains.
-    pub stages: Option<StageKey>,
+    pub stages: StageKey,
 }
 
 /// What the lane stages (`sim::lane_stages`) cannot select over: the kinds of controller
 /// and outer loop and the lengths of the sensor's and actuator's buffers. Numbers (gains,
-/// limits, noise, cut-offs, …) and on/off limits are per lane.
+/// limits, noise, cut-offs, J⁺'s damping, orientation gains, D̄, …) and on/off limits are
+/// per lane.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StageKey {
     /// The controller's kind with its structural switches: computed torque (contact
-    /// compensation), model-free, TDC (its law); and whether it takes the general task
-    /// path (a per-joint D̄), which stays per lane.
+    /// compensation), model-free, TDC (its law); and whether a per-joint D̄ is given
+    /// (which sends a three-joint position task down the general task path).
     pub controller: (u8, bool, bool),
     pub scale_feedforward: bool,
     /// 0: position only, 1: admittance filter, 2: impedance reference (eq. 20).

@@ -113,6 +113,20 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         &self.actuator
     }
 
+    /// R0 of a pose task's orientation error; `None` for a position task.
+    pub(crate) fn start_rotation(&self) -> Option<&Matrix3<f64>> {
+        self.start_rotation.as_ref()
+    }
+
+    /// q0 of the null-space posture term; `None` unless the arm is redundant.
+    pub(crate) fn posture(&self) -> Option<&JointVector<N>> {
+        self.posture.as_ref()
+    }
+
+    pub(crate) fn task_options(&self) -> TaskOptions {
+        self.task_options
+    }
+
     /// Builds the pipeline for `robot` (its parameters replace `config.robot`). The rest of
     /// `config` must be valid.
     pub fn with_robot(config: &ScenarioConfig, robot: R) -> Result<Self> {

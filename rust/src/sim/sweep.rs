@@ -40,7 +40,7 @@ pub fn run_batch(
 }
 
 /// `run_batch`, with the SIMD lanes (`sim::lanes`) on or off. Off is the scalar path, each
-/// run bit-identical to `simulate`; on, three-link runs agree with it to SPEC §13's 1e-9
+/// run bit-identical to `simulate`; on, runs agree with it to SPEC §13's 1e-9
 /// (`exp` differs in the last bits). Either way a run's result does not depend on the
 /// batch, its chunking or the thread count.
 pub fn run_batch_with(
@@ -84,22 +84,25 @@ pub fn run_batch_with(
 /// at most its share per thread.
 const LANE_BLOCK: usize = 64;
 
-/// What runs may share lanes: one arm structure (the three-link arm, or one URDF chain),
-/// substep count and contact law; for the three-link arm, whose stages run in lanes, also
-/// one stage structure (`StageKey`). Every parameter may differ (lanes carry their own).
+/// What runs may share lanes: one arm structure (the three-link arm, or one URDF chain with
+/// one task kind), substep count and contact law, and one stage structure (`StageKey`), as
+/// every arm's stages 1–8 run in lanes. Every parameter may differ (lanes carry their own).
 fn lane_key(c: &ScenarioConfig) -> LaneKey {
-    let (urdf, stages) = match &c.robot {
-        RobotConfig::ThreeLink(_) => (None, Some(stage_key(c))),
-        RobotConfig::Urdf(p) => (
-            Some((p.urdf.clone(), p.base_link.clone(), p.tip_link.clone())),
-            None,
-        ),
+    let urdf = match &c.robot {
+        RobotConfig::ThreeLink(_) => None,
+        // The task kind decides the orientation rows and the posture term (SPEC §11).
+        RobotConfig::Urdf(p) => Some((
+            p.urdf.clone(),
+            p.base_link.clone(),
+            p.tip_link.clone(),
+            p.task,
+        )),
     };
     LaneKey {
         urdf,
         substeps: c.substeps,
         wall: c.wall.as_ref().map(|w| w.model),
-        stages,
+        stages: stage_key(c),
     }
 }
 
@@ -321,5 +324,43 @@ mod tests {
         assert_eq!(e.index, 2);
         assert!(e.error.to_string().starts_with("period = -1"));
         assert!(run_batch(&configs(), Some(0), false).is_err());
+    }
+
+    /// URDF runs group by their stage structure and task kind as well as their chain (their
+    /// stages 1–8 run in lanes); parameters do not split groups.
+    #[test]
+    fn urdf_lane_key_holds_the_stage_structure() {
+        use crate::control::controller::{ModelFreeParams, TimeDelayParams};
+        use crate::robot::chain::{TaskKind, UrdfArmParams};
+        let arm = UrdfArmParams {
+            urdf: "<robot name='r'/>".to_owned(),
+            tip_link: "tip".to_owned(),
+            ..UrdfArmParams::default()
+        };
+        let run = |arm: &UrdfArmParams, controller: ControllerParams, latency: usize| {
+            let mut c = ScenarioConfig {
+                robot: RobotConfig::Urdf(arm.clone()),
+                controller,
+                ..ScenarioConfig::default()
+            };
+            c.sensor.latency = latency;
+            lane_key(&c)
+        };
+        let tdc = |inertia: f64| {
+            ControllerParams::TimeDelay(TimeDelayParams {
+                inertia,
+                ..TimeDelayParams::default()
+            })
+        };
+        let key = run(&arm, tdc(0.1), 0);
+        assert_eq!(key, run(&arm, tdc(0.2), 0));
+        assert_ne!(key, run(&arm, tdc(0.1), 1));
+        let mf = ControllerParams::ModelFree(ModelFreeParams::default());
+        assert_ne!(key, run(&arm, mf, 0));
+        let position = UrdfArmParams {
+            task: Some(TaskKind::Position),
+            ..arm.clone()
+        };
+        assert_ne!(key, run(&position, tdc(0.1), 0));
     }
 }

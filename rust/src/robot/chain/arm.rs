@@ -11,7 +11,7 @@ use crate::error::{check, Error, Result};
 use crate::robot::chain::spatial::Real;
 use crate::robot::three_link::friction_sign;
 use crate::robot::{Dynamics, JointVector, Kinematics, Orientation, RobotModel, TaskVector};
-use crate::scalar::{F64x4, LANES};
+use crate::scalar::{choose_vector, F64x4, LANES};
 
 /// What the task space holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -389,9 +389,29 @@ impl<const N: usize> RobotModel<N> for UrdfArm<N> {
     }
 }
 
-/// The rotation vector of a rotation matrix (log map), for orientation errors.
-pub fn rotation_vector(r: &Matrix3<f64>) -> Vector3<f64> {
-    nalgebra::Rotation3::from_matrix_unchecked(*r).scaled_axis()
+/// The rotation vector of a rotation matrix (log map), for orientation errors: the axis
+/// (R − Rᵀ)^∨ / |(R − Rᵀ)^∨| times the angle acos((tr R − 1)/2), and zero where that axis's
+/// squared norm is at most ε² (no rotation). This is nalgebra's
+/// `Rotation3::scaled_axis` written over any scalar, the same operations in the same order
+/// (so `f64` gives its bits; tested), with its one branch a lane select. Like it, it is
+/// inaccurate near π, where R − Rᵀ vanishes too; an orientation error that large has left
+/// the task long before.
+#[inline]
+pub fn rotation_vector<T: Real>(r: &Matrix3<T>) -> Vector3<T> {
+    let axis = Vector3::new(
+        r[(2, 1)] - r[(1, 2)],
+        r[(0, 2)] - r[(2, 0)],
+        r[(1, 0)] - r[(0, 1)],
+    );
+    let sq_norm = axis.norm_squared();
+    let epsilon = T::splat(f64::EPSILON);
+    let turned = sq_norm.simd_gt(epsilon * epsilon);
+    let angle = || ((r[(0, 0)] + r[(1, 1)] + r[(2, 2)] - T::one()) / T::splat(2.0)).simd_acos();
+    choose_vector(
+        turned,
+        || axis.unscale(sq_norm.simd_sqrt()) * angle(),
+        Vector3::zeros,
+    )
 }
 
 /// Every term of a URDF arm at one state, in plain vectors (row-major matrices): for the
