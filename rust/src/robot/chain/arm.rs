@@ -389,29 +389,30 @@ impl<const N: usize> RobotModel<N> for UrdfArm<N> {
     }
 }
 
-/// The rotation vector of a rotation matrix (log map), for orientation errors: the axis
-/// (R − Rᵀ)^∨ / |(R − Rᵀ)^∨| times the angle acos((tr R − 1)/2), and zero where that axis's
-/// squared norm is at most ε² (no rotation). This is nalgebra's
-/// `Rotation3::scaled_axis` written over any scalar, the same operations in the same order
-/// (so `f64` gives its bits; tested), with its one branch a lane select. Like it, it is
-/// inaccurate near π, where R − Rᵀ vanishes too; an orientation error that large has left
-/// the task long before.
+/// The rotation vector θ a of a rotation matrix (log map), for orientation errors; over
+/// any scalar, with no data-dependent branch.
+///
+/// With v = (R − Rᵀ)∨ = 2 sin θ a and tr R − 1 = 2 cos θ, θ = atan2(|v|, tr R − 1) and
+/// θ a = v θ/|v| (→ v/2 as θ → 0). Why not acos((tr R − 1)/2), as nalgebra's
+/// `scaled_axis`: near the identity, rounding puts its argument above 1 — acos gives NaN
+/// (an arm whose orientation error was 1e-16 stopped with a non-finite torque) — and for
+/// θ below ~1e-8 it returns rounding noise. Like any log map it is ill-conditioned near
+/// θ = π, where v vanishes too; an orientation error that large has left the task long
+/// before.
 #[inline]
 pub fn rotation_vector<T: Real>(r: &Matrix3<T>) -> Vector3<T> {
-    let axis = Vector3::new(
+    let v = Vector3::new(
         r[(2, 1)] - r[(1, 2)],
         r[(0, 2)] - r[(2, 0)],
         r[(1, 0)] - r[(0, 1)],
     );
-    let sq_norm = axis.norm_squared();
-    let epsilon = T::splat(f64::EPSILON);
-    let turned = sq_norm.simd_gt(epsilon * epsilon);
-    let angle = || ((r[(0, 0)] + r[(1, 1)] + r[(2, 2)] - T::one()) / T::splat(2.0)).simd_acos();
-    choose_vector(
-        turned,
-        || axis.unscale(sq_norm.simd_sqrt()) * angle(),
-        Vector3::zeros,
-    )
+    let sin2 = v.norm();
+    let cos2 = r[(0, 0)] + r[(1, 1)] + r[(2, 2)] - T::one();
+    let angle = sin2.simd_atan2(cos2);
+    // θ/|v| at |v| = 0 is its limit 1/2 (the identity gives v = 0 either way).
+    let zero = sin2.simd_eq(T::zero());
+    let ratio = T::splat(0.5).select(zero, angle / sin2);
+    v * ratio
 }
 
 /// Every term of a URDF arm at one state, in plain vectors (row-major matrices): for the
