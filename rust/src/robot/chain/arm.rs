@@ -11,7 +11,7 @@ use crate::error::{check, Error, Result};
 use crate::robot::chain::spatial::Real;
 use crate::robot::three_link::friction_sign;
 use crate::robot::{Dynamics, JointVector, Kinematics, Orientation, RobotModel, TaskVector};
-use crate::scalar::{choose_vector, F64x4, LANES};
+use crate::scalar::{F64x4, LANES};
 
 /// What the task space holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

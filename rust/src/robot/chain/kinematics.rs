@@ -7,7 +7,7 @@
 use nalgebra::{SMatrix, SVector, Vector3};
 
 use super::model::{JointKind, SerialChain};
-use super::spatial::{axis_angle, mul3, mul3v, Pose, Real, SVec};
+use super::spatial::{mul3v, turn, Pose, Real, SVec};
 
 /// The frames of one configuration: each body in its parent (`up`) and in the base
 /// (`world`), and the tip in the base.
@@ -44,7 +44,7 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
             let b = &self.bodies[i];
             f.up[i] = match b.kind {
                 JointKind::Revolute => Pose {
-                    rot: mul3(&b.tree.rot, &axis_angle(&b.axis, q[i].sin_cos_fast())),
+                    rot: turn(&b.tree.rot, &b.axis, q[i].sin_cos_fast()),
                     pos: b.tree.pos,
                 },
                 JointKind::Prismatic => Pose {
@@ -152,7 +152,7 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
 pub(crate) mod tests {
     use super::*;
     use crate::robot::chain::model::Body;
-    use crate::robot::chain::spatial::RigidInertia;
+    use crate::robot::chain::spatial::{axis_angle, RigidInertia};
     use nalgebra::Matrix3;
 
     /// A small random-looking chain with tilted, mixed joints (deterministic numbers).
