@@ -37,14 +37,21 @@ CASES = [
 ]  # fmt: skip
 
 
-def _agree(lane: float | None, alone: float | None) -> bool:
+def _agree(lane: float | None, alone: float | None, scale: float = 0.0) -> bool:
+    """Within 1e-9 of the larger value, or of `scale` (the metric's physical scale, for
+    values that are zero in one path: a grazing touch of the wall)."""
+
     def nan(v: float | None) -> bool:
         return v is None or math.isnan(v)
 
     if nan(lane) or nan(alone):
         return nan(lane) and nan(alone)
     assert lane is not None and alone is not None
-    return abs(lane - alone) <= 1e-9 * max(abs(lane), abs(alone)) + 1e-300
+    return abs(lane - alone) <= 1e-9 * max(abs(lane), abs(alone), scale) + 1e-300
+
+
+# Metrics in newtons, compared against the fig. 19 reference (10 N) as their scale.
+_FORCE_SCALE = {"force_ss_error": 10.0, "force_rms_error": 10.0, "force_peak": 10.0}
 
 
 def _same_sample(lane: float | None, alone: float | None) -> bool:
@@ -243,7 +250,10 @@ def test_urdf_stages_in_lanes_agree_with_simulate(arm_name):
                 continue
             compared += 1
             for m in ar.METRICS:
-                assert _agree(row[m], alone.metrics[m]), (name, row["run_id"], m)
+                # A run that only grazes the wall (force_peak 7e-13 N in one path, 0 in the
+                # other, seen on the Panda) is compared on the 10-N scale of its force.
+                scale = _FORCE_SCALE.get(m, 0.0)
+                assert _agree(row[m], alone.metrics[m], scale), (name, row["run_id"], m)
                 a, b = row[m], alone.metrics[m]
                 if a is not None and b is not None and not math.isnan(b) and b != 0:
                     worst = max(worst, abs(a - b) / abs(b))
