@@ -146,12 +146,6 @@ impl<T: Real> Pose<T> {
         SVec::new(mul3v(&self.rot, &f.ang) + self.pos.cross(&lin), lin)
     }
 
-    /// A symmetric 6×6 (articulated) inertia from child to parent coordinates: Xᵀ I X.
-    /// (By blocks: [`SpatialInertia::to_parent`], which ABA uses.)
-    pub fn inertia_to_parent(&self, ia: &Matrix6<T>) -> Matrix6<T> {
-        SpatialInertia::from_matrix(ia).to_parent(self).matrix()
-    }
-
     /// The 6×6 motion transform X (parent → child).
     #[inline(always)]
     pub fn motion_matrix(&self) -> Matrix6<T> {
@@ -485,7 +479,8 @@ mod tests {
             0.01 * (r + 2 * c) as f64 + 0.01 * (c + 2 * r) as f64
         });
         let dense = x.motion_matrix().transpose() * ia * x.motion_matrix();
-        assert!((x.inertia_to_parent(&ia) - dense).norm() < 1e-13);
+        let blocks = SpatialInertia::from_matrix(&ia).to_parent(&x).matrix();
+        assert!((blocks - dense).norm() < 1e-13);
         let m = SVec::new(Vector3::new(0.1, 0.2, -0.3), Vector3::new(1.0, -2.0, 0.5));
         assert!((i.apply(&m).to_vector6() - i.matrix() * m.to_vector6()).norm() < 1e-14);
     }
