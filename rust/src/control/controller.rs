@@ -2,14 +2,14 @@
 //! delay estimate) and time-delayed control (eqs. 17 and 18), all driven by the Cartesian
 //! command V of eq. (39). Each is a state machine with `reset()` and `step()`.
 
-use nalgebra::{Cholesky, Matrix3, Matrix6, SMatrix, SVector, Vector3};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 use crate::control::task::Desired;
 use crate::error::{check, Result};
 use crate::robot::{
     Dynamics, JointMatrix, JointVector, Kinematics, RobotModel, TaskOptions, TaskVector,
 };
-use crate::scalar::{choose_vector, finite, no_lane, F64x4, Real, LANES};
+use crate::scalar::{choose_vector, finite, no_lane, zeros, F64x4, Real, LANES};
 
 /// Gains of eq. (39): V = K_A⁻¹ (Ẍ_d + K_D (Ẋ_d − Ẋ) + K_P (X_d − X)), each a scalar times I.
 /// Over `f64`, or four runs' gains in lanes (one `scale_feedforward`).
@@ -340,26 +340,65 @@ pub struct OrientationTask<const N: usize, T: Real = f64> {
 /// with the lanes where it failed: a Cholesky pivot of J Jᵀ + λ² I that is not positive
 /// (zero, negative or NaN), or a J⁺ that is not finite.
 ///
-/// nalgebra's `cholesky()` needs a `ComplexField` (it returns `None` at a bad pivot), which
-/// SIMD lanes are not; its `Cholesky::new_unchecked` and `solve` are the same loops over any
-/// `SimdComplexField` (same operations, so the `f64` bits of `cholesky()`, tested), and the
-/// pivots it leaves on L's diagonal (√pivot) are tested here instead, lane by lane.
-#[inline]
+/// This is nalgebra's `cholesky()` and `solve`, operation for operation (J Jᵀ summed in
+/// gemm's order, the factor column by column, forward then backward substitution, so the
+/// `f64` bits of nalgebra's, tested), written out because nalgebra's loops are not inlined
+/// into the AVX2 lane loop: left out of line, they ran as baseline two-wide code. Its
+/// `cholesky()` also needs a `ComplexField` (it returns `None` at a bad pivot), which SIMD
+/// lanes are not: the pivots (√pivot on L's diagonal) are checked here, lane by lane.
+#[inline(always)]
 pub(crate) fn damped_pseudo_inverse<T: Real, const N: usize>(
     j: &SMatrix<T, 6, N>,
     damping: T,
 ) -> (SMatrix<T, N, 6>, T::SimdBool) {
-    let a = j * j.transpose() + Matrix6::<T>::identity() * (damping * damping);
-    let chol = Cholesky::new_unchecked(a);
-    let l = chol.l_dirty();
-    let mut failed = no_lane::<T>();
-    for i in 0..6 {
-        // √pivot > 0 exactly when the pivot is positive (NaN and 0 fail).
-        failed = failed | !l[(i, i)].simd_gt(T::zero());
+    // L's lower triangle, from A = J Jᵀ + λ² I (only A's lower triangle is read).
+    let mut l = [[T::zero(); 6]; 6];
+    let lambda2 = damping * damping;
+    for r in 0..6 {
+        for c in 0..=r {
+            let mut sum = T::zero();
+            for k in 0..N {
+                sum += j[(r, k)] * j[(c, k)];
+            }
+            l[r][c] = if r == c { sum + lambda2 } else { sum };
+        }
     }
-    let pinv = chol.solve(j).transpose();
-    for v in pinv.iter() {
-        failed = failed | !finite(*v);
+    let mut failed = no_lane::<T>();
+    for c in 0..6 {
+        for k in 0..c {
+            let f = l[c][k];
+            for row in l.iter_mut().skip(c) {
+                row[c] -= f * row[k];
+            }
+        }
+        let pivot_root = l[c][c].simd_sqrt();
+        // √pivot > 0 exactly when the pivot is positive (NaN and 0 fail).
+        failed = failed | !pivot_root.simd_gt(T::zero());
+        l[c][c] = pivot_root;
+        for row in l.iter_mut().skip(c + 1) {
+            row[c] /= pivot_root;
+        }
+    }
+    // (J Jᵀ + λ² I)⁻¹ J column by column: J⁺ᵀ, as L Lᵀ x = J's column.
+    let mut pinv = zeros::<T, N, 6>();
+    for k in 0..N {
+        let mut b: [T; 6] = std::array::from_fn(|i| j[(i, k)]);
+        for i in 0..6 {
+            let coeff = b[i] / l[i][i];
+            b[i] = coeff;
+            for r in i + 1..6 {
+                b[r] -= coeff * l[r][i];
+            }
+        }
+        for i in (0..6).rev() {
+            let mut dot = T::zero();
+            for r in i + 1..6 {
+                dot += l[r][i] * b[r];
+            }
+            b[i] = (b[i] - dot) / l[i][i];
+            failed = failed | !finite(b[i]);
+            pinv[(k, i)] = b[i];
+        }
     }
     (pinv, failed)
 }
@@ -399,9 +438,9 @@ impl<T: Real, const N: usize> TaskTerms<T, N> {
         input: &TaskInputs<T, N>,
     ) -> (Self, T::SimdBool) {
         let (ka, kd, kp) = input.gains;
-        let mut j = SMatrix::<T, 6, N>::zeros();
-        let mut v = SVector::<T, 6>::zeros();
-        let mut jdot_qd = SVector::<T, 6>::zeros();
+        let mut j = zeros::<T, 6, N>();
+        let mut v = zeros::<T, 6, 1>();
+        let mut jdot_qd = zeros::<T, 6, 1>();
         j.fixed_rows_mut::<3>(0).copy_from(&k.jacobian);
         v.fixed_rows_mut::<3>(0).copy_from(v_position);
         jdot_qd.fixed_rows_mut::<3>(0).copy_from(&k.jdot_qd);
@@ -416,10 +455,11 @@ impl<T: Real, const N: usize> TaskTerms<T, N> {
         let (pinv, failed) = damped_pseudo_inverse(&j, input.damping);
         let null = match input.posture {
             Some(q0) => {
-                let projector = SMatrix::<T, N, N>::identity() - pinv * j;
-                projector * ((q0 - input.q) * kp - input.qd * kd) / ka
+                // (I − J⁺J) w as w − J⁺ (J w): two products with vectors, no N×N matrix.
+                let w = ((q0 - input.q) * kp - input.qd * kd) / ka;
+                w - pinv * (j * w)
             }
-            None => SVector::<T, N>::zeros(),
+            None => zeros::<T, N, 1>(),
         };
         let terms = Self {
             jacobian: j,
@@ -1201,11 +1241,12 @@ mod tests {
         }
     }
 
-    /// The generic J⁺ (nalgebra's Cholesky loops over any scalar) gives `cholesky()`'s bits
-    /// and fails exactly where it returns `None`, one run or four lanes.
+    /// The written-out J⁺ gives nalgebra's `cholesky()` and `solve` bits and fails exactly
+    /// where `cholesky()` returns `None`, one run or four lanes.
     #[test]
     fn damped_pseudo_inverse_is_nalgebras_cholesky() {
         use crate::scalar::pack_vector;
+        use nalgebra::Matrix6;
         let reference = |j: &SMatrix<f64, 6, 7>, lambda: f64| {
             let a = j * j.transpose() + Matrix6::identity() * (lambda * lambda);
             let pinv = a.cholesky()?.solve(j).transpose();

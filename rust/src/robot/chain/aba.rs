@@ -6,6 +6,7 @@ use nalgebra::SVector;
 use super::kinematics::Frames;
 use super::model::{JointKind, SerialChain};
 use super::spatial::{mul3tv, mul3v, Real, SVec, SpatialInertia};
+use crate::scalar::zeros;
 
 impl<T: Real, const N: usize> SerialChain<T, N> {
     /// q̈ for joint torques `tau` (friction already subtracted) with `tip_wrench` acting on
@@ -76,7 +77,7 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
         }
         // Pass 3: accelerations from the base up, a_0 = −a_g.
         let mut a = self.base_acceleration(true);
-        let mut qdd = SVector::<T, N>::zeros();
+        let mut qdd = zeros::<T, N, 1>();
         for i in 0..N {
             let a_prime = f.up[i].motion_to_child(&a).add(&c[i]);
             qdd[i] = (u[i] - a_prime.dot(&u_vec[i])) * d_inv[i];

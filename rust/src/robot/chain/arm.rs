@@ -11,7 +11,7 @@ use crate::error::{check, Error, Result};
 use crate::robot::chain::spatial::Real;
 use crate::robot::three_link::friction_sign;
 use crate::robot::{Dynamics, JointVector, Kinematics, Orientation, RobotModel, TaskVector};
-use crate::scalar::{F64x4, LANES};
+use crate::scalar::{zeros, F64x4, LANES};
 
 /// What the task space holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -151,7 +151,7 @@ impl<T: Real, const N: usize> JointFriction<T, N> {
     /// inline it; measured out of line at 5 % of a Panda sweep.)
     #[inline(always)]
     pub fn torque(&self, qd: &SVector<T, N>) -> SVector<T, N> {
-        let mut tau = SVector::<T, N>::zeros();
+        let mut tau = zeros::<T, N, 1>();
         for i in 0..N {
             let viscous = self.fv[i] * qd[i];
             tau[i] = if T::all(self.fc[i].simd_eq(T::zero())) {

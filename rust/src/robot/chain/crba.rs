@@ -5,6 +5,7 @@ use nalgebra::SMatrix;
 use super::kinematics::Frames;
 use super::model::SerialChain;
 use super::spatial::{Real, SpatialInertia};
+use crate::scalar::zeros;
 
 impl<T: Real, const N: usize> SerialChain<T, N> {
     /// D(q): composite inertias I^c_i = I_i + Σ X_jᵀ I^c_j X_j from the tip down, then
@@ -16,7 +17,7 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
         for i in (1..N).rev() {
             composite[i - 1] = composite[i - 1].add(&composite[i].to_parent(&f.up[i]));
         }
-        let mut d = SMatrix::<T, N, N>::zeros();
+        let mut d = zeros::<T, N, N>();
         for i in 0..N {
             let mut force = composite[i].apply(&self.subspace(i));
             d[(i, i)] = self.subspace(i).dot(&force);

@@ -8,6 +8,7 @@ use nalgebra::{SMatrix, SVector, Vector3};
 
 use super::model::{JointKind, SerialChain};
 use super::spatial::{mul3v, turn, Pose, Real, SVec};
+use crate::scalar::zeros;
 
 /// The frames of one configuration: each body in its parent (`up`) and in the base
 /// (`world`), and the tip in the base.
@@ -24,8 +25,8 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
     pub fn subspace(&self, i: usize) -> SVec<T> {
         let b = &self.bodies[i];
         match b.kind {
-            JointKind::Revolute => SVec::new(b.axis, Vector3::zeros()),
-            JointKind::Prismatic => SVec::new(Vector3::zeros(), b.axis),
+            JointKind::Revolute => SVec::new(b.axis, zeros()),
+            JointKind::Prismatic => SVec::new(zeros(), b.axis),
         }
     }
 
@@ -65,22 +66,22 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
     /// Column i: revolute, [a_i × (p_tip − p_i); a_i]; prismatic, [a_i; 0], with a_i the
     /// joint axis in the world. Its rate follows from ȧ_i = ω_{i−1} × a_i and
     /// d/dt (p_tip − p_i) = v_tip − v_i (velocities by a forward recursion).
-    #[inline]
+    #[inline(always)]
     pub fn jacobian(
         &self,
         f: &Frames<T, N>,
         qd: &SVector<T, N>,
     ) -> (SMatrix<T, 6, N>, SVector<T, 6>) {
         let p_tip = f.tip.pos;
-        let mut j = SMatrix::<T, 6, N>::zeros();
-        let mut jdot_qd = SVector::<T, 6>::zeros();
+        let mut j = zeros::<T, 6, N>();
+        let mut jdot_qd = zeros::<T, 6, 1>();
         // Forward recursion of ω and the velocity of each body origin, in the world.
-        let mut omega = Vector3::<T>::zeros();
-        let mut v_origin = Vector3::<T>::zeros();
-        let mut p_prev = Vector3::<T>::zeros();
-        let mut axes = [Vector3::<T>::zeros(); N];
-        let mut axis_rates = [Vector3::<T>::zeros(); N];
-        let mut origins_v = [Vector3::<T>::zeros(); N];
+        let mut omega = zeros::<T, 3, 1>();
+        let mut v_origin = zeros::<T, 3, 1>();
+        let mut p_prev = zeros::<T, 3, 1>();
+        let mut axes = [zeros::<T, 3, 1>(); N];
+        let mut axis_rates = [zeros::<T, 3, 1>(); N];
+        let mut origins_v = [zeros::<T, 3, 1>(); N];
         for i in 0..N {
             let b = &self.bodies[i];
             let p = f.world[i].pos;
@@ -108,7 +109,7 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
                         adot,
                     )
                 }
-                JointKind::Prismatic => (a, Vector3::zeros(), adot, Vector3::zeros()),
+                JointKind::Prismatic => (a, zeros::<T, 3, 1>(), adot, zeros::<T, 3, 1>()),
             };
             for r in 0..3 {
                 j[(r, i)] = lin[r];
@@ -123,9 +124,9 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
     /// The tip's linear velocity in the world (J_v q̇ without forming J).
     #[inline(always)]
     pub fn tip_velocity(&self, f: &Frames<T, N>, qd: &SVector<T, N>) -> Vector3<T> {
-        let mut omega = Vector3::<T>::zeros();
-        let mut v = Vector3::<T>::zeros();
-        let mut p_prev = Vector3::<T>::zeros();
+        let mut omega = zeros::<T, 3, 1>();
+        let mut v = zeros::<T, 3, 1>();
+        let mut p_prev = zeros::<T, 3, 1>();
         for i in 0..N {
             let b = &self.bodies[i];
             let p = f.world[i].pos;

@@ -6,13 +6,14 @@ use nalgebra::{SVector, Vector3};
 use super::kinematics::Frames;
 use super::model::SerialChain;
 use super::spatial::{Real, SVec};
+use crate::scalar::zeros;
 
 impl<T: Real, const N: usize> SerialChain<T, N> {
     /// The base's spatial acceleration standing in for gravity: a_0 = −a_g = [0; 0, 0, g].
     #[inline(always)]
     pub(crate) fn base_acceleration(&self, gravity: bool) -> SVec<T> {
         let g = if gravity { self.gravity } else { T::zero() };
-        SVec::new(Vector3::zeros(), Vector3::new(T::zero(), T::zero(), g))
+        SVec::new(zeros(), Vector3::new(T::zero(), T::zero(), g))
     }
 
     /// τ = D q̈ + C q̇ + G − Jᵀ(tip wrench): the torques that give `qdd` at (q, q̇) while the
@@ -44,7 +45,7 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
         }
         forces[N - 1] = forces[N - 1].sub(tip_wrench);
         // Backward pass: τ_i = S_iᵀ f_i, f_{i−1} += X_iᵀ f_i.
-        let mut tau = SVector::<T, N>::zeros();
+        let mut tau = zeros::<T, N, 1>();
         for i in (0..N).rev() {
             tau[i] = self.subspace(i).dot(&forces[i]);
             if i > 0 {
@@ -58,7 +59,7 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
     /// C(q, q̇) q̇ and G(q).
     #[inline]
     pub fn bias(&self, f: &Frames<T, N>, qd: &SVector<T, N>) -> (SVector<T, N>, SVector<T, N>) {
-        let zero = SVector::<T, N>::zeros();
+        let zero = zeros::<T, N, 1>();
         let g = self.rnea(f, &zero, &zero, true, &SVec::zero());
         let c = self.rnea(f, qd, &zero, false, &SVec::zero());
         (c, g)

@@ -10,6 +10,7 @@
 
 use nalgebra::{Matrix3, Matrix6, Vector3};
 
+use crate::scalar::zeros;
 pub use crate::scalar::Real;
 
 /// A 6-D spatial vector: motion [ω; v] or force [n; f].
@@ -27,7 +28,7 @@ impl<T: Real> SVec<T> {
 
     #[inline(always)]
     pub fn zero() -> Self {
-        Self::new(Vector3::zeros(), Vector3::zeros())
+        Self::new(zeros(), zeros())
     }
 
     /// Motion cross product v ×ₘ m (eq. 2.31).
@@ -280,7 +281,7 @@ impl<T: Real> SpatialInertia<T> {
         Self {
             a: i.ibar,
             b: hx,
-            c: Matrix3::identity() * i.mass,
+            c: mat3(|r, k| if r == k { i.mass } else { T::zero() }),
         }
     }
 
