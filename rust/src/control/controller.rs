@@ -9,7 +9,9 @@ use crate::error::{check, Result};
 use crate::robot::{
     Dynamics, JointMatrix, JointVector, Kinematics, RobotModel, TaskOptions, TaskVector,
 };
-use crate::scalar::{choose_vector, finite, no_lane, zeros, F64x4, Real, LANES};
+use crate::scalar::{
+    choose_vector, finite, mat_t_vec, mat_vec, no_lane, zeros, F64x4, Real, LANES,
+};
 
 /// Gains of eq. (39): V = K_A⁻¹ (Ẍ_d + K_D (Ẋ_d − Ẋ) + K_P (X_d − X)), each a scalar times I.
 /// Over `f64`, or four runs' gains in lanes (one `scale_feedforward`).
@@ -57,7 +59,7 @@ impl PositionGains<F64x4> {
 
 impl<T: Real> PositionGains<T> {
     /// eq. (39)
-    #[inline]
+    #[inline(always)]
     pub fn command(
         &self,
         desired: &Desired<T>,
@@ -446,7 +448,7 @@ impl<T: Real, const N: usize> TaskTerms<T, N> {
         jdot_qd.fixed_rows_mut::<3>(0).copy_from(&k.jdot_qd);
         if let Some((o, (kp_o, kd_o))) = input.orientation {
             // eq. (39) for the orientation, held at R0: no feed-forward, Ẋ_d = 0.
-            let omega = o.jacobian * input.qd;
+            let omega = mat_vec(&o.jacobian, input.qd);
             let v_o = (o.error * kp_o - omega * kd_o) / ka;
             j.fixed_rows_mut::<3>(3).copy_from(&o.jacobian);
             v.fixed_rows_mut::<3>(3).copy_from(&v_o);
@@ -457,7 +459,7 @@ impl<T: Real, const N: usize> TaskTerms<T, N> {
             Some(q0) => {
                 // (I − J⁺J) w as w − J⁺ (J w): two products with vectors, no N×N matrix.
                 let w = ((q0 - input.q) * kp - input.qd * kd) / ka;
-                w - pinv * (j * w)
+                w - mat_vec(&pinv, &mat_vec(&j, &w))
             }
             None => zeros::<T, N, 1>(),
         };
@@ -474,13 +476,13 @@ impl<T: Real, const N: usize> TaskTerms<T, N> {
     /// J⁺ (V − J̇q̇) + a_n: eqs. 7 and 17's joint acceleration.
     #[inline(always)]
     fn inverse(&self) -> SVector<T, N> {
-        self.pinv * (self.command - self.jdot_qd) + self.null
+        mat_vec(&self.pinv, &(self.command - self.jdot_qd)) + self.null
     }
 
     /// K_t Jᵀ V + a_n: eq. 18's.
     #[inline(always)]
     fn transpose(&self, torque_constant: T) -> SVector<T, N> {
-        self.jacobian.transpose() * self.command * torque_constant + self.null
+        mat_t_vec(&self.jacobian, &self.command) * torque_constant + self.null
     }
 
     /// Eq. (7) over the task: τ = D̂ (J⁺ (V − J̇q̇) + a_n) + Ĉ + Ĝ + τ̂_f, plus the measured
@@ -492,9 +494,9 @@ impl<T: Real, const N: usize> TaskTerms<T, N> {
         linear: &SMatrix<T, 3, N>,
         compensation: Option<(&Vector3<T>, T)>,
     ) -> SVector<T, N> {
-        let mut tau = d.inertia * self.inverse() + d.coriolis + d.gravity + friction;
+        let mut tau = mat_vec(&d.inertia, &self.inverse()) + d.coriolis + d.gravity + friction;
         if let Some((normal, force)) = compensation {
-            tau += linear.transpose() * normal * force;
+            tau += mat_t_vec(linear, normal) * force;
         }
         tau
     }
@@ -502,7 +504,7 @@ impl<T: Real, const N: usize> TaskTerms<T, N> {
     /// Model-free control over the task: τ = D̄ (K_t Jᵀ V + a_n).
     #[inline(always)]
     pub(crate) fn model_free(&self, dbar: &SMatrix<T, N, N>, torque_constant: T) -> SVector<T, N> {
-        dbar * self.transpose(torque_constant)
+        mat_vec(dbar, &self.transpose(torque_constant))
     }
 
     /// TDC over the task, eq. (18) or eq. (17) times D̄, plus ĥ = τ_{k−1} − D̄ q̈_{k−1}
@@ -520,10 +522,10 @@ impl<T: Real, const N: usize> TaskTerms<T, N> {
         started: T::SimdBool,
     ) -> SVector<T, N> {
         let qdd_prev = choose_vector(started, || (qd - qd_prev) / period, SVector::zeros);
-        let h_hat = tau_prev - dbar * qdd_prev;
+        let h_hat = tau_prev - mat_vec(dbar, &qdd_prev);
         let u = match law {
-            TdcLaw::JacobianTranspose => dbar * self.transpose(torque_constant),
-            TdcLaw::InverseJacobian => dbar * self.inverse(),
+            TdcLaw::JacobianTranspose => mat_vec(dbar, &self.transpose(torque_constant)),
+            TdcLaw::InverseJacobian => mat_vec(dbar, &self.inverse()),
         };
         u + h_hat
     }
@@ -571,7 +573,7 @@ fn solve_jacobian<const N: usize>(
 /// the lanes where J counts as singular: |det J| at most `SINGULAR_RATIO` times its Hadamard
 /// bound, NaN or exactly 0. The inverse is nalgebra's 3×3 cofactor formula written out
 /// over any scalar (the same operations, so the same bits for `f64`; tested).
-#[inline]
+#[inline(always)]
 pub(crate) fn solve_square<T: Real, const N: usize>(
     j: &SMatrix<T, 3, N>,
     rhs: &Vector3<T>,
@@ -590,7 +592,7 @@ pub(crate) fn solve_square<T: Real, const N: usize>(
     let singular =
         det.simd_ne(det) | det.simd_le(T::splat(SINGULAR_RATIO) * bound) | signed.simd_eq(zero);
     if T::all(singular) {
-        return (SVector::zeros(), singular);
+        return (zeros(), singular);
     }
     #[rustfmt::skip]
     let inv = Matrix3::new(
@@ -598,7 +600,7 @@ pub(crate) fn solve_square<T: Real, const N: usize>(
         -minor_m11_m23 / signed, (m11 * m33 - m31 * m13) / signed, (m13 * m21 - m23 * m11) / signed,
         minor_m11_m22 / signed, (m12 * m31 - m32 * m11) / signed, (m11 * m22 - m21 * m12) / signed,
     );
-    let x = inv * rhs;
+    let x = mat_vec(&inv, rhs);
     (SVector::<T, N>::from_fn(|i, _| x[i]), singular)
 }
 
@@ -617,10 +619,10 @@ pub(crate) fn computed_torque<T: Real, const N: usize>(
         return (qdd, singular);
     }
     let (d, friction) = model();
-    let mut tau = d.inertia * qdd + d.coriolis + d.gravity + friction;
+    let mut tau = mat_vec(&d.inertia, &qdd) + d.coriolis + d.gravity + friction;
     if let Some((normal, force)) = compensation {
         // The plant feels Jᵀ(−f n); add it back.
-        tau += k.jacobian.transpose() * normal * force;
+        tau += mat_t_vec(&k.jacobian, normal) * force;
     }
     (tau, singular)
 }
@@ -633,7 +635,7 @@ pub(crate) fn model_free<T: Real, const N: usize>(
     inertia: T,
     torque_constant: T,
 ) -> SVector<T, N> {
-    k.jacobian.transpose() * v * (inertia * torque_constant)
+    mat_t_vec(&k.jacobian, v) * (inertia * torque_constant)
 }
 
 /// Time-delayed control, eq. (18) or eq. (17) (D̄ = α I), with the memory τ_{k−1} and
@@ -656,7 +658,7 @@ pub(crate) fn time_delay<T: Real, const N: usize>(
     let h_hat = tau_prev - qdd_prev * inertia;
     let (u, singular) = match law {
         TdcLaw::JacobianTranspose => (
-            k.jacobian.transpose() * v * (inertia * torque_constant),
+            mat_t_vec(&k.jacobian, v) * (inertia * torque_constant),
             no_lane::<T>(),
         ),
         TdcLaw::InverseJacobian => {

@@ -178,7 +178,7 @@ impl<T: Real> AdmittanceFilter<T> {
 
     /// Output at t_k, then advance to t_{k+1}. The filter is strictly proper: x_a,k and
     /// ẋ_a,k depend on e_f up to k−1; the feed-forward ẍ_a,k uses the current sample.
-    #[inline]
+    #[inline(always)]
     pub fn step(&mut self, force_error: T) -> Sample<T> {
         let (xa, xa_dot) = (self.state[0], self.state[1]);
         let out = Sample {
@@ -331,7 +331,7 @@ impl<T: Real> ForceControl<T> {
 
     /// x_a (with rate and acceleration) from the desired force and the measured force:
     /// the admittance filter fed by e_f = f_d − f̃, or eq. (20)'s x_a = f_d / k_eff.
-    #[inline]
+    #[inline(always)]
     pub fn step(&mut self, desired: &Sample<T>, measured: T) -> Sample<T> {
         match self {
             ForceControl::Admittance(f) => f.step(desired.value - measured),

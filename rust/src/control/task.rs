@@ -92,7 +92,7 @@ impl TaskFrame {
 impl<T: Real> TaskFrame<T> {
     /// Force control (SPEC §10): X_d = X0 + (x̂_e + x_a − n·X0) n + s(t) t̂ from the filter
     /// output x_a and the motion s(t), with its rate and acceleration.
-    #[inline]
+    #[inline(always)]
     pub fn force_reference(&self, x_a: &Sample<T>, s: &Sample<T>) -> Desired<T> {
         let (n, t) = (&self.normal, &self.tangent);
         Desired {

@@ -87,16 +87,18 @@ pub trait RobotModel<const N: usize>: Clone + Send + Sync {
     /// Per-configuration values of `q`.
     fn configure(&self, q: &JointVector<N>) -> Self::Config;
 
-    /// The values at `shifted` = q + `delta`, given those at q. Arms that can update
-    /// cheaply for a small step (angle addition) override this.
+    /// The values at `shifted` = q + `delta`, given those at q, written into `out` (RK4's
+    /// stages reuse one buffer: a chain's frames are kilobytes). Arms that can update
+    /// cheaply for a small step (angle addition), or fill in place, override this.
     #[inline(always)]
     fn configure_shifted(
         &self,
         _at_q: &Self::Config,
         _delta: &JointVector<N>,
         shifted: &JointVector<N>,
-    ) -> Self::Config {
-        self.configure(shifted)
+        out: &mut Self::Config,
+    ) {
+        *out = self.configure(shifted);
     }
 
     /// Tip position (forward kinematics).

@@ -637,8 +637,8 @@ impl RobotModel<3> for ThreeLinkArm {
     }
 
     #[inline(always)]
-    fn configure_shifted(&self, at_q: &Trig, delta: &Vec3, shifted: &Vec3) -> Trig {
-        at_q.shifted(delta, shifted)
+    fn configure_shifted(&self, at_q: &Trig, delta: &Vec3, shifted: &Vec3, out: &mut Trig) {
+        *out = at_q.shifted(delta, shifted);
     }
 
     #[inline]

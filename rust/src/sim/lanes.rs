@@ -55,12 +55,14 @@ pub trait LaneArm<const N: usize>: RobotModel<N> {
 pub trait ArmLanes<const N: usize> {
     type Config: Copy;
 
+    /// The values at `shifted` = q + `delta`, given those at q, into `out`.
     fn shift(
         &self,
         c: &Self::Config,
         delta: &SVector<F64x4, N>,
         shifted: &SVector<F64x4, N>,
-    ) -> Self::Config;
+        out: &mut Self::Config,
+    );
 
     /// q̈ with the contact force evaluated at the same state (`RobotModel::accelerate`).
     #[allow(clippy::too_many_arguments)]
@@ -107,8 +109,9 @@ impl ArmLanes<3> for ClosedForm<F64x4> {
         c: &Trig<F64x4>,
         delta: &Vector3<F64x4>,
         shifted: &Vector3<F64x4>,
-    ) -> Trig<F64x4> {
-        c.shifted(delta, shifted)
+        out: &mut Trig<F64x4>,
+    ) {
+        *out = c.shifted(delta, shifted);
     }
 
     #[inline(always)]
@@ -166,8 +169,9 @@ impl<const N: usize> ArmLanes<N> for ChainLanes<N> {
         _: &Frames<F64x4, N>,
         _: &SVector<F64x4, N>,
         shifted: &SVector<F64x4, N>,
-    ) -> Frames<F64x4, N> {
-        self.chain.frames(shifted)
+        out: &mut Frames<F64x4, N>,
+    ) {
+        self.chain.frames_into(shifted, out);
     }
 
     #[inline(always)]
@@ -306,8 +310,9 @@ impl<A: ArmLanes<N>, const N: usize> Stages<F64x4, N> for PackedPlant<A> {
         c: &A::Config,
         delta: &SVector<F64x4, N>,
         shifted: &SVector<F64x4, N>,
-    ) -> A::Config {
-        self.arm.shift(c, delta, shifted)
+        out: &mut A::Config,
+    ) {
+        self.arm.shift(c, delta, shifted, out);
     }
 }
 

@@ -164,13 +164,14 @@ pub(crate) trait Stages<T: Real, const N: usize> {
         tau: &SVector<T, N>,
     ) -> SVector<T, N>;
 
-    /// The values at `shifted` = q + `delta`, given those at q.
+    /// The values at `shifted` = q + `delta`, given those at q, into `out`.
     fn shift(
         &self,
         c: &Self::Config,
         delta: &SVector<T, N>,
         shifted: &SVector<T, N>,
-    ) -> Self::Config;
+        out: &mut Self::Config,
+    );
 }
 
 impl<R: RobotModel<N>, const N: usize> Stages<f64, N> for Plant<R, N> {
@@ -200,8 +201,14 @@ impl<R: RobotModel<N>, const N: usize> Stages<f64, N> for Plant<R, N> {
     }
 
     #[inline(always)]
-    fn shift(&self, c: &R::Config, delta: &JointVector<N>, shifted: &JointVector<N>) -> R::Config {
-        self.arm.configure_shifted(c, delta, shifted)
+    fn shift(
+        &self,
+        c: &R::Config,
+        delta: &JointVector<N>,
+        shifted: &JointVector<N>,
+        out: &mut R::Config,
+    ) {
+        self.arm.configure_shifted(c, delta, shifted, out);
     }
 }
 
@@ -217,18 +224,25 @@ pub(crate) fn rk4_period<T: Real, S: Stages<T, N>, const N: usize>(
     tau: &SVector<T, N>,
 ) -> (SVector<T, N>, SVector<T, N>) {
     let (two, six) = (T::splat(2.0), T::splat(6.0));
-    let mut c1 = config;
+    // Two buffers, taken turn about by reference: the values at the substep's q and those
+    // at a stage (then at the next q); a chain's are kilobytes, never copied in the loop.
+    let (mut at_q, mut stage) = (config, config);
+    let (mut c1, mut cs) = (&mut at_q, &mut stage);
     for _ in 0..substeps {
-        let a1 = stages.acceleration(&c1, &qd, tau);
+        let a1 = stages.acceleration(c1, &qd, tau);
         let (d2, qd2) = (qd * (h / two), qd + a1 * (h / two));
-        let a2 = stages.acceleration(&stages.shift(&c1, &d2, &(q + d2)), &qd2, tau);
+        stages.shift(c1, &d2, &(q + d2), cs);
+        let a2 = stages.acceleration(cs, &qd2, tau);
         let (d3, qd3) = (qd2 * (h / two), qd + a2 * (h / two));
-        let a3 = stages.acceleration(&stages.shift(&c1, &d3, &(q + d3)), &qd3, tau);
+        stages.shift(c1, &d3, &(q + d3), cs);
+        let a3 = stages.acceleration(cs, &qd3, tau);
         let (d4, qd4) = (qd3 * h, qd + a3 * h);
-        let a4 = stages.acceleration(&stages.shift(&c1, &d4, &(q + d4)), &qd4, tau);
+        stages.shift(c1, &d4, &(q + d4), cs);
+        let a4 = stages.acceleration(cs, &qd4, tau);
         let dq = (qd + (qd2 + qd3) * two + qd4) * (h / six);
         q += dq;
-        c1 = stages.shift(&c1, &dq, &q);
+        stages.shift(c1, &dq, &q, cs);
+        std::mem::swap(&mut c1, &mut cs);
         qd += (a1 + (a2 + a3) * two + a4) * (h / six);
     }
     (q, qd)

@@ -294,6 +294,17 @@ impl<const N: usize> RobotModel<N> for UrdfArm<N> {
     }
 
     #[inline(always)]
+    fn configure_shifted(
+        &self,
+        _: &Frames<f64, N>,
+        _: &JointVector<N>,
+        shifted: &JointVector<N>,
+        out: &mut Frames<f64, N>,
+    ) {
+        self.chain.frames_into(shifted, out);
+    }
+
+    #[inline(always)]
     fn tip_position(&self, c: &Frames<f64, N>) -> TaskVector {
         c.tip.pos
     }

@@ -393,7 +393,7 @@ impl<T: Real> RigidInertia<T> {
     #[inline(always)]
     pub fn apply(&self, m: &SVec<T>) -> SVec<T> {
         SVec::new(
-            self.ibar * m.ang + self.h.cross(&m.lin),
+            T::mat3_vec(&self.ibar, &m.ang) + self.h.cross(&m.lin),
             m.lin * self.mass - self.h.cross(&m.ang),
         )
     }
