@@ -283,12 +283,25 @@ pub fn exp_lanes(x: [f64; 4]) -> [f64; 4] {
     let t = xc.map(|v| v * LOG2_E + ROUND);
     let n = t.map(|v| v - ROUND);
     let r: [f64; 4] = std::array::from_fn(|i| (xc[i] - n[i] * LN2_HI) - n[i] * LN2_LO);
-    let poly = [
-        exp_polynomial(r[0]),
-        exp_polynomial(r[1]),
-        exp_polynomial(r[2]),
-        exp_polynomial(r[3]),
-    ];
+    // Estrin: e^r = Σ rᵏ/k!, k ≤ 13, paired so independent products run side by side.
+    let poly = r.map(|r| {
+        let r2 = r * r;
+        let r4 = r2 * r2;
+        let r8 = r4 * r4;
+        let p01 = 1.0 + r;
+        let p23 = 1.0 / 2.0 + r * (1.0 / 6.0);
+        let p45 = 1.0 / 24.0 + r * (1.0 / 120.0);
+        let p67 = 1.0 / 720.0 + r * (1.0 / 5040.0);
+        let p89 = 1.0 / 40320.0 + r * (1.0 / 362_880.0);
+        let p1011 = 1.0 / 3_628_800.0 + r * (1.0 / 39_916_800.0);
+        let p1213 = 1.0 / 479_001_600.0 + r * (1.0 / 6_227_020_800.0);
+        let p03 = p01 + r2 * p23;
+        let p47 = p45 + r2 * p67;
+        let p811 = p89 + r2 * p1011;
+        let p07 = p03 + r4 * p47;
+        let p813 = p811 + r4 * p1213;
+        p07 + r8 * p813
+    });
     // 2ⁿ as 2^n1 · 2^n2 with n1 = round(n/2), each built from its exponent bits (an integer
     // k sits in the low bits of k + ROUND, two's complement), so both stay normal over the
     // clamped range and a subnormal result rounds once, in the last product.
@@ -310,29 +323,6 @@ pub fn exp_lanes(x: [f64; 4]) -> [f64; 4] {
             y
         }
     })
-}
-
-/// e^r for |r| ≤ ln 2 / 2 by Estrin's scheme: Σ rᵏ/k!, k ≤ 13, paired so independent
-/// products run side by side. A function of its own, always inlined: as a closure of
-/// `map` it was left out of line from the AVX2 lane loop, as baseline two-wide code.
-#[inline(always)]
-fn exp_polynomial(r: f64) -> f64 {
-    let r2 = r * r;
-    let r4 = r2 * r2;
-    let r8 = r4 * r4;
-    let p01 = 1.0 + r;
-    let p23 = 1.0 / 2.0 + r * (1.0 / 6.0);
-    let p45 = 1.0 / 24.0 + r * (1.0 / 120.0);
-    let p67 = 1.0 / 720.0 + r * (1.0 / 5040.0);
-    let p89 = 1.0 / 40320.0 + r * (1.0 / 362_880.0);
-    let p1011 = 1.0 / 3_628_800.0 + r * (1.0 / 39_916_800.0);
-    let p1213 = 1.0 / 479_001_600.0 + r * (1.0 / 6_227_020_800.0);
-    let p03 = p01 + r2 * p23;
-    let p47 = p45 + r2 * p67;
-    let p811 = p89 + r2 * p1011;
-    let p07 = p03 + r4 * p47;
-    let p813 = p811 + r4 * p1213;
-    p07 + r8 * p813
 }
 
 /// (sin x, cos x) in four lanes at once, with no branch and no table, so it vectorises.

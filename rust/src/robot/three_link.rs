@@ -451,12 +451,15 @@ impl<T: Real> ClosedForm<T> {
     }
 
     /// sgn(v) as friction uses it: tanh(v/ε), or the exact sign where ε ≤ 0.
-    #[inline]
+    #[inline(always)]
     fn sign(&self, v: T) -> T {
         friction_sign(v, v * self.inv_eps, self.eps)
     }
 
-    /// Viscous plus Coulomb friction at q̇.
+    /// Viscous plus Coulomb friction at q̇. Always inlined: it runs at every RK4 stage, and
+    /// left out of line from the lanes' AVX2 loop (as LTO once chose) it ran as baseline
+    /// two-wide code.
+    #[inline(always)]
     pub fn friction(&self, qd: &Vector3<T>) -> Vector3<T> {
         Vector3::new(
             self.fv[0] * qd[0] + self.fc[0] * self.sign(qd[0]),

@@ -38,6 +38,11 @@ pub trait LaneArm<const N: usize>: RobotModel<N> {
     /// Stages 1–8 of a period in lanes, for the structures that have them.
     type Front: Front<Self, N>;
 
+    /// Whether the lane stages read each run's own configuration values (its plant's
+    /// `config`, kept fresh at every write-back); if not, they are refreshed once a run's
+    /// lanes are done.
+    const READS_EACH_CONFIG: bool;
+
     /// Whether `other` can share lanes with this arm (same joint structure).
     fn same_structure(&self, other: &Self) -> bool;
 
@@ -80,6 +85,7 @@ pub trait ArmLanes<const N: usize> {
 impl LaneArm<3> for ThreeLinkArm {
     type Lanes = ClosedForm<F64x4>;
     type Front = ThreeLinkStages;
+    const READS_EACH_CONFIG: bool = true;
 
     fn same_structure(&self, _: &Self) -> bool {
         true
@@ -137,6 +143,7 @@ pub struct ChainLanes<const N: usize> {
 impl<const N: usize> LaneArm<N> for UrdfArm<N> {
     type Lanes = ChainLanes<N>;
     type Front = ChainStages<N>;
+    const READS_EACH_CONFIG: bool = false;
 
     fn same_structure(&self, other: &Self) -> bool {
         self.chain.same_structure(&other.chain)
@@ -418,19 +425,31 @@ fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) {
             plant.substeps,
             &pack(std::array::from_fn(|l| &lane_tau[l])),
         );
-        // Stage 9's write-back and the divergence check, per lane.
+        // Stage 9's write-back and the divergence check, per lane. A chain's frames per lane
+        // are computed once its run is done, unless its stages run lane by lane.
+        let deferred = !R::READS_EACH_CONFIG && front.is_some();
         for (l, s) in slot.iter_mut().enumerate() {
             if let Some(i) = *s {
                 let unpack = |v: &SVector<F64x4, N>| v.map(|x| crate::scalar::lane(x, l));
-                sims[i].plant_mut().set_state(PlantState {
+                let state = PlantState {
                     q: unpack(&q),
                     qd: unpack(&qd),
-                });
+                };
+                if deferred {
+                    sims[i].plant_mut().set_state_deferred(state);
+                } else {
+                    sims[i].plant_mut().set_state(state);
+                }
                 sims[i].after_plant();
                 if sims[i].outcome().is_some() {
                     *s = None;
                 }
             }
+        }
+    }
+    if !R::READS_EACH_CONFIG {
+        for s in sims.iter_mut() {
+            s.plant_mut().refresh_config();
         }
     }
 }

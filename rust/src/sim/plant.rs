@@ -79,6 +79,18 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
         self.config = self.arm.configure(&state.q);
     }
 
+    /// The state only, its configuration values left stale until [`Self::refresh_config`]:
+    /// for the lanes, whose stages compute a chain's frames from the packed state and never
+    /// read each plant's.
+    pub(crate) fn set_state_deferred(&mut self, state: PlantState<N>) {
+        self.state = state;
+    }
+
+    /// The configuration values of the current state, after [`Self::set_state_deferred`].
+    pub(crate) fn refresh_config(&mut self) {
+        self.config = self.arm.configure(&self.state.q);
+    }
+
     /// Tip position, Jacobian and J̇q̇ at the current state (what the robot's encoders give).
     #[inline]
     pub fn kinematics(&self) -> crate::robot::Kinematics<N> {
@@ -224,25 +236,25 @@ pub(crate) fn rk4_period<T: Real, S: Stages<T, N>, const N: usize>(
     tau: &SVector<T, N>,
 ) -> (SVector<T, N>, SVector<T, N>) {
     let (two, six) = (T::splat(2.0), T::splat(6.0));
-    // Two buffers, taken turn about by reference: the values at the substep's q and those
-    // at a stage (then at the next q); a chain's are kilobytes, never copied in the loop.
-    let (mut at_q, mut stage) = (config, config);
-    let (mut c1, mut cs) = (&mut at_q, &mut stage);
+    // The stages' values are written into one buffer (a chain's are kilobytes: returned by
+    // value they were copied at every stage); the next substep's start is copied back once.
+    let mut c1 = config;
+    let mut stage = config;
     for _ in 0..substeps {
-        let a1 = stages.acceleration(c1, &qd, tau);
+        let a1 = stages.acceleration(&c1, &qd, tau);
         let (d2, qd2) = (qd * (h / two), qd + a1 * (h / two));
-        stages.shift(c1, &d2, &(q + d2), cs);
-        let a2 = stages.acceleration(cs, &qd2, tau);
+        stages.shift(&c1, &d2, &(q + d2), &mut stage);
+        let a2 = stages.acceleration(&stage, &qd2, tau);
         let (d3, qd3) = (qd2 * (h / two), qd + a2 * (h / two));
-        stages.shift(c1, &d3, &(q + d3), cs);
-        let a3 = stages.acceleration(cs, &qd3, tau);
+        stages.shift(&c1, &d3, &(q + d3), &mut stage);
+        let a3 = stages.acceleration(&stage, &qd3, tau);
         let (d4, qd4) = (qd3 * h, qd + a3 * h);
-        stages.shift(c1, &d4, &(q + d4), cs);
-        let a4 = stages.acceleration(cs, &qd4, tau);
+        stages.shift(&c1, &d4, &(q + d4), &mut stage);
+        let a4 = stages.acceleration(&stage, &qd4, tau);
         let dq = (qd + (qd2 + qd3) * two + qd4) * (h / six);
         q += dq;
-        stages.shift(c1, &dq, &q, cs);
-        std::mem::swap(&mut c1, &mut cs);
+        stages.shift(&c1, &dq, &q, &mut stage);
+        c1 = stage;
         qd += (a1 + (a2 + a3) * two + a4) * (h / six);
     }
     (q, qd)
