@@ -507,10 +507,25 @@ mod tests {
             .collect()
     }
 
+    /// Runs `f` on a thread with a 256 MB stack: unoptimised (debug) builds give every
+    /// temporary of the inlined lane loop its own stack slot, beyond a test thread's 2 MB.
+    fn with_stack(f: fn()) {
+        std::thread::Builder::new()
+            .stack_size(256 << 20)
+            .spawn(f)
+            .expect("a test thread")
+            .join()
+            .expect("the test passes");
+    }
+
     /// The portable build of the lane loop (what a CPU without AVX2, or aarch64, runs) gives
     /// the dispatched build's bits: Rust never fuses a multiply and an add on its own.
     #[test]
     fn baseline_build_equals_the_dispatched_one() {
+        with_stack(baseline_equals_dispatched);
+    }
+
+    fn baseline_equals_dispatched() {
         let stiffness = [1e4, 3e4, 1e5, 2e5, 5e4];
         let dispatched = run_lanes(&mut sims(&stiffness));
         let mut baseline = sims(&stiffness);
@@ -523,6 +538,10 @@ mod tests {
     /// A run's result does not depend on the runs sharing its lanes, nor on its lane.
     #[test]
     fn a_lane_does_not_depend_on_its_neighbours() {
+        with_stack(neighbours);
+    }
+
+    fn neighbours() {
         let alone = run_lanes(&mut sims(&[3e4]));
         let crowd = run_lanes(&mut sims(&[1e4, 3e4, 2e5, 7e4, 9e4, 3e4, 1.5e4]));
         assert_eq!(bits(&alone), bits(&crowd[1..2]));
