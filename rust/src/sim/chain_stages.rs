@@ -105,6 +105,7 @@ mod tests {
     use crate::robot::RobotModel;
     use crate::sim::chain_stages::ChainStages;
     use crate::sim::lane_stages::tests::{varied, worst_trace_gap};
+    use crate::sim::lanes::tests::with_stack;
     use crate::sim::lanes::{run_lanes, Front};
     use crate::sim::outcome::Outcome;
     use crate::sim::scenario::RobotConfig;
@@ -190,17 +191,6 @@ mod tests {
     #[test]
     fn panda_lanes_agree_with_simulate() {
         with_stack(panda_lanes);
-    }
-
-    /// Runs `f` on a thread with a 256 MB stack: unoptimised (debug) builds give every
-    /// temporary of the 7-joint lane math its own stack slot, beyond a test thread's 2 MB.
-    fn with_stack(f: fn()) {
-        std::thread::Builder::new()
-            .stack_size(256 << 20)
-            .spawn(f)
-            .expect("a test thread")
-            .join()
-            .expect("the test passes");
     }
 
     fn panda_lanes() {

@@ -470,7 +470,7 @@ fn repack<'a, R: LaneArm<N>, const N: usize>(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::sim::scenario::ScenarioConfig;
     use crate::world::environment::WallParams;
@@ -509,7 +509,7 @@ mod tests {
 
     /// Runs `f` on a thread with a 256 MB stack: unoptimised (debug) builds give every
     /// temporary of the inlined lane loop its own stack slot, beyond a test thread's 2 MB.
-    fn with_stack(f: fn()) {
+    pub(crate) fn with_stack(f: fn()) {
         std::thread::Builder::new()
             .stack_size(256 << 20)
             .spawn(f)
