@@ -9,7 +9,8 @@ import pytest
 
 MODULES = ["admit_rs", "admit_rs.config", "admit_rs.errors", "admit_rs.export",
            "admit_rs.simulation", "admit_rs.sweep", "admit_rs.paper", "admit_rs.reproduction",
-           "admit_rs.metrics", "admit_rs.plot", "admit_rs._names", "admit_rs.analysis"]  # fmt: skip
+           "admit_rs.metrics", "admit_rs.plot", "admit_rs._names", "admit_rs.analysis",
+           "admit_rs._paper_scenarios"]  # fmt: skip
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -7,8 +7,8 @@ import functools
 import inspect
 import re
 import textwrap
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, Protocol
 
 import matplotlib
 import numpy as np
@@ -16,14 +16,38 @@ import numpy.typing as npt
 import polars as pl
 from matplotlib.patches import Rectangle
 
+from admit_rs.config import Scenario
+
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from admit_rs.simulation import Result
+
+class Run(Protocol):
+    """What the run plots read from a run: an :class:`admit_rs.Result` is one.
+
+    Declared here so that plotting depends on no simulation code (and
+    :meth:`admit_rs.Result.plot` can call :func:`plot_result` without an import cycle).
+    """
+
+    @property
+    def scenario(self) -> Scenario:
+        """The scenario that was run (its label and whether it has a force loop)."""
+
+    @property
+    def trace(self) -> pl.DataFrame:
+        """The trace, with the columns of :data:`admit_rs.TRACE_COLUMNS`."""
+
+    @property
+    def diverged_at(self) -> float | None:
+        """When the run stopped as unstable [s], ``None`` if it completed."""
+
+    @property
+    def divergence_cause(self) -> str | None:
+        """Why it stopped, ``None`` if it completed."""
 
 
-def plot_result(result: Result, title: str | None = None) -> Figure:
+def plot_result(result: Run, title: str | None = None) -> Figure:
     """Four panels: force and f_d; x and its reference; z and its reference; x_a.
 
     Position-only runs show joint torques in place of the force panels.
@@ -84,7 +108,7 @@ def plot_result(result: Result, title: str | None = None) -> Figure:
 
 
 def plot_paper_figure(
-    results: list[Result], title: str, size: tuple[float, float] = (15.0, 8.0)
+    results: Sequence[Run], title: str, size: tuple[float, float] = (15.0, 8.0)
 ) -> Figure:
     """A paper figure: every curve overlaid, panels like the paper's (a), (b), ...
 

@@ -16,6 +16,13 @@ from typing import TYPE_CHECKING
 
 import polars as pl
 
+from admit_rs._paper_scenarios import (
+    FIGURES,
+    VARIANT_SUFFIX,
+    VARIANTS,
+    scenarios,
+    variant_scenarios,
+)
 from admit_rs.config import (
     AdmittanceFilter,
     ComputedTorque,
@@ -26,7 +33,6 @@ from admit_rs.config import (
     TimeDelayControl,
 )
 from admit_rs.metrics import METRICS
-from admit_rs.paper import FIGURES, VARIANT_SUFFIX, VARIANTS, scenarios, variant_scenarios
 from admit_rs.simulation import Result, simulate
 
 if TYPE_CHECKING:

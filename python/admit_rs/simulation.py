@@ -17,6 +17,7 @@ from admit_rs._names import MetricsDict
 from admit_rs.config import Scenario
 from admit_rs.errors import AdmitError
 from admit_rs.metrics import verdict
+from admit_rs.plot import plot_result
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -79,8 +80,6 @@ class Result:
 
     def plot(self, title: str | None = None) -> Figure:
         """Force vs f_d, x and z against their references, and x_a (a matplotlib Figure)."""
-        from admit_rs.plot import plot_result
-
         return plot_result(self, title=title)
 
     def __repr__(self) -> str:
