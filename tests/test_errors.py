@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+import dataclasses
+import difflib
 import inspect
 import math
 import sys
 import warnings
+from pathlib import Path
 
 import admit_rs as ar
 import pytest
 import tomllib
 from admit_rs import errors
+from admit_rs._names import check_column
 
 # --- one root ---------------------------------------------------------------------------
 
@@ -101,6 +105,51 @@ def test_replace_unknown_path_is_an_unknown_parameter_error():
         ar.Scenario().replace(**{"admittance.bb": 1.0})
     assert str(info.value).startswith("admittance.bb: no such parameter in Scenario; did you")
     assert "admittance.b" in info.value.suggestions
+
+
+# --- one "closest name" helper ---------------------------------------------------------
+
+
+def test_every_did_you_mean_comes_from_errors_closest():
+    # The only difflib call of the package is errors.closest's.
+    package = Path(errors.__file__).parent
+    users = sorted(p.name for p in package.glob("*.py") if "difflib" in p.read_text("utf-8"))
+    assert users == ["errors.py"]
+    assert errors.CLOSE_MATCH_CUTOFF == 0.6
+    assert errors.closest("stifness", ["stiffness", "damping"]) == ["stiffness"]
+
+
+# "force_pek" is close to force_peak, "force_qqqqq" (ratio 0.57) only just not:
+# the same cutoff on every surface, keywords, metrics, columns, state entries and figures.
+@pytest.mark.parametrize("typo", ["force_pek", "force_qqqqq", "zzz"])
+def test_every_surface_suggests_the_same_names(typo):
+    metrics = ar.simulate(ar.paper.scenario("fig14").replace(duration=0.1)).metrics
+    with pytest.raises(ar.UnknownNameError) as info:
+        metrics[typo]
+    assert info.value.suggestions == errors.closest(typo, sorted(metrics))
+    labels = ["plant.q1", "plant.qd1", "force_peak", "force_pk"]
+    with pytest.raises(ar.UnknownNameError) as info:
+        check_column(labels, typo)
+    assert info.value.suggestions == errors.closest(typo, labels)
+    fields = [f.name for f in dataclasses.fields(ar.Wall)]
+    with pytest.raises(ar.UnknownParameterError) as err:
+        ar.Wall(**{typo: 1.0})
+    assert err.value.suggestions == errors.closest(typo, fields)
+    sim = ar.Simulation(ar.paper.scenario("fig14").replace(duration=0.1))
+    with pytest.raises(ar.UnknownNameError) as info:
+        sim.set_state({typo: 0.0})
+    assert info.value.suggestions == errors.closest(typo, sim.state_labels)
+    assert info.value.kind == "state entry"
+
+
+def test_the_cutoff_is_the_same_for_names_and_keywords():
+    # 0.5 <= ratio < 0.6: suggested by no surface (UnknownNameError used 0.5 before).
+    ratio = difflib.SequenceMatcher(None, "force_qqqqq", "force_peak").ratio()
+    assert 0.5 <= ratio < errors.CLOSE_MATCH_CUTOFF
+    with pytest.raises(ar.UnknownNameError) as info:
+        check_column(["force_peak"], "force_qqqqq")
+    assert info.value.suggestions == []
+    assert str(info.value) == "unknown column 'force_qqqqq'; valid: force_peak"
 
 
 # --- TOML: keys, kinds ------------------------------------------------------------------

@@ -38,6 +38,39 @@ def test_every_figure_has_its_curves():
         ar.paper.scenarios("fig21")
 
 
+ALL_FIGURES = ", ".join(f"fig{n}" for n in range(5, 21))
+
+
+@pytest.mark.parametrize("lookup", [ar.paper.scenario, ar.paper.scenarios])
+def test_unknown_figure_names_the_value_the_figures_and_the_closest(lookup):
+    with pytest.raises(ar.UnknownNameError) as info:
+        lookup("fig99")
+    err = info.value
+    # Under the library's root, and still the KeyError it always was.
+    assert isinstance(err, ar.AdmitError) and isinstance(err, KeyError)
+    assert (err.kind, err.name) == ("figure", "fig99")
+    assert err.suggestions == ["fig9", "fig19", "fig8"]
+    assert str(err) == (
+        f"unknown figure 'fig99'; did you mean 'fig9' or 'fig19' or 'fig8'? valid: {ALL_FIGURES}"
+    )
+
+
+def test_unknown_figure_number_and_no_close_match():
+    with pytest.raises(ar.UnknownNameError) as info:
+        ar.paper.scenario(4)
+    assert info.value.name == "fig4"
+    assert info.value.suggestions == ["fig14", "fig9", "fig8"]
+    with pytest.raises(ar.UnknownNameError) as info:
+        ar.paper.scenarios("zzz")
+    assert info.value.suggestions == []
+    assert str(info.value) == f"unknown figure 'zzz'; valid: {ALL_FIGURES}"
+    # The same check guards the variants and the figure titles.
+    with pytest.raises(ar.UnknownNameError, match="unknown figure 'fig99'"):
+        ar.paper.variant_scenarios(99)
+    with pytest.raises(ar.UnknownNameError, match="unknown figure 'fig99'"):
+        reproduction.figure("fig99", results=[])
+
+
 def test_scenarios_follow_spec_section_9():
     fig8 = ar.paper.scenarios("fig8")
     assert fig8[0].admittance == ar.AdmittanceFilter(m=1.0, b=800.0, k=400.0, ka=0.1)

@@ -1,4 +1,5 @@
-"""Unknown names (metrics, table columns) raise one error that suggests the closest ones.
+"""Unknown names (metrics, table columns, state entries, paper figures) raise one error that
+suggests the closest ones (:func:`admit_rs.errors.closest`).
 
 Example:
     >>> import admit_rs as ar
@@ -11,25 +12,26 @@ Example:
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Iterable
 from typing import Any
 
-from admit_rs.errors import AdmitError
+from admit_rs.errors import AdmitError, closest
 
 __all__ = ["MetricsDict", "UnknownNameError", "check_column"]
 
 
 class UnknownNameError(AdmitError, KeyError):
-    """An unknown metric or column name; ``name``, ``kind`` and ``suggestions`` say which.
+    """An unknown metric, column, state entry or figure name; ``name``, ``kind`` and
+    ``suggestions`` (from :func:`admit_rs.errors.closest`) say which. The message lists
+    the ``valid`` names in the order given.
 
     A ``KeyError`` (so ``except KeyError`` keeps working) and an ``AdmitError``.
     """
 
     def __init__(self, kind: str, name: str, valid: Iterable[str]) -> None:
-        valid = sorted(str(v) for v in valid)
+        valid = [str(v) for v in valid]
         self.kind, self.name = kind, name
-        self.suggestions = difflib.get_close_matches(name, valid, n=3, cutoff=0.5)
+        self.suggestions = closest(name, valid)
         hint = (
             f"did you mean {' or '.join(repr(s) for s in self.suggestions)}? "
             if self.suggestions
@@ -45,12 +47,12 @@ class MetricsDict(dict[str, Any]):
     """A run's metrics: a plain ``dict`` whose unknown keys raise :class:`UnknownNameError`."""
 
     def __missing__(self, key: str) -> Any:
-        raise UnknownNameError("metric", str(key), self.keys())
+        raise UnknownNameError("metric", str(key), sorted(self.keys()))
 
 
 def check_column(columns: Iterable[str], name: str, kind: str = "column") -> str:
     """Returns ``name`` if it is one of ``columns``, else raises :class:`UnknownNameError`."""
     columns = list(columns)
     if name not in columns:
-        raise UnknownNameError(kind, name, columns)
+        raise UnknownNameError(kind, name, sorted(columns))
     return name

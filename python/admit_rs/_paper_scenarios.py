@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from admit_rs._names import UnknownNameError
 from admit_rs.config import (
     AdmittanceFilter,
     ComputedTorque,
@@ -191,7 +192,7 @@ def _build(name: str) -> list[Scenario]:
                 )
                 for ke in (10_000.0, 30_000.0, 50_000.0, 100_000.0)
             ]
-    raise KeyError(f"unknown figure {name!r}; the paper's simulations are {', '.join(FIGURES)}")
+    raise UnknownNameError("figure", name, FIGURES)
 
 
 VARIANT_SUFFIX = "-variant"
@@ -206,7 +207,7 @@ allows, V = Ẍ_d + K_A⁻¹(K_D ė + K_P e). SPEC §4 (the default) applies K_A
 
 def variant_scenarios(figure: str | int) -> list[Scenario]:
     """A figure's curves under the variant reading of eq. (39) (see :data:`VARIANTS`)."""
-    name = _name(figure)
+    name = figure_name(figure)
     if name not in VARIANTS:
         raise KeyError(f"no variant for {name!r}; variants exist for {', '.join(VARIANTS)}")
     return [
@@ -218,13 +219,33 @@ def variant_scenarios(figure: str | int) -> list[Scenario]:
     ]
 
 
-def _name(figure: str | int) -> str:
-    return f"fig{figure}" if isinstance(figure, int) else figure
+def figure_name(figure: str | int) -> str:
+    """The key of a figure in :data:`FIGURES` ("fig14" for 14 or "fig14").
+
+    Anything else raises :class:`admit_rs.UnknownNameError` (a ``KeyError``) naming the
+    value, the paper's figures and the closest ones.
+
+    Example:
+        >>> from admit_rs.paper import figure_name
+        >>> figure_name(14), figure_name("fig9")
+        ('fig14', 'fig9')
+        >>> figure_name("fig99")
+        Traceback (most recent call last):
+        ...
+        admit_rs._names.UnknownNameError: unknown figure 'fig99'; did you mean 'fig9' or ...
+    """
+    name = f"fig{figure}" if isinstance(figure, int) else str(figure)
+    if name not in FIGURES:
+        raise UnknownNameError("figure", name, FIGURES)
+    return name
 
 
 def scenarios(figure: str | int) -> list[Scenario]:
-    """Every curve of a figure ("fig5" ... "fig20", or the number), each labelled."""
-    return _build(_name(figure))
+    """Every curve of a figure ("fig5" ... "fig20", or the number), each labelled.
+
+    An unknown figure raises :class:`admit_rs.UnknownNameError` (see :func:`figure_name`).
+    """
+    return _build(figure_name(figure))
 
 
 def scenario(figure: str | int) -> Scenario:

@@ -10,6 +10,8 @@ would expect. (A value of the wrong type and a bad ``sweep()`` argument still ra
   ``value`` and ``allowed``).
 - :class:`UnknownParameterError` (also a ``TypeError``): a keyword, dotted path or TOML
   key that names no field, with the closest valid names (attribute ``suggestions``).
+- :class:`admit_rs.UnknownNameError` (also a ``KeyError``; in :mod:`admit_rs._names`): an
+  unknown metric, table column, state entry or paper figure, with the closest valid names.
 - :class:`AnalysisError` (also a ``ValueError``): a scenario :mod:`admit_rs.analysis`
   cannot linearise (no contact equilibrium, a singular one, no wall or force loop).
 - :class:`ExportError` (also a ``ValueError``): a scenario an export target cannot
@@ -18,6 +20,9 @@ would expect. (A value of the wrong type and a bad ``sweep()`` argument still ra
   ``SweepInterrupted`` (a ``KeyboardInterrupt`` only, not an AdmitError: that is an
   ``Exception``, and ``except Exception`` must not swallow a Ctrl-C) of
   :mod:`admit_rs.sweep`.
+
+Every "did you mean" suggestion comes from :func:`closest`, with one cutoff
+(:data:`CLOSE_MATCH_CUTOFF`).
 
 This module imports nothing from the Rust extension: the extension raises the classes
 defined here.
@@ -79,9 +84,24 @@ class ExportError(AdmitError, ValueError):
     and names the nearest faithful alternative."""
 
 
+CLOSE_MATCH_CUTOFF = 0.6
+"""The least :class:`difflib.SequenceMatcher` ratio at which a valid name is suggested for
+an unknown one (difflib's own default). Every did-you-mean message of admit_rs goes through
+:func:`closest`, so they all suggest the same names for the same typo."""
+
+
 def closest(name: str, valid: Iterable[str], n: int = 3) -> list[str]:
-    """The up to ``n`` valid names closest to ``name`` (difflib ratio ≥ 0.6)."""
-    return difflib.get_close_matches(name, list(valid), n=n, cutoff=0.6)
+    """The up to ``n`` valid names closest to ``name``, best first: those whose difflib
+    ratio to it is at least :data:`CLOSE_MATCH_CUTOFF`.
+
+    Example:
+        >>> from admit_rs.errors import closest
+        >>> closest("stifness", ["stiffness", "damping", "model"])
+        ['stiffness']
+        >>> closest("zzz", ["stiffness", "damping"])
+        []
+    """
+    return difflib.get_close_matches(name, list(valid), n=n, cutoff=CLOSE_MATCH_CUTOFF)
 
 
 def unknown(message: str, name: str, valid: Iterable[str]) -> UnknownParameterError:

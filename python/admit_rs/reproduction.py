@@ -20,6 +20,7 @@ from admit_rs._paper_scenarios import (
     FIGURES,
     VARIANT_SUFFIX,
     VARIANTS,
+    figure_name,
     scenarios,
     variant_scenarios,
 )
@@ -92,7 +93,7 @@ def figure(name: str | int, results: Sequence[Result] | None = None) -> Figure:
     key = f"fig{name}" if isinstance(name, int) else name
     runs = list(results) if results is not None else run_figure(key)
     base = key.removesuffix(VARIANT_SUFFIX)
-    info = FIGURES[base]
+    info = FIGURES[figure_name(base)]
     title = f"Fig. {info.number}: {info.caption}"
     if base != key:
         title += f" — VARIANT: {VARIANTS[base]} (not the paper as written)"

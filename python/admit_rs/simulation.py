@@ -3,7 +3,6 @@ step the same loop one period at a time."""
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -13,7 +12,7 @@ import numpy.typing as npt
 import polars as pl
 
 from admit_rs import _core
-from admit_rs._names import MetricsDict
+from admit_rs._names import MetricsDict, UnknownNameError
 from admit_rs.config import Scenario
 from admit_rs.errors import AdmitError
 from admit_rs.metrics import verdict
@@ -194,15 +193,14 @@ class Simulation:
         """Sets the state: a mapping of some labels (the others keep their values) or a full
         vector in :attr:`state_labels` order. The trace keeps the samples before ``sample``.
 
-        Unknown labels raise ``KeyError`` naming the closest valid ones."""
+        Unknown labels raise :class:`admit_rs.UnknownNameError` (a ``KeyError``) naming the
+        closest valid ones."""
         if isinstance(state, Mapping):
             values = self._core.state().tolist()
             index = {name: i for i, name in enumerate(self._labels)}
             for name, value in state.items():
                 if name not in index:
-                    close = difflib.get_close_matches(str(name), self._labels, n=3)
-                    hint = f"; did you mean {', '.join(close)}?" if close else ""
-                    raise KeyError(f"{name!r}: no such state entry{hint}")
+                    raise UnknownNameError("state entry", str(name), self._labels)
                 values[index[name]] = float(value)
         else:
             values = [float(v) for v in np.ravel(np.asarray(state, dtype=float))]
