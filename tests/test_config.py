@@ -7,6 +7,7 @@ import math
 
 import admit_rs as ar
 import pytest
+from admit_rs import config
 
 
 def test_defaults_are_the_paper_preset():
@@ -201,12 +202,14 @@ def test_signals_evaluate_in_python_like_in_rust():
 
 # --- help(ar.Wall) and friends: fields with meaning, unit, default ---------------------
 
-BLOCKS = [ar.Robot, ar.Wall, ar.ModelError, ar.ComputedTorque, ar.ModelFree,
-          ar.TimeDelayControl, ar.AdmittanceFilter, ar.ImpedanceReference, ar.Step, ar.Sine,
-          ar.Sampled, ar.Scenario]  # fmt: skip
+BLOCKS = list(config._BLOCKS)  # every public block (tests/test_errors.py checks the list)
 
 
-@pytest.mark.parametrize("cls", BLOCKS)
+def test_every_block_is_documented_force_sensor_and_actuator_included():
+    assert {ar.ForceSensor, ar.Actuator, ar.UrdfArm, ar.Scenario} <= set(BLOCKS)
+
+
+@pytest.mark.parametrize("cls", BLOCKS, ids=lambda c: c.__name__)
 def test_block_docstring_lists_every_field_with_its_meaning(cls):
     doc = cls.__doc__
     assert "Fields (keyword-only; units in brackets):" in doc
@@ -238,3 +241,11 @@ def test_block_docstrings_give_units_and_defaults():
     assert "    period (float, default 0.001)\n        Controller period T [s]." in (
         ar.Scenario.__doc__
     )
+    assert (
+        "    noise_std (float, default 0.0)\n"
+        "        Standard deviation of white Gaussian noise [N]."
+    ) in ar.ForceSensor.__doc__
+    assert (
+        "    torque_limit (float | tuple[float, ...] | None, default None)\n"
+        "        |τ_j| limit [N·m]: one number for every joint or one per joint"
+    ) in ar.Actuator.__doc__

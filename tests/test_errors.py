@@ -13,7 +13,7 @@ from pathlib import Path
 import admit_rs as ar
 import pytest
 import tomllib
-from admit_rs import errors
+from admit_rs import config, errors
 from admit_rs._names import check_column
 
 # --- one root ---------------------------------------------------------------------------
@@ -77,6 +77,9 @@ MISSPELLED = [
     (ar.Sine, "amplitud", "amplitude"),
     (ar.Sampled, "time", "times"),
     (ar.Scenario, "duraton", "duration"),
+    (ar.ForceSensor, "noise_stdd", "noise_std"),
+    (ar.Actuator, "torque_limt", "torque_limit"),
+    (ar.UrdfArm, "tip_lnk", "tip_link"),
 ]
 
 
@@ -88,6 +91,61 @@ def test_every_block_suggests_the_closest_keyword(cls, typo, right):
     assert str(info.value).startswith(f"{cls.__name__}: unknown keyword {typo!r}; did you mean")
     assert info.value.suggestions[0] == right
     assert info.value.name == typo
+
+
+def _exported_blocks() -> list[type]:
+    """Every public block class: the frozen dataclasses of admit_rs.config that admit_rs
+    exports (found, not listed, so a new block cannot be left out)."""
+    found = []
+    for name in ar.__all__:
+        obj = getattr(ar, name)
+        if (
+            inspect.isclass(obj)
+            and dataclasses.is_dataclass(obj)
+            and obj.__module__ == "admit_rs.config"
+            and obj.__dataclass_params__.frozen
+        ):
+            found.append(obj)
+    return found
+
+
+EXPORTED_BLOCKS = _exported_blocks()
+
+
+def test_the_block_walk_sees_every_block():
+    names = {cls.__name__ for cls in EXPORTED_BLOCKS}
+    assert {"Robot", "UrdfArm", "Wall", "ForceSensor", "Actuator", "ModelError",
+            "ComputedTorque", "ModelFree", "TimeDelayControl", "AdmittanceFilter",
+            "ImpedanceReference", "Step", "Sine", "Sampled", "Scenario"} <= names  # fmt: skip
+    # config guards and documents exactly these.
+    assert set(EXPORTED_BLOCKS) == set(config._BLOCKS)
+    # The explicit typo table above covers every block too.
+    assert {cls for cls, _, _ in MISSPELLED} == set(EXPORTED_BLOCKS)
+
+
+@pytest.mark.parametrize("cls", EXPORTED_BLOCKS, ids=lambda c: c.__name__)
+def test_every_exported_block_rejects_an_unknown_keyword_with_a_suggestion(cls):
+    field = max((f.name for f in dataclasses.fields(cls)), key=len)
+    typo = field + field[-1]
+    with pytest.raises(ar.UnknownParameterError) as info:
+        cls(**{typo: 1.0})
+    err = info.value
+    assert isinstance(err, TypeError) and isinstance(err, ar.AdmitError)
+    assert (err.name, err.suggestions[0]) == (typo, field)
+    assert str(err).startswith(f"{cls.__name__}: unknown keyword {typo!r}; did you mean {field}")
+
+
+def test_force_sensor_and_actuator_suggest_like_every_block():
+    with pytest.raises(ar.UnknownParameterError) as info:
+        ar.ForceSensor(noise_stdd=1)
+    assert str(info.value) == "ForceSensor: unknown keyword 'noise_stdd'; did you mean noise_std?"
+    assert info.value.suggestions == ["noise_std"]
+    with pytest.raises(ar.UnknownParameterError) as info:
+        ar.Actuator(torque_limt=10.0)
+    assert str(info.value) == (
+        "Actuator: unknown keyword 'torque_limt'; did you mean torque_limit, rate_limit?"
+    )
+    assert info.value.suggestions == ["torque_limit", "rate_limit"]
 
 
 def test_no_close_match_lists_the_valid_keywords():

@@ -1064,23 +1064,17 @@ def _guard_init(cls: type[_Block]) -> None:
     cls.__init__ = __init__  # type: ignore[method-assign]
 
 
-_BLOCKS: tuple[type[_Block], ...] = (
-    Robot,
-    UrdfArm,
-    Wall,
-    ModelError,
-    ComputedTorque,
-    ModelFree,
-    TimeDelayControl,
-    AdmittanceFilter,
-    ImpedanceReference,
-    Step,
-    Sine,
-    Sampled,
-    Scenario,
+_BLOCKS: tuple[type[_Block], ...] = tuple(
+    obj
+    for name, obj in list(globals().items())
+    if isinstance(obj, type)
+    and issubclass(obj, _Block)
+    and dataclasses.is_dataclass(obj)
+    and not name.startswith("_")
 )
-"""Every public block type."""
-
+"""Every public block type: each public dataclass of this module built on ``_Block``, found
+rather than listed, so a new block cannot miss its unknown-keyword guard and field docs
+(tests/test_errors.py checks every block ``admit_rs`` exports against this)."""
 
 
 def _attribute_docs() -> dict[str, dict[str, str]]:
