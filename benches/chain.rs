@@ -24,7 +24,7 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 
-use admit_rs::control::controller::{ControllerParams, PerJoint, PositionGains, TimeDelayParams};
+use admit_rs::control::params::{ControllerParams, PerJoint, PositionGains, TimeDelayParams};
 use admit_rs::robot::chain::arm::{accelerate, JointFriction};
 use admit_rs::robot::chain::{Frames, SerialChain, UrdfArm, UrdfArmParams};
 use admit_rs::robot::{JointVector, RobotModel};

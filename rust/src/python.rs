@@ -8,12 +8,12 @@ use pyo3::import_exception;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::control::controller::{
-    ComputedTorqueParams, ControllerParams, ModelError, ModelFreeParams, PerJoint, PositionGains,
-    TdcLaw, TimeDelayParams,
-};
 use crate::control::filter::{
     AdmittanceFilter, AdmittanceParams, ForceControlParams, ImpedanceParams,
+};
+use crate::control::params::{
+    ComputedTorqueParams, ControllerParams, ModelError, ModelFreeParams, PerJoint, PositionGains,
+    TdcLaw, TimeDelayParams,
 };
 use crate::control::reference::Signal;
 use crate::error::Error;

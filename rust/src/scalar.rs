@@ -20,7 +20,9 @@ pub const LANES: usize = 4;
 
 /// A scalar for the stage math: nalgebra's `SimdRealField` over `f64` elements, plus the
 /// few operations whose lane version is written here.
-pub trait Real: SimdRealField<Element = f64> + Copy {
+pub trait Real:
+    SimdRealField<Element = f64, SimdBool: std::fmt::Debug + PartialEq> + Copy + Default
+{
     /// Number of runs this scalar carries.
     const LANES: usize;
 

@@ -1,895 +1,203 @@
-//! The inner position loop: computed torque (eq. 7), model-free control (eq. 18 without the
-//! delay estimate) and time-delayed control (eqs. 17 and 18), all driven by the Cartesian
-//! command V of eq. (39). Each is a state machine with `reset()` and `step()`.
+//! The inner position loop as one state machine over a scalar `T` (SPEC §4, §11, §14):
+//! `f64` for one run, a lane type for four runs of one structure. It owns what the laws of
+//! `control::laws` need between periods and across a run: the law's kind, the gains of
+//! eq. (39), D̄ and K_t, TDC's memory τ_{k−1}, q̇_{k−1}, and the task's reference state (R0 of a
+//! pose task, q0 of a redundant arm's posture, J⁺'s damping). A scalar run is `Controller<f64,
+//! R, N>` (its model is an arm `R`); a lane group packs four of them into
+//! `Controller<F64x4, M, N>` (`M`: the four models in lanes). There is no second copy.
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+use simba::simd::SimdValue;
 
+use crate::control::laws::{
+    computed_torque, model_free, time_delay, OrientationTask, TaskInputs, TaskTerms,
+};
+use crate::control::params::{constant_inertia, ControllerParams, PositionGains, TdcLaw};
 use crate::control::task::Desired;
-use crate::error::{check, Result};
-use crate::robot::{
-    Dynamics, JointMatrix, JointVector, Kinematics, RobotModel, TaskOptions, TaskVector,
-};
-use crate::scalar::{
-    choose_vector, finite, mat_t_vec, mat_vec, no_lane, zeros, F64x4, Real, LANES,
-};
+use crate::robot::chain::arm::rotation_vector;
+use crate::robot::{Dynamics, JointVector, Kinematics, Orientation, RobotModel, TaskOptions};
+use crate::scalar::{finite, mask_from, no_lane, put, put_vector, F64x4, Real, LANES};
 
-/// Gains of eq. (39): V = K_A⁻¹ (Ẍ_d + K_D (Ẋ_d − Ẋ) + K_P (X_d − X)), each a scalar times I.
-/// Over `f64`, or four runs' gains in lanes (one `scale_feedforward`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PositionGains<T: Real = f64> {
-    pub ka: T,
-    pub kd: T,
-    pub kp: T,
-    /// `true` (SPEC §4, the paper as written): K_A⁻¹ multiplies the feed-forward Ẍ_d too.
-    /// `false`: V = Ẍ_d + K_A⁻¹ (K_D ė + K_P e), a reading under which computed torque
-    /// tracks X_d exactly; offered as a labelled variant, never the default.
-    pub scale_feedforward: bool,
-}
-
-impl PositionGains {
-    pub const fn new(ka: f64, kd: f64, kp: f64) -> Self {
-        Self {
-            ka,
-            kd,
-            kp,
-            scale_feedforward: true,
-        }
-    }
-}
-
-impl PositionGains {
-    pub fn validate(&self) -> Result<()> {
-        check::positive("ka", self.ka)?;
-        check::non_negative("kd", self.kd)?;
-        check::non_negative("kp", self.kp)
-    }
-}
-
-impl PositionGains<F64x4> {
-    /// Four runs' gains in lanes (they share `scale_feedforward`: the lane key).
-    pub fn pack(g: [&PositionGains; LANES]) -> Self {
-        Self {
-            ka: F64x4::from_lanes(|i| g[i].ka),
-            kd: F64x4::from_lanes(|i| g[i].kd),
-            kp: F64x4::from_lanes(|i| g[i].kp),
-            scale_feedforward: g[0].scale_feedforward,
-        }
-    }
-}
-
-impl<T: Real> PositionGains<T> {
-    /// eq. (39)
-    #[inline(always)]
-    pub fn command(
+/// What computed torque asks of the model it believes in: (D̂, Ĉ q̇, Ĝ) and τ̂_f at the
+/// measured state. `At` is what the arm's kinematics already computed and the model may
+/// reuse (the three-link arm's trig in lanes; nothing for a scalar arm, which configures
+/// itself at q).
+pub trait ControllerModel<T: Real, const N: usize> {
+    type At;
+    fn terms(
         &self,
-        desired: &Desired<T>,
-        position: &Vector3<T>,
-        velocity: &Vector3<T>,
-    ) -> Vector3<T> {
-        let feedback =
-            (desired.velocity - velocity) * self.kd + (desired.position - position) * self.kp;
-        if self.scale_feedforward {
-            (desired.acceleration + feedback) / self.ka
-        } else {
-            desired.acceleration + feedback / self.ka
-        }
+        at: &Self::At,
+        q: &SVector<T, N>,
+        qd: &SVector<T, N>,
+    ) -> (Dynamics<N, T>, SVector<T, N>);
+}
+
+impl<R: RobotModel<N>, const N: usize> ControllerModel<f64, N> for R {
+    type At = ();
+
+    #[inline(always)]
+    fn terms(
+        &self,
+        _: &(),
+        q: &JointVector<N>,
+        qd: &JointVector<N>,
+    ) -> (Dynamics<N>, JointVector<N>) {
+        (self.dynamics(&self.configure(q), qd), self.friction(qd))
     }
 }
 
-/// The controller's belief about the arm, relative to the plant (SPEC §4, for sweeps).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ModelError {
-    /// Factor on every link mass (and so every inertia). Default 1.
-    pub mass_scale: f64,
-    /// Factor on viscous and Coulomb friction. Default 1.
-    pub friction_scale: f64,
-}
-
-impl Default for ModelError {
-    fn default() -> Self {
-        Self {
-            mass_scale: 1.0,
-            friction_scale: 1.0,
-        }
-    }
-}
-
-impl ModelError {
-    pub fn validate(&self) -> Result<()> {
-        check::positive("mass_scale", self.mass_scale)?;
-        check::non_negative("friction_scale", self.friction_scale)
-    }
-
-    /// The controller's copy of the plant's arm.
-    fn arm<R: RobotModel<N>, const N: usize>(&self, robot: &R) -> R {
-        robot.with_model_error(self.mass_scale, self.friction_scale)
-    }
-}
-
-/// Which TDC law.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum TdcLaw {
-    /// eq. (18): τ = D̄ K_t Jᵀ V + τ_{k−1} − D̄ q̈_{k−1}.
-    JacobianTranspose,
-    /// eq. (17): τ = D̄ J⁻¹ (V − J̇q̇) + τ_{k−1} − D̄ q̈_{k−1}.
-    InverseJacobian,
-}
-
-/// Computed torque, eq. (7) in joint space: τ = D̂ J⁻¹ (V − J̇q̇) + Ĉ + Ĝ + τ̂_f.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ComputedTorqueParams {
-    /// Default K_A = 0.1, K_D = 20, K_P = 100.
-    pub gains: PositionGains,
-    /// Add f J_xᵀ to cancel the measured contact force. Default false.
-    pub contact_compensation: bool,
-    pub model: ModelError,
-}
-
-impl Default for ComputedTorqueParams {
-    fn default() -> Self {
-        Self {
-            gains: PositionGains::new(0.1, 20.0, 100.0),
-            contact_compensation: false,
-            model: ModelError::default(),
-        }
-    }
-}
-
-/// The most joints a per-joint parameter can describe.
-pub const MAX_JOINTS: usize = 8;
-
-/// A constant inertia D̄ given per joint: n values (D̄ = diag) or n² values (a full
-/// symmetric positive definite D̄, row-major), stored inline so parameter blocks stay `Copy`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PerJoint {
-    values: [f64; MAX_JOINTS * MAX_JOINTS],
-    len: usize,
-}
-
-impl PerJoint {
-    /// `None` when `values` has more than 64 entries.
-    pub fn from_slice(values: &[f64]) -> Option<Self> {
-        (values.len() <= MAX_JOINTS * MAX_JOINTS).then(|| {
-            let mut v = [0.0; MAX_JOINTS * MAX_JOINTS];
-            v[..values.len()].copy_from_slice(values);
-            Self {
-                values: v,
-                len: values.len(),
-            }
-        })
-    }
-
-    pub fn as_slice(&self) -> &[f64] {
-        &self.values[..self.len]
-    }
-
-    /// Whether it describes an `n`-joint arm (n values or n² values).
-    pub fn fits(&self, n: usize) -> bool {
-        self.len == n || self.len == n * n
-    }
-
-    /// D̄ as a matrix (the caller has checked `fits(N)`).
-    pub fn matrix<const N: usize>(&self) -> JointMatrix<N> {
-        if self.len == N {
-            JointMatrix::<N>::from_diagonal(&JointVector::<N>::from_fn(|i, _| self.values[i]))
-        } else {
-            JointMatrix::<N>::from_fn(|i, j| self.values[i * N + j])
-        }
-    }
-}
-
-/// D̄ of eqs. 17/18: `inertia`·I, or the per-joint D̄ when given (a URDF arm whose wrist
-/// inertias are far below its shoulder's needs one: TDC is stable only while the spectral
-/// radius of I − D⁻¹D̄ stays below 1).
-pub(crate) fn constant_inertia<const N: usize>(
-    inertia: f64,
-    joint: &Option<PerJoint>,
-) -> JointMatrix<N> {
-    joint.map_or_else(
-        || JointMatrix::<N>::identity() * inertia,
-        |p| p.matrix::<N>(),
-    )
-}
-
-fn check_joint_inertia(p: &Option<PerJoint>) -> Result<()> {
-    if let Some(p) = p {
-        for (i, v) in p.as_slice().iter().enumerate() {
-            check::finite(&format!("inertia[{i}]"), *v)?;
-        }
-    }
-    Ok(())
-}
-
-/// Checks a per-joint D̄ against the arm's joint count: n positive values, or an n×n
-/// symmetric positive definite matrix.
-pub fn check_inertia_for<const N: usize>(p: &PerJoint) -> Result<()> {
-    let shown = || format!("{:?}", p.as_slice());
-    if !p.fits(N) {
-        return Err(crate::error::Error::parameter(
-            "inertia",
-            shown(),
-            &format!("one number, {N} numbers (diagonal) or {N}x{N} (a matrix)"),
-        ));
-    }
-    let m = p.matrix::<N>();
-    if (m - m.transpose()).abs().max() > 1e-12 * m.abs().max() || m.cholesky().is_none() {
-        return Err(crate::error::Error::parameter(
-            "inertia",
-            shown(),
-            "positive values, or a symmetric positive definite matrix",
-        ));
-    }
-    Ok(())
-}
-
-/// Model-free ("nonmodel") control: eq. (18) without the delay estimate, τ = D̄ K_t Jᵀ V.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ModelFreeParams {
-    /// Default K_A = 5, K_D = 20, K_P = 100.
-    pub gains: PositionGains,
-    /// Constant inertia D̄ = α I [kg·m²]. Default 0.1.
-    pub inertia: f64,
-    /// D̄ = diag(values), one per joint, instead of `inertia`·I. Default `None`.
-    pub joint_inertia: Option<PerJoint>,
-    /// Torque constant K_t. Default 200.
-    pub torque_constant: f64,
-}
-
-impl Default for ModelFreeParams {
-    fn default() -> Self {
-        Self {
-            gains: PositionGains::new(5.0, 20.0, 100.0),
-            inertia: 0.1,
-            joint_inertia: None,
-            torque_constant: 200.0,
-        }
-    }
-}
-
-/// Time-delayed control, eq. (18) (default) or eq. (17).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TimeDelayParams {
-    /// Default K_A = 5, K_D = 20, K_P = 100.
-    pub gains: PositionGains,
-    /// Constant inertia D̄ [kg·m²]. Default 0.1.
-    pub inertia: f64,
-    /// D̄ = diag(values), one per joint, instead of `inertia`·I. Default `None`.
-    pub joint_inertia: Option<PerJoint>,
-    /// Torque constant K_t (eq. 18 only). Default 200.
-    pub torque_constant: f64,
-    pub law: TdcLaw,
-    /// Used only for the initial torque τ_{−1} = Ĝ(q0).
-    pub model: ModelError,
-}
-
-impl Default for TimeDelayParams {
-    fn default() -> Self {
-        let mf = ModelFreeParams::default();
-        Self {
-            gains: mf.gains,
-            inertia: mf.inertia,
-            joint_inertia: None,
-            torque_constant: mf.torque_constant,
-            law: TdcLaw::JacobianTranspose,
-            model: ModelError::default(),
-        }
-    }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum ControllerParams {
-    ComputedTorque(ComputedTorqueParams),
-    ModelFree(ModelFreeParams),
-    TimeDelay(TimeDelayParams),
-}
-
-impl ControllerParams {
-    pub fn validate(&self) -> Result<()> {
-        let gains = |g: &PositionGains| g.validate();
-        match self {
-            ControllerParams::ComputedTorque(p) => {
-                gains(&p.gains)?;
-                p.model.validate().map_err(|e| e.within("model"))
-            }
-            ControllerParams::ModelFree(p) => {
-                gains(&p.gains)?;
-                check::positive("inertia", p.inertia)?;
-                check_joint_inertia(&p.joint_inertia)?;
-                check::positive("torque_constant", p.torque_constant)
-            }
-            ControllerParams::TimeDelay(p) => {
-                gains(&p.gains)?;
-                check::positive("inertia", p.inertia)?;
-                check_joint_inertia(&p.joint_inertia)?;
-                check::positive("torque_constant", p.torque_constant)?;
-                p.model.validate().map_err(|e| e.within("model"))
-            }
-        }
-    }
-}
-
-/// What the controller measures at t_k. The kinematics are evaluated once by the
-/// simulation: the controller's model shares the plant's geometry.
+/// What the controller reads at t_k: the encoders' state, the tip kinematics the plant
+/// evaluated once, the tip orientation terms when the task holds the orientation, and the
+/// measured contact force along the wall normal.
 #[derive(Debug, Clone, Copy)]
-pub struct Measurement<'a, const N: usize> {
-    pub q: &'a JointVector<N>,
-    pub qd: &'a JointVector<N>,
-    pub kinematics: &'a Kinematics<N>,
+pub struct Measured<'a, T: Real, const N: usize> {
+    pub q: &'a SVector<T, N>,
+    pub qd: &'a SVector<T, N>,
+    pub kinematics: &'a Kinematics<N, T>,
+    /// The tip's rotation terms; read only by a pose task (`Controller::pose`).
+    pub orientation: Option<&'a Orientation<N, T>>,
     /// Contact force along the wall normal, as the sensor reads it [N].
-    pub force: f64,
+    pub force: T,
     /// The wall normal n (the force direction).
-    pub normal: &'a TaskVector,
-    /// A pose task's orientation terms (SPEC §11); `None` for a position task.
-    pub orientation: Option<OrientationTask<N>>,
-    /// q0 of the null-space posture term, when the arm has more joints than the task has
-    /// dimensions; `None` otherwise.
-    pub posture: Option<&'a JointVector<N>>,
-    /// J⁺'s damping and the orientation gains (general task path only).
+    pub normal: &'a Vector3<T>,
+}
+
+/// TDC's memory (eq. 14): τ_{k−1}, the torque *applied* in the previous period (anti-windup,
+/// SPEC §10), and q̇_{k−1}; `started`: the lanes that have a q̇_{k−1}.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TdcMemory<T: Real, const N: usize> {
+    pub law: TdcLaw,
+    period: T,
+    /// τ_{−1} = Ĝ(q0).
+    initial_torque: SVector<T, N>,
+    tau_prev: SVector<T, N>,
+    qd_prev: SVector<T, N>,
+    started: T::SimdBool,
+}
+
+/// The law's kind with what it keeps.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Law<T: Real, M, const N: usize> {
+    /// Eq. (7), with the model the controller believes in.
+    ComputedTorque { compensation: bool, model: M },
+    /// Eq. (18) without the delay estimate.
+    ModelFree,
+    /// Eqs. (17) and (18) with their memory.
+    TimeDelay(TdcMemory<T, N>),
+}
+
+/// The general task's reference state (SPEC §11): R0 of a pose task with its orientation
+/// (K_P, K_D), q0 of a redundant arm's posture and J⁺'s damping λ.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TaskSetup<T: Real, const N: usize> {
+    start_rotation: Option<Matrix3<T>>,
+    orientation_gains: (T, T),
+    posture: Option<SVector<T, N>>,
+    damping: T,
+}
+
+/// The arm's task as one run sees it at q0: R0 for a pose task, q0 for a redundant arm's
+/// posture, and the arm's J⁺ damping and orientation gains.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TaskAtStart<const N: usize> {
+    pub start_rotation: Option<Matrix3<f64>>,
+    pub posture: Option<JointVector<N>>,
     pub options: TaskOptions,
 }
 
-/// The orientation part of a pose task: the error e_o = log(R0 Rᵀ) as a rotation vector
-/// (the orientation is held at its start R0), the angular Jacobian and its J̇q̇. Over `f64`,
-/// or four runs' terms in lanes.
-#[derive(Debug, Clone, Copy)]
-pub struct OrientationTask<const N: usize, T: Real = f64> {
-    pub error: Vector3<T>,
-    pub jacobian: SMatrix<T, 3, N>,
-    pub jdot_qd: Vector3<T>,
-}
-
-/// The damped pseudo-inverse J⁺ = Jᵀ (J Jᵀ + λ² I)⁻¹ of a 6×N task Jacobian (SPEC §11),
-/// with the lanes where it failed: a Cholesky pivot of J Jᵀ + λ² I that is not positive
-/// (zero, negative or NaN), or a J⁺ that is not finite.
-///
-/// This is nalgebra's `cholesky()` and `solve`, operation for operation (J Jᵀ summed in
-/// gemm's order, the factor column by column, forward then backward substitution, so the
-/// `f64` bits of nalgebra's, tested), written out because nalgebra's loops are not inlined
-/// into the AVX2 lane loop: left out of line, they ran as baseline two-wide code. Its
-/// `cholesky()` also needs a `ComplexField` (it returns `None` at a bad pivot), which SIMD
-/// lanes are not: the pivots (√pivot on L's diagonal) are checked here, lane by lane.
-#[inline(always)]
-pub(crate) fn damped_pseudo_inverse<T: Real, const N: usize>(
-    j: &SMatrix<T, 6, N>,
-    damping: T,
-) -> (SMatrix<T, N, 6>, T::SimdBool) {
-    // L's lower triangle, from A = J Jᵀ + λ² I (only A's lower triangle is read).
-    let mut l = [[T::zero(); 6]; 6];
-    let lambda2 = damping * damping;
-    for r in 0..6 {
-        for c in 0..=r {
-            let mut sum = T::zero();
-            for k in 0..N {
-                sum += j[(r, k)] * j[(c, k)];
-            }
-            l[r][c] = if r == c { sum + lambda2 } else { sum };
+impl<const N: usize> TaskAtStart<N> {
+    /// What `robot`'s task holds: R0 (a pose task), q0 where N exceeds the task's dimension.
+    pub fn of<R: RobotModel<N>>(robot: &R) -> Self {
+        let q0 = robot.initial_position();
+        let start_rotation = robot
+            .orientation(&robot.configure(&q0), &JointVector::zeros())
+            .map(|o| o.rotation);
+        let task_dimension = if start_rotation.is_some() { 6 } else { 3 };
+        Self {
+            start_rotation,
+            posture: (N > task_dimension).then_some(q0),
+            options: robot.task_options(),
         }
     }
-    let mut failed = no_lane::<T>();
-    for c in 0..6 {
-        for k in 0..c {
-            let f = l[c][k];
-            for row in l.iter_mut().skip(c) {
-                row[c] -= f * row[k];
-            }
-        }
-        let pivot_root = l[c][c].simd_sqrt();
-        // √pivot > 0 exactly when the pivot is positive (NaN and 0 fail).
-        failed = failed | !pivot_root.simd_gt(T::zero());
-        l[c][c] = pivot_root;
-        for row in l.iter_mut().skip(c + 1) {
-            row[c] /= pivot_root;
-        }
-    }
-    // (J Jᵀ + λ² I)⁻¹ J column by column: J⁺ᵀ, as L Lᵀ x = J's column.
-    let mut pinv = zeros::<T, N, 6>();
-    for k in 0..N {
-        let mut b: [T; 6] = std::array::from_fn(|i| j[(i, k)]);
-        for i in 0..6 {
-            let coeff = b[i] / l[i][i];
-            b[i] = coeff;
-            for r in i + 1..6 {
-                b[r] -= coeff * l[r][i];
-            }
-        }
-        for i in (0..6).rev() {
-            let mut dot = T::zero();
-            for r in i + 1..6 {
-                dot += l[r][i] * b[r];
-            }
-            b[i] = (b[i] - dot) / l[i][i];
-            failed = failed | !finite(b[i]);
-            pinv[(k, i)] = b[i];
-        }
-    }
-    (pinv, failed)
 }
 
-/// The terms of the general task (SPEC §11) at one state: the 6×N task Jacobian J (rows
-/// 0–2 linear, 3–5 angular, zero for a position task, which the damped J⁺ then ignores),
-/// the task command V and J̇q̇, J⁺, and the null-space posture term a_n.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct TaskTerms<T: Real, const N: usize> {
-    jacobian: SMatrix<T, 6, N>,
-    command: SVector<T, 6>,
-    jdot_qd: SVector<T, 6>,
-    pinv: SMatrix<T, N, 6>,
-    null: SVector<T, N>,
-}
-
-/// What the general task reads besides the kinematics and V of eq. (39): the measured
-/// joint state, a pose task's orientation with its (K_P, K_D), the posture q0 of a
-/// redundant arm, K_A, the posture's (K_P, K_D) and J⁺'s damping λ.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct TaskInputs<'a, T: Real, const N: usize> {
-    pub q: &'a SVector<T, N>,
-    pub qd: &'a SVector<T, N>,
-    pub orientation: Option<(&'a OrientationTask<N, T>, (T, T))>,
-    pub posture: Option<&'a SVector<T, N>>,
-    pub gains: (T, T, T),
-    pub damping: T,
-}
-
-impl<T: Real, const N: usize> TaskTerms<T, N> {
-    /// The task's J, V, J̇q̇, J⁺ and a_n = (I − J⁺J) K_A⁻¹ (K_P (q0 − q) − K_D q̇), with the
-    /// lanes where J⁺ failed (`damped_pseudo_inverse`).
-    #[inline(always)]
-    pub(crate) fn new(
-        k: &Kinematics<N, T>,
-        v_position: &Vector3<T>,
-        input: &TaskInputs<T, N>,
-    ) -> (Self, T::SimdBool) {
-        let (ka, kd, kp) = input.gains;
-        let mut j = zeros::<T, 6, N>();
-        let mut v = zeros::<T, 6, 1>();
-        let mut jdot_qd = zeros::<T, 6, 1>();
-        j.fixed_rows_mut::<3>(0).copy_from(&k.jacobian);
-        v.fixed_rows_mut::<3>(0).copy_from(v_position);
-        jdot_qd.fixed_rows_mut::<3>(0).copy_from(&k.jdot_qd);
-        if let Some((o, (kp_o, kd_o))) = input.orientation {
-            // eq. (39) for the orientation, held at R0: no feed-forward, Ẋ_d = 0.
-            let omega = mat_vec(&o.jacobian, input.qd);
-            let v_o = (o.error * kp_o - omega * kd_o) / ka;
-            j.fixed_rows_mut::<3>(3).copy_from(&o.jacobian);
-            v.fixed_rows_mut::<3>(3).copy_from(&v_o);
-            jdot_qd.fixed_rows_mut::<3>(3).copy_from(&o.jdot_qd);
-        }
-        let (pinv, failed) = damped_pseudo_inverse(&j, input.damping);
-        let null = match input.posture {
-            Some(q0) => {
-                // (I − J⁺J) w as w − J⁺ (J w): two products with vectors, no N×N matrix.
-                let w = ((q0 - input.q) * kp - input.qd * kd) / ka;
-                w - mat_vec(&pinv, &mat_vec(&j, &w))
-            }
-            None => zeros::<T, N, 1>(),
-        };
-        let terms = Self {
-            jacobian: j,
-            command: v,
-            jdot_qd,
-            pinv,
-            null,
-        };
-        (terms, failed)
-    }
-
-    /// J⁺ (V − J̇q̇) + a_n: eqs. 7 and 17's joint acceleration.
-    #[inline(always)]
-    fn inverse(&self) -> SVector<T, N> {
-        mat_vec(&self.pinv, &(self.command - self.jdot_qd)) + self.null
-    }
-
-    /// K_t Jᵀ V + a_n: eq. 18's.
-    #[inline(always)]
-    fn transpose(&self, torque_constant: T) -> SVector<T, N> {
-        mat_t_vec(&self.jacobian, &self.command) * torque_constant + self.null
-    }
-
-    /// Eq. (7) over the task: τ = D̂ (J⁺ (V − J̇q̇) + a_n) + Ĉ + Ĝ + τ̂_f, plus the measured
-    /// contact force's f J_xᵀ n when compensated (`linear`: the 3×N position Jacobian).
-    #[inline(always)]
-    pub(crate) fn computed_torque(
-        &self,
-        (d, friction): (Dynamics<N, T>, SVector<T, N>),
-        linear: &SMatrix<T, 3, N>,
-        compensation: Option<(&Vector3<T>, T)>,
-    ) -> SVector<T, N> {
-        let mut tau = mat_vec(&d.inertia, &self.inverse()) + d.coriolis + d.gravity + friction;
-        if let Some((normal, force)) = compensation {
-            tau += mat_t_vec(linear, normal) * force;
-        }
-        tau
-    }
-
-    /// Model-free control over the task: τ = D̄ (K_t Jᵀ V + a_n).
-    #[inline(always)]
-    pub(crate) fn model_free(&self, dbar: &SMatrix<T, N, N>, torque_constant: T) -> SVector<T, N> {
-        mat_vec(dbar, &self.transpose(torque_constant))
-    }
-
-    /// TDC over the task, eq. (18) or eq. (17) times D̄, plus ĥ = τ_{k−1} − D̄ q̈_{k−1}
-    /// (`started`: the lanes that have a q̇_{k−1}; q̈_{−1} = 0).
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    pub(crate) fn time_delay(
-        &self,
-        qd: &SVector<T, N>,
-        dbar: &SMatrix<T, N, N>,
-        (torque_constant, period): (T, T),
-        law: TdcLaw,
-        tau_prev: &SVector<T, N>,
-        qd_prev: &SVector<T, N>,
-        started: T::SimdBool,
-    ) -> SVector<T, N> {
-        let qdd_prev = choose_vector(started, || (qd - qd_prev) / period, SVector::zeros);
-        let h_hat = tau_prev - mat_vec(dbar, &qdd_prev);
-        let u = match law {
-            TdcLaw::JacobianTranspose => mat_vec(dbar, &self.transpose(torque_constant)),
-            TdcLaw::InverseJacobian => mat_vec(dbar, &self.inverse()),
-        };
-        u + h_hat
-    }
-}
-
-/// Why a control law could not produce a torque.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ControlFailure {
-    SingularJacobian,
-}
-
-/// det J relative to its Hadamard bound (the product of the column norms) below which the
-/// Jacobian counts as singular: J⁻¹ would amplify rounding beyond any use.
-const SINGULAR_RATIO: f64 = 1e-9;
-
-/// Damping λ of the pseudo-inverse J⁺ = Jᵀ (J Jᵀ + λ² I)⁻¹ (SPEC §11's default).
-pub const PSEUDO_INVERSE_DAMPING: f64 = 1e-3;
-
-/// Joint accelerations for a task acceleration (eqs. 7 and 17): J⁻¹ rhs for a square
-/// Jacobian (three joints, position task, as the paper writes it); the damped
-/// pseudo-inverse Jᵀ (J Jᵀ + λ² I)⁻¹ rhs of SPEC §11 for any other joint count. (The
-/// controller calls `solve_square` and `damped_pseudo_inverse` directly; this keeps both
-/// reachable for the tests.)
-#[cfg(test)]
-fn solve_jacobian<const N: usize>(
-    j: &SMatrix<f64, 3, N>,
-    rhs: &TaskVector,
-) -> std::result::Result<JointVector<N>, ControlFailure> {
-    if N != 3 {
-        let damped = j * j.transpose() + Matrix3::identity() * PSEUDO_INVERSE_DAMPING.powi(2);
-        return damped
-            .try_inverse()
-            .map(|inv| j.transpose() * (inv * rhs))
-            .filter(|qdd| qdd.iter().all(|v| v.is_finite()))
-            .ok_or(ControlFailure::SingularJacobian);
-    }
-    let (x, singular) = solve_square(j, rhs);
-    if singular {
-        return Err(ControlFailure::SingularJacobian);
-    }
-    Ok(x)
-}
-
-/// J⁻¹ rhs for the square 3×3 Jacobian of a three-joint position task (eqs. 7 and 17), with
-/// the lanes where J counts as singular: |det J| at most `SINGULAR_RATIO` times its Hadamard
-/// bound, NaN or exactly 0. The inverse is nalgebra's 3×3 cofactor formula written out
-/// over any scalar (the same operations, so the same bits for `f64`; tested).
-#[inline(always)]
-pub(crate) fn solve_square<T: Real, const N: usize>(
-    j: &SMatrix<T, 3, N>,
-    rhs: &Vector3<T>,
-) -> (SVector<T, N>, T::SimdBool) {
-    let j: Matrix3<T> = j.fixed_view::<3, 3>(0, 0).into_owned();
-    let bound = j.column(0).norm() * j.column(1).norm() * j.column(2).norm();
-    let (m11, m12, m13) = (j[(0, 0)], j[(0, 1)], j[(0, 2)]);
-    let (m21, m22, m23) = (j[(1, 0)], j[(1, 1)], j[(1, 2)]);
-    let (m31, m32, m33) = (j[(2, 0)], j[(2, 1)], j[(2, 2)]);
-    let minor_m12_m23 = m22 * m33 - m32 * m23;
-    let minor_m11_m23 = m21 * m33 - m31 * m23;
-    let minor_m11_m22 = m21 * m32 - m31 * m22;
-    let signed = m11 * minor_m12_m23 - m12 * minor_m11_m23 + m13 * minor_m11_m22;
-    let det = signed.simd_abs();
-    let zero = T::zero();
-    let singular =
-        det.simd_ne(det) | det.simd_le(T::splat(SINGULAR_RATIO) * bound) | signed.simd_eq(zero);
-    if T::all(singular) {
-        return (zeros(), singular);
-    }
-    #[rustfmt::skip]
-    let inv = Matrix3::new(
-        minor_m12_m23 / signed, (m13 * m32 - m33 * m12) / signed, (m12 * m23 - m22 * m13) / signed,
-        -minor_m11_m23 / signed, (m11 * m33 - m31 * m13) / signed, (m13 * m21 - m23 * m11) / signed,
-        minor_m11_m22 / signed, (m12 * m31 - m32 * m11) / signed, (m11 * m22 - m21 * m12) / signed,
-    );
-    let x = mat_vec(&inv, rhs);
-    (SVector::<T, N>::from_fn(|i, _| x[i]), singular)
-}
-
-/// Eq. (7) mapped to joint space with eq. (4): τ = D̂ J⁻¹ (V − J̇q̇) + Ĉ + Ĝ + τ̂_f, plus
-/// f Jᵀ n when the measured contact force is compensated. `model` gives the controller
-/// model's (D̂, Ĉ, Ĝ) and τ̂_f at the measured state. Returns τ and the singular lanes.
-#[inline(always)]
-pub(crate) fn computed_torque<T: Real, const N: usize>(
-    k: &Kinematics<N, T>,
-    v: &Vector3<T>,
-    model: impl FnOnce() -> (Dynamics<N, T>, SVector<T, N>),
-    compensation: Option<(&Vector3<T>, T)>,
-) -> (SVector<T, N>, T::SimdBool) {
-    let (qdd, singular) = solve_square(&k.jacobian, &(v - k.jdot_qd));
-    if T::all(singular) {
-        return (qdd, singular);
-    }
-    let (d, friction) = model();
-    let mut tau = mat_vec(&d.inertia, &qdd) + d.coriolis + d.gravity + friction;
-    if let Some((normal, force)) = compensation {
-        // The plant feels Jᵀ(−f n); add it back.
-        tau += mat_t_vec(&k.jacobian, normal) * force;
-    }
-    (tau, singular)
-}
-
-/// Model-free control, eq. (18) without the delay estimate: τ = D̄ K_t Jᵀ V (D̄ = α I).
-#[inline(always)]
-pub(crate) fn model_free<T: Real, const N: usize>(
-    k: &Kinematics<N, T>,
-    v: &Vector3<T>,
-    inertia: T,
-    torque_constant: T,
-) -> SVector<T, N> {
-    mat_t_vec(&k.jacobian, v) * (inertia * torque_constant)
-}
-
-/// Time-delayed control, eq. (18) or eq. (17) (D̄ = α I), with the memory τ_{k−1} and
-/// q̇_{k−1} (`started`: the lanes that have a q̇_{k−1}). Returns τ_k and the singular lanes;
-/// the caller stores τ_k and q̇_k as the next memory.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-pub(crate) fn time_delay<T: Real, const N: usize>(
-    k: &Kinematics<N, T>,
-    v: &Vector3<T>,
-    qd: &SVector<T, N>,
-    (inertia, torque_constant, period): (T, T, T),
-    law: TdcLaw,
-    tau_prev: &SVector<T, N>,
-    qd_prev: &SVector<T, N>,
-    started: T::SimdBool,
-) -> (SVector<T, N>, T::SimdBool) {
-    // eq. (14): ĥ ≈ τ_{k−1} − D̄ q̈_{k−1}, with q̈_{k−1} = (q̇_k − q̇_{k−1})/T, q̈_{−1} = 0.
-    let qdd_prev = choose_vector(started, || (qd - qd_prev) / period, SVector::zeros);
-    let h_hat = tau_prev - qdd_prev * inertia;
-    let (u, singular) = match law {
-        TdcLaw::JacobianTranspose => (
-            mat_t_vec(&k.jacobian, v) * (inertia * torque_constant),
-            no_lane::<T>(),
-        ),
-        TdcLaw::InverseJacobian => {
-            let (qdd, singular) = solve_square(&k.jacobian, &(v - k.jdot_qd));
-            (qdd * inertia, singular)
-        }
-    };
-    (u + h_hat, singular)
-}
-
-/// A position controller as a state machine over an arm model `R` of `N` joints.
+/// A position controller: one of the three laws, on the square path or the general task
+/// path, with its memory. Over `f64` (one run, model `M` an arm) or lanes.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Controller<R, const N: usize> {
-    ComputedTorque {
-        params: ComputedTorqueParams,
-        model: R,
-    },
-    ModelFree(ModelFreeParams),
-    TimeDelay {
-        params: TimeDelayParams,
-        period: f64,
-        initial_torque: JointVector<N>,
-        /// τ_{k−1}: the torque *applied* in the previous period (anti-windup, SPEC §10).
-        tau_prev: JointVector<N>,
-        /// q̇_{k−1}; `None` before the first sample.
-        qd_prev: Option<JointVector<N>>,
-    },
+pub struct Controller<T: Real, M, const N: usize> {
+    law: Law<T, M, N>,
+    gains: PositionGains<T>,
+    /// D̄ = α I's α (the square path; computed torque: unused).
+    inertia: T,
+    /// D̄ as a matrix: α I or the per-joint D̄ (the task path).
+    dbar: SMatrix<T, N, N>,
+    torque_constant: T,
+    /// `None`: the paper's square path (three joints, position task, D̄ = α I, J⁻¹).
+    task: Option<TaskSetup<T, N>>,
 }
 
-impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
-    /// The controller for the plant's arm `robot`.
-    pub fn new(params: &ControllerParams, robot: &R, period: f64) -> Self {
-        match params {
-            ControllerParams::ComputedTorque(p) => Controller::ComputedTorque {
-                params: *p,
+impl<R: RobotModel<N>, const N: usize> Controller<f64, R, N> {
+    /// The controller for the plant's arm `robot`, whose task is `task`.
+    pub fn new(params: &ControllerParams, robot: &R, period: f64, task: &TaskAtStart<N>) -> Self {
+        let (gains, inertia, joint_inertia, torque_constant) = match params {
+            ControllerParams::ComputedTorque(p) => (p.gains, 1.0, None, 0.0),
+            ControllerParams::ModelFree(p) => {
+                (p.gains, p.inertia, p.joint_inertia, p.torque_constant)
+            }
+            ControllerParams::TimeDelay(p) => {
+                (p.gains, p.inertia, p.joint_inertia, p.torque_constant)
+            }
+        };
+        let law = match params {
+            ControllerParams::ComputedTorque(p) => Law::ComputedTorque {
+                compensation: p.contact_compensation,
                 model: p.model.arm(robot),
             },
-            ControllerParams::ModelFree(p) => Controller::ModelFree(*p),
+            ControllerParams::ModelFree(_) => Law::ModelFree,
             ControllerParams::TimeDelay(p) => {
                 let model = p.model.arm(robot);
                 let q0 = model.initial_position();
                 let g0 = model
                     .dynamics(&model.configure(&q0), &JointVector::zeros())
                     .gravity;
-                Controller::TimeDelay {
-                    params: *p,
+                Law::TimeDelay(TdcMemory {
+                    law: p.law,
                     period,
                     initial_torque: g0,
                     tau_prev: g0,
-                    qd_prev: None,
-                }
+                    qd_prev: JointVector::zeros(),
+                    started: false,
+                })
             }
-        }
-    }
-
-    /// D̄ per joint, when given.
-    pub fn joint_inertia(&self) -> Option<&PerJoint> {
-        match self {
-            Controller::ComputedTorque { .. } => None,
-            Controller::ModelFree(p) => p.joint_inertia.as_ref(),
-            Controller::TimeDelay { params, .. } => params.joint_inertia.as_ref(),
-        }
-    }
-
-    pub fn gains(&self) -> &PositionGains {
-        match self {
-            Controller::ComputedTorque { params, .. } => &params.gains,
-            Controller::ModelFree(p) => &p.gains,
-            Controller::TimeDelay { params, .. } => &params.gains,
-        }
-    }
-
-    pub fn reset(&mut self) {
-        if let Controller::TimeDelay {
-            initial_torque,
-            tau_prev,
-            qd_prev,
-            ..
-        } = self
-        {
-            *tau_prev = *initial_torque;
-            *qd_prev = None;
-        }
-    }
-
-    /// The commanded joint torque τ_k for the measurement at t_k.
-    #[inline(always)]
-    pub fn step(
-        &mut self,
-        m: &Measurement<N>,
-        desired: &Desired,
-    ) -> std::result::Result<JointVector<N>, ControlFailure> {
-        let k = m.kinematics;
-        let velocity = k.jacobian * m.qd;
-        let v = self.gains().command(desired, &k.position, &velocity);
+        };
         // The paper's square 3×3 path (J⁻¹) stays as it was; every other task goes through
         // the general one (J⁺ with the arm's damping).
-        if N != 3
-            || m.orientation.is_some()
-            || m.posture.is_some()
-            || self.joint_inertia().is_some()
-        {
-            return self.step_task(m, &v);
-        }
-        let failed = |singular: bool| {
-            if singular {
-                Err(ControlFailure::SingularJacobian)
-            } else {
-                Ok(())
-            }
-        };
-        match self {
-            Controller::ComputedTorque { params, model } => {
-                let (tau, singular) = computed_torque(
-                    k,
-                    &v,
-                    || {
-                        let d = model.dynamics(&model.configure(m.q), m.qd);
-                        (d, model.friction(m.qd))
-                    },
-                    params.contact_compensation.then_some((m.normal, m.force)),
-                );
-                failed(singular)?;
-                Ok(tau)
-            }
-            Controller::ModelFree(p) => Ok(model_free(k, &v, p.inertia, p.torque_constant)),
-            Controller::TimeDelay {
-                params,
-                period,
-                tau_prev,
-                qd_prev,
-                ..
-            } => {
-                let (tau, singular) = time_delay(
-                    k,
-                    &v,
-                    m.qd,
-                    (params.inertia, params.torque_constant, *period),
-                    params.law,
-                    tau_prev,
-                    &qd_prev.unwrap_or_else(JointVector::zeros),
-                    qd_prev.is_some(),
-                );
-                failed(singular)?;
-                *tau_prev = tau;
-                *qd_prev = Some(*m.qd);
-                Ok(tau)
-            }
-        }
-    }
-
-    /// The laws over a general task (SPEC §11): the tip position, with the orientation for
-    /// a pose task (6-D: rows 0–2 linear, 3–5 angular; the angular rows are zero for a
-    /// position task, which the damped J⁺ then ignores), and a null-space posture term
-    /// a_n = (I − J⁺J) K_A⁻¹ (K_P (q0 − q) − K_D q̇) when the arm is redundant. Eq. 7 and
-    /// eq. 17 use J⁺ (V − J̇q̇) + a_n; eq. 18 and model-free use K_t Jᵀ V plus a_n, both
-    /// times D̄.
-    fn step_task(
-        &mut self,
-        m: &Measurement<N>,
-        v_position: &TaskVector,
-    ) -> std::result::Result<JointVector<N>, ControlFailure> {
-        let k = m.kinematics;
-        let gains = *self.gains();
-        let input = TaskInputs {
-            q: m.q,
-            qd: m.qd,
-            orientation: m.orientation.as_ref().map(|o| {
-                (
-                    o,
-                    m.options.orientation_gains.unwrap_or((gains.kp, gains.kd)),
-                )
+        let task_path = N != 3
+            || task.start_rotation.is_some()
+            || task.posture.is_some()
+            || joint_inertia.is_some();
+        Self {
+            law,
+            gains,
+            inertia,
+            dbar: constant_inertia::<N>(inertia, &joint_inertia),
+            torque_constant,
+            task: task_path.then(|| TaskSetup {
+                start_rotation: task.start_rotation,
+                orientation_gains: task
+                    .options
+                    .orientation_gains
+                    .unwrap_or((gains.kp, gains.kd)),
+                posture: task.posture,
+                damping: task.options.damping,
             }),
-            posture: m.posture,
-            gains: (gains.ka, gains.kd, gains.kp),
-            damping: m.options.damping,
-        };
-        let (task, failed) = TaskTerms::new(k, v_position, &input);
-        if failed {
-            return Err(ControlFailure::SingularJacobian);
-        }
-        match self {
-            Controller::ComputedTorque { params, model } => {
-                let d = model.dynamics(&model.configure(m.q), m.qd);
-                Ok(task.computed_torque(
-                    (d, model.friction(m.qd)),
-                    &k.jacobian,
-                    params.contact_compensation.then_some((m.normal, m.force)),
-                ))
-            }
-            Controller::ModelFree(p) => {
-                let dbar = constant_inertia::<N>(p.inertia, &p.joint_inertia);
-                Ok(task.model_free(&dbar, p.torque_constant))
-            }
-            Controller::TimeDelay {
-                params,
-                period,
-                tau_prev,
-                qd_prev,
-                ..
-            } => {
-                let dbar = constant_inertia::<N>(params.inertia, &params.joint_inertia);
-                let tau = task.time_delay(
-                    m.qd,
-                    &dbar,
-                    (params.torque_constant, *period),
-                    params.law,
-                    tau_prev,
-                    &qd_prev.unwrap_or_else(JointVector::zeros),
-                    qd_prev.is_some(),
-                );
-                *tau_prev = tau;
-                *qd_prev = Some(*m.qd);
-                Ok(tau)
-            }
-        }
-    }
-
-    /// Tells the controller the torque the actuator applied for its last command: TDC's
-    /// τ_{k−1} is the applied torque (identical to the command when nothing limits it).
-    #[inline]
-    pub fn applied(&mut self, tau: &JointVector<N>) {
-        if let Controller::TimeDelay { tau_prev, .. } = self {
-            *tau_prev = *tau;
         }
     }
 
     /// Labels of the controller's memory, in the order of `state`.
     pub fn state_labels(&self) -> Vec<String> {
-        match self {
-            Controller::TimeDelay { .. } => (1..=N)
+        match self.law {
+            Law::TimeDelay(_) => (1..=N)
                 .map(|j| format!("controller.tau_prev{j}"))
                 .chain((1..=N).map(|j| format!("controller.qd_prev{j}")))
                 .collect(),
@@ -898,47 +206,322 @@ impl<R: RobotModel<N>, const N: usize> Controller<R, N> {
     }
 
     pub fn state(&self, out: &mut Vec<f64>) {
-        if let Controller::TimeDelay {
-            tau_prev, qd_prev, ..
-        } = self
-        {
-            out.extend_from_slice(tau_prev.as_slice());
-            out.extend_from_slice(qd_prev.unwrap_or_else(JointVector::zeros).as_slice());
+        if let Law::TimeDelay(m) = &self.law {
+            out.extend_from_slice(m.tau_prev.as_slice());
+            let qd_prev = if m.started {
+                m.qd_prev
+            } else {
+                JointVector::zeros()
+            };
+            out.extend_from_slice(qd_prev.as_slice());
         }
     }
 
     /// Reads the memory written by `state`. `started`: whether a sample has been taken (so
     /// q̇_{k−1} exists). Returns the number of values used.
     pub fn set_state(&mut self, values: &[f64], started: bool) -> usize {
-        if let Controller::TimeDelay {
-            tau_prev, qd_prev, ..
-        } = self
-        {
-            *tau_prev = JointVector::<N>::from_column_slice(&values[..N]);
-            let qd = JointVector::<N>::from_column_slice(&values[N..2 * N]);
-            *qd_prev = started.then_some(qd);
+        if let Law::TimeDelay(m) = &mut self.law {
+            m.tau_prev = JointVector::<N>::from_column_slice(&values[..N]);
+            m.qd_prev = JointVector::<N>::from_column_slice(&values[N..2 * N]);
+            m.started = started;
         }
         self.state_len()
     }
 
     pub fn state_len(&self) -> usize {
-        match self {
-            Controller::TimeDelay { .. } => 2 * N,
+        match self.law {
+            Law::TimeDelay(_) => 2 * N,
             _ => 0,
         }
     }
 }
 
+impl<T: Real, M, const N: usize> Controller<T, M, N> {
+    pub fn gains(&self) -> &PositionGains<T> {
+        &self.gains
+    }
+
+    /// Whether the task holds the tip's orientation (a pose task): the caller then passes
+    /// the tip's rotation terms in `Measured::orientation`.
+    pub fn pose(&self) -> bool {
+        self.task.is_some_and(|t| t.start_rotation.is_some())
+    }
+
+    /// Whether the law runs the general task path (J⁺) rather than the square one (J⁻¹).
+    pub fn task_path(&self) -> bool {
+        self.task.is_some()
+    }
+
+    pub fn law(&self) -> &Law<T, M, N> {
+        &self.law
+    }
+
+    pub fn reset(&mut self) {
+        if let Law::TimeDelay(m) = &mut self.law {
+            m.tau_prev = m.initial_torque;
+            m.qd_prev = SVector::zeros();
+            m.started = no_lane::<T>();
+        }
+    }
+
+    /// The commanded joint torque τ_k for the measurement at t_k, with the lanes whose
+    /// Jacobian failed (J⁻¹ singular, or J⁺'s Cholesky or J⁺ itself not finite). The memory
+    /// moves on in `applied`, once the actuator has said what it applied.
+    #[inline(always)]
+    pub fn command(
+        &self,
+        m: &Measured<T, N>,
+        at: &M::At,
+        desired: &Desired<T>,
+    ) -> (SVector<T, N>, T::SimdBool)
+    where
+        M: ControllerModel<T, N>,
+    {
+        let k = m.kinematics;
+        let velocity = k.jacobian * m.qd;
+        // eq. (39)
+        let v = self.gains.command(desired, &k.position, &velocity);
+        let Some(task) = &self.task else {
+            return self.square(m, at, &v);
+        };
+        // e_o = log(R0 Rᵀ): the orientation is held at its start R0.
+        let orientation = match (&task.start_rotation, m.orientation) {
+            (Some(r0), Some(o)) => Some(OrientationTask {
+                error: rotation_vector(&(r0 * o.rotation.transpose())),
+                jacobian: o.jacobian,
+                jdot_qd: o.jdot_qd,
+            }),
+            _ => None,
+        };
+        let gains = &self.gains;
+        let input = TaskInputs {
+            q: m.q,
+            qd: m.qd,
+            orientation: orientation.as_ref().map(|o| (o, task.orientation_gains)),
+            posture: task.posture.as_ref(),
+            gains: (gains.ka, gains.kd, gains.kp),
+            damping: task.damping,
+        };
+        let (terms, failed) = TaskTerms::new(k, &v, &input);
+        if T::all(failed) {
+            return (SVector::zeros(), failed);
+        }
+        let tau = match &self.law {
+            Law::ComputedTorque {
+                compensation,
+                model,
+            } => terms.computed_torque(
+                model.terms(at, m.q, m.qd),
+                &k.jacobian,
+                compensation.then_some((m.normal, m.force)),
+            ),
+            Law::ModelFree => terms.model_free(&self.dbar, self.torque_constant),
+            Law::TimeDelay(mem) => terms.time_delay(
+                m.qd,
+                &self.dbar,
+                (self.torque_constant, mem.period),
+                mem.law,
+                &mem.tau_prev,
+                &mem.qd_prev,
+                mem.started,
+            ),
+        };
+        (tau, failed)
+    }
+
+    /// The square path (three joints, position task, D̄ = α I): J⁻¹ as the paper writes it.
+    #[inline(always)]
+    fn square(&self, m: &Measured<T, N>, at: &M::At, v: &Vector3<T>) -> (SVector<T, N>, T::SimdBool)
+    where
+        M: ControllerModel<T, N>,
+    {
+        let k = m.kinematics;
+        match &self.law {
+            Law::ComputedTorque {
+                compensation,
+                model,
+            } => computed_torque(
+                k,
+                v,
+                || model.terms(at, m.q, m.qd),
+                compensation.then_some((m.normal, m.force)),
+            ),
+            Law::ModelFree => (
+                model_free(k, v, self.inertia, self.torque_constant),
+                no_lane::<T>(),
+            ),
+            Law::TimeDelay(mem) => time_delay(
+                k,
+                v,
+                m.qd,
+                (self.inertia, self.torque_constant, mem.period),
+                mem.law,
+                &mem.tau_prev,
+                &mem.qd_prev,
+                mem.started,
+            ),
+        }
+    }
+
+    /// Tells the controller the torque the actuator applied for its command at the state
+    /// with joint rates `qd`: TDC's τ_{k−1} is the applied torque (identical to the command
+    /// when nothing limits it), its q̇_{k−1} this q̇_k.
+    #[inline(always)]
+    pub fn applied(&mut self, tau: &SVector<T, N>, qd: &SVector<T, N>) {
+        if let Law::TimeDelay(m) = &mut self.law {
+            m.tau_prev = *tau;
+            m.qd_prev = *qd;
+            m.started = !no_lane::<T>();
+        }
+    }
+}
+
+/// Whether two runs' controllers have one structure: the same kind (with its switches), the
+/// same path, the same task terms present and one `scale_feedforward`. Everything else is a
+/// number a lane carries.
+fn same_structure<A, B, const N: usize>(
+    a: &Controller<f64, A, N>,
+    b: &Controller<f64, B, N>,
+) -> bool {
+    law_kind(&a.law) == law_kind(&b.law)
+        && task_shape(&a.task) == task_shape(&b.task)
+        && a.gains.scale_feedforward == b.gains.scale_feedforward
+}
+
+/// A law's kind with its structural switch: computed torque's contact compensation, TDC's
+/// law.
+fn law_kind<T: Real, M, const N: usize>(law: &Law<T, M, N>) -> (u8, bool, Option<TdcLaw>) {
+    match law {
+        Law::ComputedTorque { compensation, .. } => (0, *compensation, None),
+        Law::ModelFree => (1, false, None),
+        Law::TimeDelay(m) => (2, false, Some(m.law)),
+    }
+}
+
+/// Which task terms a controller has: `None` on the square path, else (pose, posture).
+fn task_shape<T: Real, const N: usize>(t: &Option<TaskSetup<T, N>>) -> Option<(bool, bool)> {
+    t.as_ref()
+        .map(|t| (t.start_rotation.is_some(), t.posture.is_some()))
+}
+
+impl<M, const N: usize> Controller<F64x4, M, N> {
+    /// Four runs' controllers of one structure in lanes (`None` if their structures differ);
+    /// `models` packs computed torque's four models.
+    pub fn pack<R>(
+        c: [&Controller<f64, R, N>; LANES],
+        models: impl FnOnce([&R; LANES]) -> M,
+    ) -> Option<Self> {
+        if !c.iter().all(|x| same_structure(c[0], x)) {
+            return None;
+        }
+        let law = match &c[0].law {
+            Law::ComputedTorque { compensation, .. } => Law::ComputedTorque {
+                compensation: *compensation,
+                model: models(c.map(|x| match &x.law {
+                    Law::ComputedTorque { model, .. } => model,
+                    _ => unreachable!("one structure: every lane is computed torque"),
+                })),
+            },
+            Law::ModelFree => Law::ModelFree,
+            Law::TimeDelay(m) => Law::TimeDelay(TdcMemory {
+                law: m.law,
+                period: F64x4::splat(0.0),
+                initial_torque: SVector::zeros(),
+                tau_prev: SVector::zeros(),
+                qd_prev: SVector::zeros(),
+                started: mask_from::<F64x4>(|_| false),
+            }),
+        };
+        let mut packed = Self {
+            law,
+            gains: PositionGains::pack(c.map(|x| &x.gains)),
+            inertia: F64x4::splat(0.0),
+            dbar: SMatrix::zeros(),
+            torque_constant: F64x4::splat(0.0),
+            task: c[0].task.map(|t| TaskSetup {
+                start_rotation: t.start_rotation.map(|_| Matrix3::zeros()),
+                orientation_gains: (F64x4::splat(0.0), F64x4::splat(0.0)),
+                posture: t.posture.map(|_| SVector::zeros()),
+                damping: F64x4::splat(0.0),
+            }),
+        };
+        for (l, x) in c.iter().enumerate() {
+            packed.put_numbers(l, x);
+        }
+        Some(packed)
+    }
+
+    /// Lane `l` takes the run's controller `c` (of this structure, else false and nothing
+    /// changes); `model` puts computed torque's model into its lane.
+    pub fn put_lane<R>(
+        &mut self,
+        l: usize,
+        c: &Controller<f64, R, N>,
+        model: impl FnOnce(&mut M, &R),
+    ) -> bool {
+        if !self.fits(c) {
+            return false;
+        }
+        if let (Law::ComputedTorque { model: m, .. }, Law::ComputedTorque { model: r, .. }) =
+            (&mut self.law, &c.law)
+        {
+            model(m, r);
+        }
+        self.put_numbers(l, c);
+        true
+    }
+
+    /// Whether `c` has this group's structure.
+    fn fits<R>(&self, c: &Controller<f64, R, N>) -> bool {
+        law_kind(&self.law) == law_kind(&c.law)
+            && task_shape(&self.task) == task_shape(&c.task)
+            && self.gains.scale_feedforward == c.gains.scale_feedforward
+    }
+
+    /// Lane `l`'s numbers and memory from `c`.
+    fn put_numbers<R>(&mut self, l: usize, c: &Controller<f64, R, N>) {
+        put(&mut self.gains.ka, l, c.gains.ka);
+        put(&mut self.gains.kd, l, c.gains.kd);
+        put(&mut self.gains.kp, l, c.gains.kp);
+        put(&mut self.inertia, l, c.inertia);
+        put_vector(&mut self.dbar, l, &c.dbar);
+        put(&mut self.torque_constant, l, c.torque_constant);
+        if let (Some(t), Some(theirs)) = (&mut self.task, &c.task) {
+            if let (Some(r), Some(r0)) = (&mut t.start_rotation, &theirs.start_rotation) {
+                put_vector(r, l, r0);
+            }
+            if let (Some(p), Some(q0)) = (&mut t.posture, &theirs.posture) {
+                put_vector(p, l, q0);
+            }
+            put(&mut t.orientation_gains.0, l, theirs.orientation_gains.0);
+            put(&mut t.orientation_gains.1, l, theirs.orientation_gains.1);
+            put(&mut t.damping, l, theirs.damping);
+        }
+        if let (Law::TimeDelay(m), Law::TimeDelay(theirs)) = (&mut self.law, &c.law) {
+            put(&mut m.period, l, theirs.period);
+            put_vector(&mut m.initial_torque, l, &theirs.initial_torque);
+            put_vector(&mut m.tau_prev, l, &theirs.tau_prev);
+            put_vector(&mut m.qd_prev, l, &theirs.qd_prev);
+            m.started.replace(l, theirs.started);
+        }
+    }
+}
+
+/// The lanes where any entry of `v` is not finite.
+#[inline(always)]
+pub(crate) fn not_finite<T: Real, const N: usize>(v: &SVector<T, N>) -> T::SimdBool {
+    !v.iter().fold(!no_lane::<T>(), |m, c| m & finite(*c))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::robot::three_link::{Kinematics, Vec3};
-    use crate::robot::Jacobian;
-    use crate::robot::{RobotParams, ThreeLinkArm};
-    use crate::scalar::lane_of;
-    use simba::simd::SimdValue;
+    use crate::control::params::{ComputedTorqueParams, ModelFreeParams, TimeDelayParams};
+    use crate::robot::three_link::{ClosedForm, Kinematics, Trig, Vec3};
+    use crate::robot::{RobotParams, TaskVector, ThreeLinkArm};
+    use crate::scalar::{lane_of, pack_vector};
 
-    type Ctl = Controller<ThreeLinkArm, 3>;
+    type Ctl = Controller<f64, ThreeLinkArm, 3>;
     const X: TaskVector = TaskVector::new(1.0, 0.0, 0.0);
     const REST: Vec3 = Vec3::new(0.0, 0.0, 0.0);
 
@@ -949,14 +532,14 @@ mod tests {
         (arm, q, k)
     }
 
+    fn controller(params: ControllerParams, arm: &ThreeLinkArm) -> Ctl {
+        Ctl::new(&params, arm, 1e-3, &TaskAtStart::of(arm))
+    }
+
     /// The paper's TDC at q0, its set point 1 cm along x from the tip.
     fn tdc_pulled_along_x() -> (ThreeLinkArm, Vec3, Kinematics, Ctl, Desired) {
         let (r, q, k) = at_q0();
-        let c = Ctl::new(
-            &ControllerParams::TimeDelay(TimeDelayParams::default()),
-            &r,
-            1e-3,
-        );
+        let c = controller(ControllerParams::TimeDelay(TimeDelayParams::default()), &r);
         let d = Desired {
             position: k.position + Vec3::new(0.01, 0.0, 0.0),
             ..Desired::default()
@@ -965,17 +548,25 @@ mod tests {
     }
 
     /// The measurement of a controller test: no contact force, the paper's wall normal.
-    fn measured<'a>(q: &'a Vec3, qd: &'a Vec3, k: &'a Kinematics) -> Measurement<'a, 3> {
-        Measurement {
+    fn measured<'a>(q: &'a Vec3, qd: &'a Vec3, k: &'a Kinematics) -> Measured<'a, f64, 3> {
+        Measured {
             q,
             qd,
             kinematics: k,
+            orientation: None,
             force: 0.0,
             normal: &X,
-            orientation: None,
-            posture: None,
-            options: TaskOptions::default(),
         }
+    }
+
+    /// One period: the command, then (nothing limiting it) the memory moves on.
+    fn step(c: &mut Ctl, m: &Measured<f64, 3>, d: &Desired) -> Option<Vec3> {
+        let (tau, singular) = c.command(m, &(), d);
+        if singular {
+            return None;
+        }
+        c.applied(&tau, m.qd);
+        Some(tau)
     }
 
     fn gravity(arm: &ThreeLinkArm, q: &Vec3) -> Vec3 {
@@ -983,37 +574,18 @@ mod tests {
     }
 
     #[test]
-    fn command_is_eq39() {
-        let g = PositionGains::new(5.0, 20.0, 100.0);
-        let d = Desired {
-            position: Vec3::new(1.0, 0.0, 0.0),
-            velocity: Vec3::new(0.0, 1.0, 0.0),
-            acceleration: Vec3::new(0.0, 0.0, 5.0),
-        };
-        let v = g.command(&d, &Vec3::zeros(), &Vec3::zeros());
-        assert_eq!(v, Vec3::new(20.0, 4.0, 1.0));
-        let unscaled = PositionGains {
-            scale_feedforward: false,
-            ..g
-        };
-        let v = unscaled.command(&d, &Vec3::zeros(), &Vec3::zeros());
-        assert_eq!(v, Vec3::new(20.0, 4.0, 5.0));
-    }
-
-    #[test]
     fn computed_torque_holds_still_with_gravity_compensation() {
         let (r, q, k) = at_q0();
-        let mut c = Ctl::new(
-            &ControllerParams::ComputedTorque(ComputedTorqueParams::default()),
+        let mut c = controller(
+            ControllerParams::ComputedTorque(ComputedTorqueParams::default()),
             &r,
-            1e-3,
         );
         let m = measured(&q, &REST, &k);
         let d = Desired {
             position: k.position,
             ..Desired::default()
         };
-        let tau = c.step(&m, &d).unwrap();
+        let tau = step(&mut c, &m, &d).unwrap();
         assert!((tau - gravity(&r, &q)).abs().max() < 1e-12);
     }
 
@@ -1022,20 +594,20 @@ mod tests {
         let (r, q, k, mut c, d) = tdc_pulled_along_x();
         let qd = Vec3::zeros();
         let m = measured(&q, &qd, &k);
-        let tau0 = c.step(&m, &d).unwrap();
+        let tau0 = step(&mut c, &m, &d).unwrap();
         let g = gravity(&r, &q);
         // V = 100·0.01/5 = 0.2 along x; D̄ K_t = 20.
         let expected = g + k.jacobian.transpose() * Vec3::new(0.2, 0.0, 0.0) * 20.0;
         assert!((tau0 - expected).abs().max() < 1e-12);
         // Next step: q̇ changed by 0.001 rad/s on joint 2 ⇒ q̈_{k−1} = 1 rad/s².
         let qd1 = Vec3::new(0.0, 0.001, 0.0);
-        let m1 = Measurement { qd: &qd1, ..m };
-        let tau1 = c.step(&m1, &d).unwrap();
+        let m1 = Measured { qd: &qd1, ..m };
+        let tau1 = step(&mut c, &m1, &d).unwrap();
         let v1 = k.jacobian.transpose() * (Vec3::new(0.2, 0.0, 0.0) - k.jacobian * qd1 * 4.0);
         let expected1 = tau0 + v1 * 20.0 - Vec3::new(0.0, 0.1, 0.0);
         assert!((tau1 - expected1).abs().max() < 1e-12);
         c.reset();
-        assert!((c.step(&m, &d).unwrap() - tau0).abs().max() < 1e-15);
+        assert!((step(&mut c, &m, &d).unwrap() - tau0).abs().max() < 1e-15);
     }
 
     #[test]
@@ -1043,16 +615,12 @@ mod tests {
         let r = ThreeLinkArm::new(&RobotParams::default());
         let q = Vec3::new(0.0, 0.3, 0.0);
         let k = r.kinematics(&r.configure(&q), &Vec3::zeros());
-        let mut c = Ctl::new(
-            &ControllerParams::ComputedTorque(ComputedTorqueParams::default()),
+        let mut c = controller(
+            ControllerParams::ComputedTorque(ComputedTorqueParams::default()),
             &r,
-            1e-3,
         );
         let m = measured(&q, &REST, &k);
-        assert_eq!(
-            c.step(&m, &Desired::default()),
-            Err(ControlFailure::SingularJacobian)
-        );
+        assert_eq!(step(&mut c, &m, &Desired::default()), None);
     }
 
     /// TDC's τ_{k−1} is the torque the actuator applied, not the one commanded.
@@ -1060,443 +628,89 @@ mod tests {
     fn tdc_remembers_the_applied_torque() {
         let (r, q, k, mut c, d) = tdc_pulled_along_x();
         let m = measured(&q, &REST, &k);
-        let tau0 = c.step(&m, &d).unwrap();
+        let (tau0, _) = c.command(&m, &(), &d);
         let applied = tau0.map(|t| t.clamp(-20.0, 20.0));
-        c.applied(&applied);
+        c.applied(&applied, &REST);
         let mut state = Vec::new();
         c.state(&mut state);
         assert_eq!(&state[..3], applied.as_slice());
         // Same measurement again: u is unchanged, ĥ = τ_{k−1} − 0 is the applied torque.
-        let tau1 = c.step(&m, &d).unwrap();
+        let (tau1, _) = c.command(&m, &(), &d);
         assert!((tau1 - (tau0 - gravity(&r, &q) + applied)).abs().max() < 1e-12);
     }
 
-    /// For a redundant arm (3×4 J) the damped pseudo-inverse reaches the task acceleration
-    /// (to λ²) with the least-norm joint acceleration: it lies in J's row space.
+    /// Four controllers packed into lanes (each with its own gains, D̄ and TDC memory) give
+    /// the four scalar controllers' torques bit for bit, over several periods, and a lane
+    /// that takes a new controller gives that controller's torques; a controller of another
+    /// structure does not pack.
     #[test]
-    fn redundant_jacobian_uses_the_damped_pseudo_inverse() {
-        #[rustfmt::skip]
-        let j = Jacobian::<4>::new(
-            0.3, -0.2, 0.5, 0.1,
-            0.0, 0.7, 0.2, -0.4,
-            0.6, 0.1, -0.3, 0.2,
-        );
-        let rhs = TaskVector::new(1.0, -2.0, 0.5);
-        let qdd = solve_jacobian(&j, &rhs).unwrap();
-        assert!((j * qdd - rhs).norm() < 1e-5, "{}", (j * qdd - rhs).norm());
-        // Least norm: qdd = Jᵀ y for some y, so its part in J's null space is zero.
-        let pinv = j.pseudo_inverse(1e-12).unwrap();
-        let null_projector = nalgebra::Matrix4::identity() - pinv * j;
-        assert!((null_projector * qdd).norm() < 1e-5);
-        // A rank-deficient J still gives a finite answer (the damping's purpose).
-        let flat = Jacobian::<4>::from_rows(&[
-            j.row(0).into_owned(),
-            j.row(0).into_owned(),
-            j.row(2).into_owned(),
-        ]);
-        assert!(solve_jacobian(&flat, &rhs)
-            .unwrap()
-            .iter()
-            .all(|v| v.is_finite()));
-    }
-
-    /// The square solve is nalgebra's determinant and 3×3 inverse, bit for bit.
-    #[test]
-    fn square_solve_is_nalgebras_inverse() {
+    fn controllers_in_lanes_equal_four_scalar_controllers() {
         let (r, _, _) = at_q0();
-        for i in 0..50 {
-            let q = Vec3::new(
-                0.1 * i as f64,
-                0.3 + 0.02 * i as f64,
-                -0.7 + 0.05 * i as f64,
-            );
-            let k = r.kinematics(&r.configure(&q), &Vec3::zeros());
-            let rhs = Vec3::new(1.0, -2.0 + i as f64, 0.5);
-            let (x, singular) = solve_square(&k.jacobian, &rhs);
-            if singular {
-                continue;
-            }
-            let expected = k.jacobian.try_inverse().unwrap() * rhs;
-            assert_eq!(x, expected, "q = {q:?}");
-            assert!(k.jacobian.determinant().abs() > 0.0);
-        }
-    }
-
-    /// The three laws over four lanes (their own kinematics, gains and memory) give four
-    /// scalar laws' torques bit for bit, and the singular lane is reported in its lane.
-    #[test]
-    fn laws_in_lanes_equal_four_scalar_laws() {
-        use crate::scalar::{lane, lane_of, mask_from, pack_vector};
-        use simba::simd::SimdValue;
-        let (r, _, _) = at_q0();
-        let qs: [Vec3; 4] = [
-            Vec3::new(0.0, 0.8, -0.8),
-            Vec3::new(0.2, 0.5, -1.1),
-            Vec3::new(0.0, 0.3, 0.0), // singular (q3 = 0)
-            Vec3::new(-0.1, 0.9, -0.4),
-        ];
-        let qds: [Vec3; 4] = std::array::from_fn(|i| Vec3::new(0.01 * i as f64, -0.2, 0.3));
-        let prev: [Vec3; 4] =
-            std::array::from_fn(|i| Vec3::new(0.0, -0.21, 0.3 + 0.001 * i as f64));
-        let kins: [Kinematics; 4] =
-            std::array::from_fn(|i| r.kinematics(&r.configure(&qs[i]), &qds[i]));
-        let vs: [Vec3; 4] = std::array::from_fn(|i| Vec3::new(1.0 + i as f64, -0.5, 0.25));
-        let kin = crate::robot::Kinematics::<3, F64x4> {
-            position: pack_vector(kins.each_ref().map(|k| &k.position)),
-            jacobian: pack_vector(kins.each_ref().map(|k| &k.jacobian)),
-            jdot_qd: pack_vector(kins.each_ref().map(|k| &k.jdot_qd)),
+        let qs: [Vec3; 4] = std::array::from_fn(|i| Vec3::new(0.05 * i as f64, 0.8, -0.9));
+        let tdc = |i: usize| {
+            ControllerParams::TimeDelay(TimeDelayParams {
+                inertia: 0.1 + 0.01 * i as f64,
+                gains: PositionGains::new(5.0, 20.0 + i as f64, 100.0),
+                ..TimeDelayParams::default()
+            })
         };
-        let v = pack_vector(vs.each_ref());
-        let qd = pack_vector(qds.each_ref());
-        let lanes4 = |f: fn(usize) -> f64| F64x4::from_lanes(f);
-        // Model-free.
-        let mf = model_free(
-            &kin,
-            &v,
-            lanes4(|i| 0.1 + 0.01 * i as f64),
-            lanes4(|i| 200.0 - i as f64),
-        );
-        for i in 0..4 {
-            let e: Vec3 = model_free(&kins[i], &vs[i], 0.1 + 0.01 * i as f64, 200.0 - i as f64);
-            assert_eq!(lane_of(&mf, i), e);
-        }
-        // TDC, both laws; lane 0 has no q̇_{k−1} yet.
-        for law in [TdcLaw::JacobianTranspose, TdcLaw::InverseJacobian] {
-            let started = mask_from::<F64x4>(|i| i != 0);
-            let taus: [Vec3; 4] = std::array::from_fn(|i| Vec3::new(1.0, 50.0 + i as f64, 9.0));
-            let (tau, singular) = time_delay(
-                &kin,
-                &v,
-                &qd,
-                (
-                    lanes4(|i| 0.1 * (1 + i) as f64),
-                    lanes4(|_| 200.0),
-                    lanes4(|_| 1e-3),
-                ),
-                law,
-                &pack_vector(taus.each_ref()),
-                &pack_vector(prev.each_ref()),
-                started,
-            );
-            for i in 0..4 {
-                let (e, s): (Vec3, bool) = time_delay(
-                    &kins[i],
-                    &vs[i],
-                    &qds[i],
-                    (0.1 * (1 + i) as f64, 200.0, 1e-3),
-                    law,
-                    &taus[i],
-                    &prev[i],
-                    i != 0,
-                );
-                assert_eq!(singular.extract(i), s);
-                if !s {
-                    assert_eq!(lane_of(&tau, i), e, "{law:?} lane {i}");
-                }
-            }
-            assert_eq!(singular.extract(2), law == TdcLaw::InverseJacobian);
-        }
-        // Computed torque with each lane's model terms (fixed here: no exp), compensated.
-        let dyns: [crate::robot::Dynamics<3>; 4] =
-            std::array::from_fn(|i| r.dynamics(&r.configure(&qs[i]), &qds[i]));
-        let fr: [Vec3; 4] = std::array::from_fn(|i| Vec3::new(1.0, 2.0, 3.0 + i as f64));
-        let n = pack_vector([&X; 4]);
-        let force = lanes4(|i| 5.0 * i as f64);
-        let (tau, singular) = computed_torque(
-            &kin,
-            &v,
-            || {
-                (
-                    crate::robot::Dynamics {
-                        inertia: pack_vector(dyns.each_ref().map(|d| &d.inertia)),
-                        coriolis: pack_vector(dyns.each_ref().map(|d| &d.coriolis)),
-                        gravity: pack_vector(dyns.each_ref().map(|d| &d.gravity)),
-                    },
-                    pack_vector(fr.each_ref()),
-                )
-            },
-            Some((&n, force)),
-        );
-        for i in 0..4 {
-            let (e, s): (Vec3, bool) = computed_torque(
-                &kins[i],
-                &vs[i],
-                || (dyns[i], fr[i]),
-                Some((&X, lane(force, i))),
-            );
-            assert_eq!(singular.extract(i), s);
-            assert_eq!(s, i == 2);
-            if !s {
-                assert_eq!(lane_of(&tau, i), e);
-            }
-        }
-    }
-
-    /// A few deterministic numbers in [−1, 1) (a linear congruential generator).
-    fn numbers(seed: u64) -> impl FnMut() -> f64 {
-        let mut x = seed;
-        move || {
-            x = x
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-        }
-    }
-
-    /// The written-out J⁺ gives nalgebra's `cholesky()` and `solve` bits and fails exactly
-    /// where `cholesky()` returns `None`, one run or four lanes.
-    #[test]
-    fn damped_pseudo_inverse_is_nalgebras_cholesky() {
-        use crate::scalar::pack_vector;
-        use nalgebra::Matrix6;
-        let reference = |j: &SMatrix<f64, 6, 7>, lambda: f64| {
-            let a = j * j.transpose() + Matrix6::identity() * (lambda * lambda);
-            let pinv = a.cholesky()?.solve(j).transpose();
-            pinv.iter().all(|v| v.is_finite()).then_some(pinv)
-        };
-        let mut next = numbers(7);
-        let (mut ok, mut failed_cases) = (0, 0);
-        for case in 0..64 {
-            let cases: [(SMatrix<f64, 6, 7>, f64); 4] = std::array::from_fn(|l| {
-                let mut j = SMatrix::<f64, 6, 7>::from_fn(|_, _| next());
-                let lambda = [1e-3, 0.1, 0.0, 1e-3][l];
-                if (case + l) % 3 == 0 {
-                    // A position task: the angular rows are zero (λ = 0: a zero pivot).
-                    j.fixed_rows_mut::<3>(3).fill(0.0);
-                }
-                if case % 11 == l {
-                    j[(1, 2)] = f64::NAN;
-                }
-                (j, lambda)
-            });
-            let lanes = damped_pseudo_inverse(
-                &pack_vector(cases.each_ref().map(|c| &c.0)),
-                F64x4::from_lanes(|l| cases[l].1),
-            );
-            for (l, (j, lambda)) in cases.iter().enumerate() {
-                let (pinv, failed) = damped_pseudo_inverse(j, *lambda);
-                assert_eq!(lanes.1.extract(l), failed);
-                match reference(j, *lambda) {
-                    Some(expected) => {
-                        assert!(!failed);
-                        assert_eq!(pinv, expected);
-                        assert_eq!(lane_of(&lanes.0, l), expected);
-                        ok += 1;
-                    }
-                    None => {
-                        assert!(failed, "case {case} lane {l}");
-                        failed_cases += 1;
-                    }
-                }
-            }
-        }
-        assert!(
-            ok > 100 && failed_cases > 20,
-            "{ok} solved, {failed_cases} failed"
-        );
-    }
-
-    /// The general task law (SPEC §11) over four lanes (each with its own state, orientation,
-    /// posture, gains, λ, D̄ and memory) gives four scalar calls' torques, and a lane whose
-    /// J⁺ fails (zero angular rows with λ = 0) is reported in its lane only.
-    #[test]
-    fn task_law_in_lanes_equals_four_scalar_calls() {
-        use crate::robot::chain::arm::rotation_vector;
-        use crate::robot::chain::{UrdfArm, UrdfArmParams};
-        use crate::scalar::{mask_from, pack_vector};
-        let arm = UrdfArm::<7>::new(&UrdfArmParams {
-            urdf: include_str!("../../../examples/data/panda.urdf").to_owned(),
-            tip_link: "panda_hand_tcp".to_owned(),
-            ..UrdfArmParams::default()
-        })
+        let mut scalar: Vec<Ctl> = (0..5).map(|i| controller(tdc(i), &r)).collect();
+        let models = |arms: [&ThreeLinkArm; 4]| ClosedForm::pack(arms.map(|a| a.closed_form()));
+        let mut lanes = Controller::<F64x4, ClosedForm<F64x4>, 3>::pack(
+            std::array::from_fn(|i| &scalar[i]),
+            models,
+        )
         .unwrap();
-        let mut next = numbers(11);
-        let q0 = arm.initial_position();
-        let qs: [SVector<f64, 7>; 4] =
-            std::array::from_fn(|_| q0 + SVector::<f64, 7>::from_fn(|_, _| 0.4 * next()));
-        let qds: [SVector<f64, 7>; 4] =
-            std::array::from_fn(|_| SVector::<f64, 7>::from_fn(|_, _| next()));
-        let prev: [SVector<f64, 7>; 4] = std::array::from_fn(|l| qds[l] * 0.99);
-        let taus: [SVector<f64, 7>; 4] =
-            std::array::from_fn(|_| SVector::<f64, 7>::from_fn(|_, _| 10.0 * next()));
-        let r0 = nalgebra::Rotation3::from_scaled_axis(Vector3::new(0.1, -0.2, 0.3)).into_inner();
-        let kins: [crate::robot::Kinematics<7>; 4] =
-            std::array::from_fn(|l| arm.kinematics(&arm.configure(&qs[l]), &qds[l]));
-        let orientations: [OrientationTask<7>; 4] = std::array::from_fn(|l| {
-            let o = arm.orientation(&arm.configure(&qs[l]), &qds[l]).unwrap();
-            let jacobian = if l == 2 {
-                Jacobian::zeros()
-            } else {
-                o.jacobian
-            };
-            OrientationTask {
-                error: rotation_vector(&(r0 * o.rotation.transpose())),
-                jacobian,
-                jdot_qd: o.jdot_qd,
+        let other = controller(ControllerParams::ModelFree(ModelFreeParams::default()), &r);
+        assert!(Controller::<F64x4, ClosedForm<F64x4>, 3>::pack(
+            [&scalar[0], &scalar[1], &scalar[2], &other],
+            models
+        )
+        .is_none());
+        assert!(!lanes.put_lane(0, &other, |_, _| ()));
+        let d = Desired {
+            position: Vec3::new(0.3, 0.0, 0.5),
+            ..Desired::default()
+        };
+        for period in 0..6 {
+            if period == 3 {
+                // Lane 2 takes the fifth controller, fresh.
+                assert!(lanes.put_lane(2, &scalar[4], |_, _| ()));
+                scalar.swap(2, 4);
             }
-        });
-        let vs: [Vector3<f64>; 4] = std::array::from_fn(|_| Vector3::from_fn(|_, _| next()));
-        let gains: [(f64, f64, f64); 4] = std::array::from_fn(|l| (5.0, 20.0 + l as f64, 100.0));
-        let orientation_gains: [(f64, f64); 4] = std::array::from_fn(|l| (80.0 + l as f64, 15.0));
-        let damping: [f64; 4] = [1e-3, 2e-3, 0.0, 1e-2];
-        let dbars: [JointMatrix<7>; 4] = std::array::from_fn(|l| {
-            let a = JointMatrix::<7>::from_fn(|_, _| 0.1 * next());
-            a * a.transpose() + JointMatrix::<7>::identity() * (0.05 * (1 + l) as f64)
-        });
-        let dyns: [Dynamics<7>; 4] =
-            std::array::from_fn(|l| arm.dynamics(&arm.configure(&qs[l]), &qds[l]));
-        let frictions: [SVector<f64, 7>; 4] = std::array::from_fn(|l| taus[l] * 0.01);
-        let normal = Vector3::new(1.0, 0.0, 0.0);
-        let force = F64x4::from_lanes(|l| 3.0 * l as f64);
-        let started = mask_from::<F64x4>(|l| l != 1);
-        let four = |f: &dyn Fn(usize) -> f64| F64x4::from_lanes(f);
-
-        let kin = crate::robot::Kinematics::<7, F64x4> {
-            position: pack_vector(kins.each_ref().map(|k| &k.position)),
-            jacobian: pack_vector(kins.each_ref().map(|k| &k.jacobian)),
-            jdot_qd: pack_vector(kins.each_ref().map(|k| &k.jdot_qd)),
-        };
-        let orientation = OrientationTask::<7, F64x4> {
-            error: pack_vector(orientations.each_ref().map(|o| &o.error)),
-            jacobian: pack_vector(orientations.each_ref().map(|o| &o.jacobian)),
-            jdot_qd: pack_vector(orientations.each_ref().map(|o| &o.jdot_qd)),
-        };
-        let (q, qd) = (pack_vector(qs.each_ref()), pack_vector(qds.each_ref()));
-        let posture = pack_vector([&q0; 4]);
-        let input = TaskInputs {
-            q: &q,
-            qd: &qd,
-            orientation: Some((
-                &orientation,
-                (
-                    four(&|l| orientation_gains[l].0),
-                    four(&|l| orientation_gains[l].1),
-                ),
-            )),
-            posture: Some(&posture),
-            gains: (
-                four(&|l| gains[l].0),
-                four(&|l| gains[l].1),
-                four(&|l| gains[l].2),
-            ),
-            damping: four(&|l| damping[l]),
-        };
-        let (terms, failed) = TaskTerms::new(&kin, &pack_vector(vs.each_ref()), &input);
-        let dbar = pack_vector(dbars.each_ref());
-        let kt = four(&|l| 150.0 + l as f64);
-        let model_free = terms.model_free(&dbar, kt);
-        let tdc = [TdcLaw::JacobianTranspose, TdcLaw::InverseJacobian].map(|law| {
-            terms.time_delay(
-                &qd,
-                &dbar,
-                (kt, four(&|_| 1e-3)),
-                law,
-                &pack_vector(taus.each_ref()),
-                &pack_vector(prev.each_ref()),
-                started,
-            )
-        });
-        let computed = terms.computed_torque(
-            (
-                Dynamics {
-                    inertia: pack_vector(dyns.each_ref().map(|d| &d.inertia)),
-                    coriolis: pack_vector(dyns.each_ref().map(|d| &d.coriolis)),
-                    gravity: pack_vector(dyns.each_ref().map(|d| &d.gravity)),
-                },
-                pack_vector(frictions.each_ref()),
-            ),
-            &kin.jacobian,
-            Some((&pack_vector([&normal; 4]), force)),
-        );
-        let close = |a: &SVector<f64, 7>, b: &SVector<f64, 7>| {
-            (a - b).abs().max() <= 1e-12 * b.abs().max().max(1e-300)
-        };
-        for l in 0..4 {
-            let input = TaskInputs {
-                q: &qs[l],
-                qd: &qds[l],
-                orientation: Some((&orientations[l], orientation_gains[l])),
-                posture: Some(&q0),
-                gains: gains[l],
-                damping: damping[l],
-            };
-            let (e, f) = TaskTerms::new(&kins[l], &vs[l], &input);
-            assert_eq!(failed.extract(l), f);
-            assert_eq!(f, l == 2, "lane {l}");
-            if f {
-                continue;
-            }
-            let kt = 150.0 + l as f64;
-            assert!(close(
-                &lane_of(&model_free, l),
-                &e.model_free(&dbars[l], kt)
-            ));
-            for (i, law) in [TdcLaw::JacobianTranspose, TdcLaw::InverseJacobian]
-                .into_iter()
-                .enumerate()
-            {
-                let expected = e.time_delay(
-                    &qds[l],
-                    &dbars[l],
-                    (kt, 1e-3),
-                    law,
-                    &taus[l],
-                    &prev[l],
-                    l != 1,
-                );
-                assert!(close(&lane_of(&tdc[i], l), &expected), "{law:?} lane {l}");
-            }
-            let expected = e.computed_torque(
-                (dyns[l], frictions[l]),
-                &kins[l].jacobian,
-                Some((&normal, 3.0 * l as f64)),
-            );
-            assert!(close(&lane_of(&computed, l), &expected), "CT lane {l}");
-        }
-    }
-
-    /// The rotation vector inverts nalgebra's exponential map (`from_scaled_axis`) to
-    /// 1e-15 relative, down to 1e-12 rad and up to 3 rad, with no rotation giving exactly
-    /// zero; its lanes are the scalar's bits.
-    #[test]
-    fn rotation_vector_inverts_the_exponential_map() {
-        use crate::robot::chain::arm::rotation_vector;
-        use crate::scalar::pack_vector;
-        let mut next = numbers(3);
-        for case in 0..50 {
-            let axes: [Vector3<f64>; 4] = std::array::from_fn(|l| {
-                let scale = [1.0, 1e-3, 1e-9, 1.7][l] * if case % 5 == 0 { 1e-3 } else { 1.0 };
-                if case % 7 == l {
-                    Vector3::zeros()
-                } else {
-                    Vector3::from_fn(|_, _| scale * next())
-                }
+            let qd: [Vec3; 4] =
+                std::array::from_fn(|i| Vec3::new(0.01 * (period + i) as f64, -0.02, 0.0));
+            let kins: [Kinematics; 4] =
+                std::array::from_fn(|i| r.kinematics(&r.configure(&qs[i]), &qd[i]));
+            let expected: [Vec3; 4] = std::array::from_fn(|i| {
+                step(&mut scalar[i], &measured(&qs[i], &qd[i], &kins[i]), &d).unwrap()
             });
-            let rs = axes.map(|a| nalgebra::Rotation3::from_scaled_axis(a).into_inner());
-            let lanes = rotation_vector(&pack_vector(rs.each_ref()));
-            for (l, r) in rs.iter().enumerate() {
-                let got = rotation_vector(r);
-                let err = (got - axes[l]).norm();
-                assert!(err <= 1e-15 * axes[l].norm().max(1e-300) + 1e-30, "{err:e}");
-                assert_eq!(lane_of(&lanes, l), got);
+            let (q4, qd4) = (pack_vector(qs.each_ref()), pack_vector(qd.each_ref()));
+            let kin = crate::robot::Kinematics::<3, F64x4> {
+                position: pack_vector(kins.each_ref().map(|k| &k.position)),
+                jacobian: pack_vector(kins.each_ref().map(|k| &k.jacobian)),
+                jdot_qd: pack_vector(kins.each_ref().map(|k| &k.jdot_qd)),
+            };
+            let normal = pack_vector([&X; 4]);
+            let m = Measured {
+                q: &q4,
+                qd: &qd4,
+                kinematics: &kin,
+                orientation: None,
+                force: F64x4::splat(0.0),
+                normal: &normal,
+            };
+            let d4 = Desired {
+                position: pack_vector([&d.position; 4]),
+                ..Desired::default()
+            };
+            let (tau, singular) =
+                lanes.command(&m, &Trig::<F64x4>::pack([&r.configure(&qs[0]); 4]), &d4);
+            assert!(!simba::simd::SimdBool::any(singular));
+            lanes.applied(&tau, &qd4);
+            for (i, e) in expected.iter().enumerate() {
+                assert_eq!(&lane_of(&tau, i), e, "period {period} lane {i}");
             }
         }
-    }
-
-    /// Near the identity, rounding puts (tr R − 1)/2 above 1: acos (nalgebra's
-    /// `scaled_axis`) gives NaN there; the log map stays finite and tiny.
-    #[test]
-    fn rotation_vector_near_the_identity_is_finite() {
-        use crate::robot::chain::arm::rotation_vector;
-        let mut r = Matrix3::<f64>::identity();
-        r[(0, 0)] += 4.0 * f64::EPSILON;
-        r[(1, 0)] = 3e-16;
-        let scaled = nalgebra::Rotation3::from_matrix_unchecked(r).scaled_axis();
-        assert!(
-            scaled.iter().any(|v| v.is_nan()),
-            "acos's failure is reproduced"
-        );
-        let v = rotation_vector(&r);
-        assert!(v.iter().all(|x| x.is_finite()) && v.norm() < 1e-15, "{v}");
     }
 }

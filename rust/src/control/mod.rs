@@ -1,7 +1,10 @@
 //! The controller side of the loop: references, the outer force loop (admittance filters),
-//! the task directions and the inner position control laws.
+//! the task directions and the inner position loop: its parameters (`params`), its laws as
+//! pure functions (`laws`) and its state machine (`controller`).
 
 pub mod controller;
 pub mod filter;
+pub mod laws;
+pub mod params;
 pub mod reference;
 pub mod task;

@@ -61,11 +61,12 @@ impl Default for TaskOptions {
 
 /// The tip's orientation terms for a pose task (SPEC §11): rotation R (tip axes in the
 /// world), the angular Jacobian (3×N, world frame) and its J̇q̇ (angular acceleration at q̈ = 0).
+/// Over `f64` by default; over lanes for runs advancing together.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Orientation<const N: usize> {
-    pub rotation: nalgebra::Matrix3<f64>,
-    pub jacobian: Jacobian<N>,
-    pub jdot_qd: TaskVector,
+pub struct Orientation<const N: usize, T: Real = f64> {
+    pub rotation: nalgebra::Matrix3<T>,
+    pub jacobian: SMatrix<T, 3, N>,
+    pub jdot_qd: Vector3<T>,
 }
 
 /// D(q), C(q, q̇) q̇ and G(q) of eq. (1).

@@ -6,11 +6,12 @@
 
 use nalgebra::SVector;
 
+use crate::control::controller::ControllerModel;
 use crate::robot::chain::arm::JointFriction;
 use crate::robot::chain::{SerialChain, UrdfArm};
-use crate::robot::{Dynamics, Kinematics};
+use crate::robot::{Dynamics, Kinematics, Orientation};
 use crate::scalar::{F64x4, LANES};
-use crate::sim::lane_stages::{LaneStages, StageArm, TipRotation};
+use crate::sim::lane_stages::{LaneStages, StageArm};
 use crate::sim::lanes::{ChainLanes, PackedPlant};
 use crate::sim::simulation::Simulation;
 
@@ -56,7 +57,7 @@ impl<const N: usize> StageArm<N> for UrdfArm<N> {
         q: &SVector<F64x4, N>,
         qd: &SVector<F64x4, N>,
         pose: bool,
-    ) -> (Kinematics<N, F64x4>, Option<TipRotation<N>>, ()) {
+    ) -> (Kinematics<N, F64x4>, Option<Orientation<N, F64x4>>, ()) {
         // One Jacobian for both the position and the orientation rows (the scalar arm
         // evaluates it twice, to the same bits).
         let frames = plant.arm.chain.frames(q);
@@ -66,38 +67,40 @@ impl<const N: usize> StageArm<N> for UrdfArm<N> {
             jacobian: j.fixed_rows::<3>(0).into_owned(),
             jdot_qd: jdot_qd.fixed_rows::<3>(0).into_owned(),
         };
-        let rotation = pose.then(|| {
-            (
-                frames.tip.rot,
-                j.fixed_rows::<3>(3).into_owned(),
-                jdot_qd.fixed_rows::<3>(3).into_owned(),
-            )
+        let rotation = pose.then(|| Orientation {
+            rotation: frames.tip.rot,
+            jacobian: j.fixed_rows::<3>(3).into_owned(),
+            jdot_qd: jdot_qd.fixed_rows::<3>(3).into_owned(),
         });
         (kin, rotation, ())
     }
+}
+
+impl<const N: usize> ControllerModel<F64x4, N> for ChainModels<N> {
+    type At = ();
 
     #[inline(always)]
-    fn model_terms(
-        model: &ChainModels<N>,
+    fn terms(
+        &self,
         _: &(),
         q: &SVector<F64x4, N>,
         qd: &SVector<F64x4, N>,
     ) -> (Dynamics<N, F64x4>, SVector<F64x4, N>) {
         // The controller's own chain (its mass scale), as `UrdfArm::dynamics`.
-        let frames = model.chain.frames(q);
-        let (coriolis, gravity) = model.chain.bias(&frames, qd);
+        let frames = self.chain.frames(q);
+        let (coriolis, gravity) = self.chain.bias(&frames, qd);
         let dynamics = Dynamics {
-            inertia: model.chain.crba(&frames),
+            inertia: self.chain.crba(&frames),
             coriolis,
             gravity,
         };
-        (dynamics, model.friction.torque(qd))
+        (dynamics, self.friction.torque(qd))
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use crate::control::controller::{
+    use crate::control::params::{
         ComputedTorqueParams, ControllerParams, ModelError, ModelFreeParams, PerJoint,
         PositionGains, TimeDelayParams,
     };

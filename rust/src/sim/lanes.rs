@@ -212,8 +212,9 @@ pub trait Front<R: LaneArm<N>, const N: usize>: Sized {
     /// structure has no lane version (its stages then run per lane, `step_to_plant`).
     fn pack(sims: [&Simulation<R, N>; LANES]) -> Option<Self>;
 
-    /// Lane `l` takes the fresh run `sim`.
-    fn put_lane(&mut self, l: usize, sim: &Simulation<R, N>);
+    /// Lane `l` takes the fresh run `sim`; false if its structure differs from the
+    /// group's (never in `run_lanes`, which packs only groups whose every run fits).
+    fn put_lane(&mut self, l: usize, sim: &Simulation<R, N>) -> bool;
 
     /// Stages 1–8 for the runs in `slot` (`run`: the run each lane computes; an idle lane
     /// repeats an active one). Each lane's torque to hold, or `None` where the run ended
@@ -389,7 +390,9 @@ fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) {
             tried = true;
         } else if let Some(f) = &mut front {
             for l in (0..LANES).filter(|&l| fresh[l]) {
-                f.put_lane(l, &sims[run[l]]);
+                let fits = f.put_lane(l, &sims[run[l]]);
+                // Every run of the group was checked to fit one pack before it began.
+                debug_assert!(fits, "a run that does not fit its lane group");
             }
         }
         // Stages 1–8: in lanes, or lane by lane.

@@ -12,6 +12,7 @@ pub mod lane_stages;
 pub mod lanes;
 pub mod metrics;
 pub mod outcome;
+pub mod pipeline;
 pub mod plant;
 pub mod scenario;
 pub mod simulation;

@@ -1,7 +1,7 @@
 //! What defines one run: the scenario's parameters and their validation.
 
-use crate::control::controller::ControllerParams;
 use crate::control::filter::ForceControlParams;
+use crate::control::params::ControllerParams;
 use crate::control::reference::Signal;
 use crate::error::{check, Error, Result};
 use crate::robot::chain::UrdfArmParams;
@@ -173,7 +173,7 @@ impl ScenarioConfig {
     /// A test fixture: computed torque with contact compensation and stiff gains (X follows
     /// X_d closely, the "ideal inner loop" of the paper's analysis), the motion held at z0.
     pub(crate) fn ideal_inner_loop(admittance: crate::control::filter::AdmittanceParams) -> Self {
-        use crate::control::controller::{ComputedTorqueParams, PositionGains};
+        use crate::control::params::{ComputedTorqueParams, PositionGains};
         Self {
             controller: ControllerParams::ComputedTorque(ComputedTorqueParams {
                 gains: PositionGains::new(1.0, 200.0, 1e4),

@@ -8,19 +8,15 @@
 //! `Simulation` all go through the same code. The state is explicit: [`Simulation::state`]
 //! and [`Simulation::set_state`] read and write it as one flat labelled vector.
 
-use nalgebra::Matrix3;
-
-use crate::control::controller::{
-    check_inertia_for, ControlFailure, Controller, Measurement, OrientationTask,
-};
+use crate::control::controller::{Controller, TaskAtStart};
 use crate::control::filter::ForceControl;
-use crate::control::reference::Sample;
+use crate::control::params::check_inertia_for;
 use crate::control::task::TaskFrame;
 use crate::error::{Error, Result};
-use crate::robot::chain::arm::rotation_vector;
-use crate::robot::{JointVector, RobotModel, TaskOptions, TaskVector, ThreeLinkArm};
+use crate::robot::{JointVector, RobotModel, TaskVector, ThreeLinkArm};
 use crate::sim::metrics::{Metrics, OnlineMetrics};
 pub use crate::sim::outcome::{Divergence, Outcome};
+use crate::sim::pipeline::{Inputs, Pipeline};
 use crate::sim::plant::{Plant, PlantState};
 pub use crate::sim::scenario::{ScenarioConfig, MAX_SAMPLES, MAX_SUBSTEPS};
 use crate::sim::trace::{Row, Trace};
@@ -42,17 +38,9 @@ pub struct RunResult {
 pub struct Simulation<R: RobotModel<N>, const N: usize> {
     config: ScenarioConfig,
     plant: Plant<R, N>,
-    sensor: ForceSensor,
-    force_control: Option<ForceControl>,
-    controller: Controller<R, N>,
-    actuator: Actuator<N>,
-    frame: TaskFrame,
-    /// The tip orientation R0 a pose task holds; `None` for a position task.
-    start_rotation: Option<Matrix3<f64>>,
-    /// q0 for the null-space posture term of a redundant arm; `None` otherwise.
-    posture: Option<JointVector<N>>,
-    /// J⁺'s damping and the orientation gains of the arm's task.
-    task_options: TaskOptions,
+    /// Stages 2–7: sensor, force control, task frame, controller (its model: the arm with
+    /// the controller's model error), actuator.
+    stages: Pipeline<f64, R, N>,
     samples: usize,
     /// The next sample to take.
     k: usize,
@@ -96,35 +84,9 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         &mut self.plant
     }
 
-    /// The stages' state machines, for the lanes that pack them (`sim::lane_stages`).
-    pub(crate) fn sensor(&self) -> &ForceSensor {
-        &self.sensor
-    }
-
-    pub(crate) fn force_control(&self) -> Option<&ForceControl> {
-        self.force_control.as_ref()
-    }
-
-    pub(crate) fn controller(&self) -> &Controller<R, N> {
-        &self.controller
-    }
-
-    pub(crate) fn actuator(&self) -> &Actuator<N> {
-        &self.actuator
-    }
-
-    /// R0 of a pose task's orientation error; `None` for a position task.
-    pub(crate) fn start_rotation(&self) -> Option<&Matrix3<f64>> {
-        self.start_rotation.as_ref()
-    }
-
-    /// q0 of the null-space posture term; `None` unless the arm is redundant.
-    pub(crate) fn posture(&self) -> Option<&JointVector<N>> {
-        self.posture.as_ref()
-    }
-
-    pub(crate) fn task_options(&self) -> TaskOptions {
-        self.task_options
+    /// Stages 2–7's state machines, for the lanes that pack them (`sim::lane_stages`).
+    pub(crate) fn stages(&self) -> &Pipeline<f64, R, N> {
+        &self.stages
     }
 
     /// Builds the pipeline for `robot` (its parameters replace `config.robot`). The rest of
@@ -134,17 +96,13 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             .actuator
             .validate(N)
             .map_err(|e| e.within("actuator"))?;
-        let controller = Controller::new(&config.controller, &robot, config.period);
-        if let Some(p) = controller.joint_inertia() {
+        if let Some(p) = config.controller.joint_inertia() {
             check_inertia_for::<N>(p).map_err(|e| e.within("controller"))?;
         }
+        let task = TaskAtStart::of(&robot);
+        let controller = Controller::new(&config.controller, &robot, config.period, &task);
         let q0 = robot.initial_position();
         let start = robot.tip_position(&robot.configure(&q0));
-        let start_rotation = robot
-            .orientation(&robot.configure(&q0), &JointVector::zeros())
-            .map(|o| o.rotation);
-        let task_dimension = if start_rotation.is_some() { 6 } else { 3 };
-        let posture = (N > task_dimension).then_some(q0);
         let wall = config
             .wall
             .as_ref()
@@ -156,13 +114,11 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             None => TaskFrame::new(TaskVector::x(), start, start[0]),
         };
         let samples = config.samples();
-        let task_options = robot.task_options();
         let mut metrics = OnlineMetrics::new(config, &frame);
         if let Some((lower, upper)) = robot.position_limits() {
             metrics.set_position_limits(lower.as_slice(), upper.as_slice());
         }
         Ok(Self {
-            controller,
             plant: Plant::new(
                 robot,
                 wall,
@@ -173,16 +129,16 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
                 config.period,
                 config.substeps,
             ),
-            sensor: ForceSensor::new(&config.sensor, config.period, config.seed),
-            force_control: config
-                .admittance
-                .as_ref()
-                .map(|a| ForceControl::new(a, config.period)),
-            actuator: Actuator::new(&config.actuator, config.period),
-            frame,
-            start_rotation,
-            posture,
-            task_options,
+            stages: Pipeline {
+                sensor: ForceSensor::new(&config.sensor, config.period, config.seed),
+                force_control: config
+                    .admittance
+                    .as_ref()
+                    .map(|a| ForceControl::new(a, config.period)),
+                frame,
+                controller,
+                actuator: Actuator::new(&config.actuator, config.period),
+            },
             samples,
             k: 0,
             outcome: None,
@@ -213,7 +169,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
 
     /// The task directions (wall normal, motion tangent) and the start.
     pub fn frame(&self) -> &TaskFrame {
-        &self.frame
+        &self.stages.frame
     }
 
     /// The recorded samples so far.
@@ -239,12 +195,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
     /// Back to t = 0: every stage at its initial state, the trace empty.
     pub fn reset(&mut self) {
         self.plant.reset();
-        self.sensor.reset();
-        if let Some(f) = &mut self.force_control {
-            f.reset();
-        }
-        self.controller.reset();
-        self.actuator.reset();
+        self.stages.reset();
         self.k = 0;
         self.outcome = None;
         self.trace.truncate(0);
@@ -333,89 +284,56 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         // 1. plant state (what the encoders give)
         let PlantState { q, qd } = *self.plant.state();
         let kin = self.plant.kinematics();
-        // 2. environment: the true force along n
+        let orientation = if self.stages.controller.pose() {
+            self.plant.orientation()
+        } else {
+            None
+        };
+        // 2.–7., with this run's noise draw and references at t_k
         let wall = self.plant.wall();
-        let (force, penetration) = match wall {
-            Some(w) => {
-                let velocity = if w.needs_rate() {
-                    kin.jacobian * qd
-                } else {
-                    TaskVector::zeros()
-                };
-                (
-                    w.force(&kin.position, &velocity),
-                    w.penetration(&kin.position),
-                )
-            }
-            None => (0.0, f64::NAN),
-        };
-        // 3. force sensor
-        let measured = self.sensor.measure(k, force);
-        // 4. references
         let f_d = self.config.force_reference.at(t);
-        let s = self.config.z_reference.at(t);
-        // 5. force control, fed by the measured force; its state advances with e_f,k
-        let (x_a, desired) = match &mut self.force_control {
-            Some(fc) => {
-                let x_a = fc.step(&f_d, measured);
-                (x_a, self.frame.force_reference(&x_a, &s))
-            }
-            None => (Sample::default(), self.frame.motion_reference(&s)),
-        };
-        // 6. control law
-        let measurement = Measurement {
-            q: &q,
-            qd: &qd,
-            kinematics: &kin,
-            force: measured,
-            normal: &self.frame.normal,
-            orientation: self.start_rotation.and_then(|r0| {
-                self.plant.orientation().map(|o| OrientationTask {
-                    error: rotation_vector(&(r0 * o.rotation.transpose())),
-                    jacobian: o.jacobian,
-                    jdot_qd: o.jdot_qd,
-                })
-            }),
-            posture: self.posture.as_ref(),
-            options: self.task_options,
-        };
-        let command = match self.controller.step(&measurement, &desired) {
-            Ok(tau) if tau.iter().all(|v| v.is_finite()) => tau,
-            Ok(_) => {
-                self.stop(t, Divergence::NonFiniteTorque);
-                return None;
-            }
-            Err(ControlFailure::SingularJacobian) => {
-                self.stop(t, Divergence::SingularJacobian);
-                return None;
-            }
-        };
-        // 7. actuator; TDC remembers what was applied
-        let tau = self.actuator.apply(k, &command);
-        self.controller.applied(&tau);
+        let out = self.stages.step(
+            &Inputs {
+                first: k == 0,
+                q: &q,
+                qd: &qd,
+                kinematics: &kin,
+                orientation: orientation.as_ref(),
+                wall,
+                needs_rate: wall.is_some_and(|w| w.needs_rate()),
+                noise: self.stages.sensor.noise_draw(k),
+                force_reference: f_d,
+                motion_reference: self.config.z_reference.at(t),
+            },
+            &(),
+        );
+        if out.singular {
+            self.stop(t, Divergence::SingularJacobian);
+            return None;
+        }
+        if out.non_finite {
+            self.stop(t, Divergence::NonFiniteTorque);
+            return None;
+        }
         // 8. record sample k
-        let p = kin.position;
+        let (p, reference) = (kin.position, out.desired.position);
         let more = self.close_sample(&Row {
             t,
             q: q.as_slice(),
             qd: qd.as_slice(),
             position: [p[0], p[1], p[2]],
-            reference: [
-                desired.position[0],
-                desired.position[1],
-                desired.position[2],
-            ],
-            f: force,
-            f_measured: measured,
+            reference: [reference[0], reference[1], reference[2]],
+            f: out.force,
+            f_measured: out.measured,
             f_d: f_d.value,
-            penetration,
-            x_a: x_a.value,
-            xa_dot: x_a.rate,
-            tau: tau.as_slice(),
-            tau_cmd: command.as_slice(),
+            penetration: out.penetration,
+            x_a: out.x_a.value,
+            xa_dot: out.x_a.rate,
+            tau: out.tau.as_slice(),
+            tau_cmd: out.command.as_slice(),
         });
         // 9. integrate the plant over [t_k, t_{k+1}] with τ_k held
-        more.then_some(tau)
+        more.then_some(out.tau)
     }
 
     /// Stage 8 of the current sample: records `row` (trace and online metrics) and moves
@@ -474,12 +392,13 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         let mut out = vec!["sample".to_owned()];
         out.extend((1..=N).map(|j| format!("plant.q{j}")));
         out.extend((1..=N).map(|j| format!("plant.qd{j}")));
-        if let Some(fc) = &self.force_control {
+        let st = &self.stages;
+        if let Some(fc) = &st.force_control {
             out.extend(fc.state_labels().iter().map(|l| format!("filter.{l}")));
         }
-        out.extend(self.controller.state_labels());
-        out.extend(self.sensor.state_labels());
-        out.extend(self.actuator.state_labels());
+        out.extend(st.controller.state_labels());
+        out.extend(st.sensor.state_labels());
+        out.extend(st.actuator.state_labels());
         out
     }
 
@@ -489,12 +408,13 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         let mut out = vec![self.k as f64];
         out.extend_from_slice(s.q.as_slice());
         out.extend_from_slice(s.qd.as_slice());
-        if let Some(fc) = &self.force_control {
+        let st = &self.stages;
+        if let Some(fc) = &st.force_control {
             fc.state(&mut out);
         }
-        self.controller.state(&mut out);
-        self.sensor.state(&mut out);
-        self.actuator.state(&mut out);
+        st.controller.state(&mut out);
+        st.sensor.state(&mut out);
+        st.actuator.state(&mut out);
         out
     }
 
@@ -534,12 +454,13 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         let qd = JointVector::<N>::from_column_slice(&values[at + N..at + 2 * N]);
         at += 2 * N;
         self.plant.set_state(PlantState { q, qd });
-        if let Some(fc) = &mut self.force_control {
+        let st = &mut self.stages;
+        if let Some(fc) = &mut st.force_control {
             at += fc.set_state(&values[at..]);
         }
-        at += self.controller.set_state(&values[at..], k > 0);
-        at += self.sensor.set_state(&values[at..]);
-        self.actuator.set_state(&values[at..]);
+        at += st.controller.set_state(&values[at..], k > 0);
+        at += st.sensor.set_state(&values[at..]);
+        st.actuator.set_state(&values[at..]);
         self.k = k;
         self.outcome = None;
         self.trace.truncate(k);
@@ -565,8 +486,8 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::control::controller::{ControllerParams, ModelFreeParams, PositionGains};
     use crate::control::filter::AdmittanceParams;
+    use crate::control::params::{ControllerParams, ModelFreeParams, PositionGains};
 
     use crate::world::actuator::ActuatorParams;
     use crate::world::sensor::SensorParams;

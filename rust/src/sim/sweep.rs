@@ -3,8 +3,8 @@
 
 use rayon::prelude::*;
 
-use crate::control::controller::{ControllerParams, TdcLaw};
 use crate::control::filter::ForceControlParams;
+use crate::control::params::{ControllerParams, TdcLaw};
 use crate::error::{Error, Result};
 use crate::sim::dispatch::AnySimulation;
 use crate::sim::lanes::{run_lanes, LaneKey, StageKey};
@@ -330,7 +330,7 @@ mod tests {
     /// stages 1–8 run in lanes); parameters do not split groups.
     #[test]
     fn urdf_lane_key_holds_the_stage_structure() {
-        use crate::control::controller::{ModelFreeParams, TimeDelayParams};
+        use crate::control::params::{ModelFreeParams, TimeDelayParams};
         use crate::robot::chain::{TaskKind, UrdfArmParams};
         let arm = UrdfArmParams {
             urdf: "<robot name='r'/>".to_owned(),

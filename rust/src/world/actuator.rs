@@ -98,11 +98,6 @@ impl<const N: usize> Actuator<N> {
     pub fn apply(&mut self, k: usize, command: &JointVector<N>) -> JointVector<N> {
         self.apply_lanes(k == 0, command)
     }
-
-    /// Samples of delay.
-    pub fn delay(&self) -> usize {
-        self.in_flight.len()
-    }
 }
 
 impl<const N: usize> Actuator<N, F64x4> {
@@ -135,6 +130,11 @@ impl<const N: usize> Actuator<N, F64x4> {
 }
 
 impl<const N: usize, T: Real> Actuator<N, T> {
+    /// Samples of delay.
+    pub fn delay(&self) -> usize {
+        self.in_flight.len()
+    }
+
     pub fn reset(&mut self) {
         self.in_flight
             .iter_mut()

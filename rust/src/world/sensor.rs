@@ -119,11 +119,6 @@ impl ForceSensor {
         let noise = self.noise_draw(k);
         self.read(k == 0, force, noise)
     }
-
-    /// Samples of latency.
-    pub fn latency(&self) -> usize {
-        self.in_flight.len()
-    }
 }
 
 impl ForceSensor<F64x4> {
@@ -159,6 +154,11 @@ impl ForceSensor<F64x4> {
 }
 
 impl<T: Real> ForceSensor<T> {
+    /// Samples of latency.
+    pub fn latency(&self) -> usize {
+        self.in_flight.len()
+    }
+
     pub fn reset(&mut self) {
         self.filtered = T::zero();
         self.in_flight.iter_mut().for_each(|v| *v = T::zero());

@@ -1,0 +1,339 @@
+//! The inner position loop's parameters (SPEC §4): the gains of eq. (39), the three
+//! controllers' parameter blocks, the model error a controller believes in and the constant
+//! inertia D̄ of eqs. (17) and (18). Plain data with `validate()`; the laws are in
+//! `control::laws`, the state machine in `control::controller`.
+
+use nalgebra::Vector3;
+
+use crate::control::task::Desired;
+use crate::error::{check, Result};
+use crate::robot::{JointMatrix, JointVector, RobotModel};
+use crate::scalar::{F64x4, Real, LANES};
+
+/// Gains of eq. (39): V = K_A⁻¹ (Ẍ_d + K_D (Ẋ_d − Ẋ) + K_P (X_d − X)), each a scalar times I.
+/// Over `f64`, or four runs' gains in lanes (one `scale_feedforward`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionGains<T: Real = f64> {
+    pub ka: T,
+    pub kd: T,
+    pub kp: T,
+    /// `true` (SPEC §4, the paper as written): K_A⁻¹ multiplies the feed-forward Ẍ_d too.
+    /// `false`: V = Ẍ_d + K_A⁻¹ (K_D ė + K_P e), a reading under which computed torque
+    /// tracks X_d exactly; offered as a labelled variant, never the default.
+    pub scale_feedforward: bool,
+}
+
+impl PositionGains {
+    pub const fn new(ka: f64, kd: f64, kp: f64) -> Self {
+        Self {
+            ka,
+            kd,
+            kp,
+            scale_feedforward: true,
+        }
+    }
+}
+
+impl PositionGains {
+    pub fn validate(&self) -> Result<()> {
+        check::positive("ka", self.ka)?;
+        check::non_negative("kd", self.kd)?;
+        check::non_negative("kp", self.kp)
+    }
+}
+
+impl PositionGains<F64x4> {
+    /// Four runs' gains in lanes (they share `scale_feedforward`: the lane key).
+    pub fn pack(g: [&PositionGains; LANES]) -> Self {
+        Self {
+            ka: F64x4::from_lanes(|i| g[i].ka),
+            kd: F64x4::from_lanes(|i| g[i].kd),
+            kp: F64x4::from_lanes(|i| g[i].kp),
+            scale_feedforward: g[0].scale_feedforward,
+        }
+    }
+}
+
+impl<T: Real> PositionGains<T> {
+    /// eq. (39)
+    #[inline(always)]
+    pub fn command(
+        &self,
+        desired: &Desired<T>,
+        position: &Vector3<T>,
+        velocity: &Vector3<T>,
+    ) -> Vector3<T> {
+        let feedback =
+            (desired.velocity - velocity) * self.kd + (desired.position - position) * self.kp;
+        if self.scale_feedforward {
+            (desired.acceleration + feedback) / self.ka
+        } else {
+            desired.acceleration + feedback / self.ka
+        }
+    }
+}
+
+/// The controller's belief about the arm, relative to the plant (SPEC §4, for sweeps).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModelError {
+    /// Factor on every link mass (and so every inertia). Default 1.
+    pub mass_scale: f64,
+    /// Factor on viscous and Coulomb friction. Default 1.
+    pub friction_scale: f64,
+}
+
+impl Default for ModelError {
+    fn default() -> Self {
+        Self {
+            mass_scale: 1.0,
+            friction_scale: 1.0,
+        }
+    }
+}
+
+impl ModelError {
+    pub fn validate(&self) -> Result<()> {
+        check::positive("mass_scale", self.mass_scale)?;
+        check::non_negative("friction_scale", self.friction_scale)
+    }
+
+    /// The controller's copy of the plant's arm.
+    pub(crate) fn arm<R: RobotModel<N>, const N: usize>(&self, robot: &R) -> R {
+        robot.with_model_error(self.mass_scale, self.friction_scale)
+    }
+}
+
+/// Which TDC law.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TdcLaw {
+    /// eq. (18): τ = D̄ K_t Jᵀ V + τ_{k−1} − D̄ q̈_{k−1}.
+    JacobianTranspose,
+    /// eq. (17): τ = D̄ J⁻¹ (V − J̇q̇) + τ_{k−1} − D̄ q̈_{k−1}.
+    InverseJacobian,
+}
+
+/// Computed torque, eq. (7) in joint space: τ = D̂ J⁻¹ (V − J̇q̇) + Ĉ + Ĝ + τ̂_f.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ComputedTorqueParams {
+    /// Default K_A = 0.1, K_D = 20, K_P = 100.
+    pub gains: PositionGains,
+    /// Add f J_xᵀ to cancel the measured contact force. Default false.
+    pub contact_compensation: bool,
+    pub model: ModelError,
+}
+
+impl Default for ComputedTorqueParams {
+    fn default() -> Self {
+        Self {
+            gains: PositionGains::new(0.1, 20.0, 100.0),
+            contact_compensation: false,
+            model: ModelError::default(),
+        }
+    }
+}
+
+/// The most joints a per-joint parameter can describe.
+pub const MAX_JOINTS: usize = 8;
+
+/// A constant inertia D̄ given per joint: n values (D̄ = diag) or n² values (a full
+/// symmetric positive definite D̄, row-major), stored inline so parameter blocks stay `Copy`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PerJoint {
+    values: [f64; MAX_JOINTS * MAX_JOINTS],
+    len: usize,
+}
+
+impl PerJoint {
+    /// `None` when `values` has more than 64 entries.
+    pub fn from_slice(values: &[f64]) -> Option<Self> {
+        (values.len() <= MAX_JOINTS * MAX_JOINTS).then(|| {
+            let mut v = [0.0; MAX_JOINTS * MAX_JOINTS];
+            v[..values.len()].copy_from_slice(values);
+            Self {
+                values: v,
+                len: values.len(),
+            }
+        })
+    }
+
+    pub fn as_slice(&self) -> &[f64] {
+        &self.values[..self.len]
+    }
+
+    /// Whether it describes an `n`-joint arm (n values or n² values).
+    pub fn fits(&self, n: usize) -> bool {
+        self.len == n || self.len == n * n
+    }
+
+    /// D̄ as a matrix (the caller has checked `fits(N)`).
+    pub fn matrix<const N: usize>(&self) -> JointMatrix<N> {
+        if self.len == N {
+            JointMatrix::<N>::from_diagonal(&JointVector::<N>::from_fn(|i, _| self.values[i]))
+        } else {
+            JointMatrix::<N>::from_fn(|i, j| self.values[i * N + j])
+        }
+    }
+}
+
+/// D̄ of eqs. 17/18: `inertia`·I, or the per-joint D̄ when given (a URDF arm whose wrist
+/// inertias are far below its shoulder's needs one: TDC is stable only while the spectral
+/// radius of I − D⁻¹D̄ stays below 1).
+pub(crate) fn constant_inertia<const N: usize>(
+    inertia: f64,
+    joint: &Option<PerJoint>,
+) -> JointMatrix<N> {
+    joint.map_or_else(
+        || JointMatrix::<N>::identity() * inertia,
+        |p| p.matrix::<N>(),
+    )
+}
+
+pub(crate) fn check_joint_inertia(p: &Option<PerJoint>) -> Result<()> {
+    if let Some(p) = p {
+        for (i, v) in p.as_slice().iter().enumerate() {
+            check::finite(&format!("inertia[{i}]"), *v)?;
+        }
+    }
+    Ok(())
+}
+
+/// Checks a per-joint D̄ against the arm's joint count: n positive values, or an n×n
+/// symmetric positive definite matrix.
+pub fn check_inertia_for<const N: usize>(p: &PerJoint) -> Result<()> {
+    let shown = || format!("{:?}", p.as_slice());
+    if !p.fits(N) {
+        return Err(crate::error::Error::parameter(
+            "inertia",
+            shown(),
+            &format!("one number, {N} numbers (diagonal) or {N}x{N} (a matrix)"),
+        ));
+    }
+    let m = p.matrix::<N>();
+    if (m - m.transpose()).abs().max() > 1e-12 * m.abs().max() || m.cholesky().is_none() {
+        return Err(crate::error::Error::parameter(
+            "inertia",
+            shown(),
+            "positive values, or a symmetric positive definite matrix",
+        ));
+    }
+    Ok(())
+}
+
+/// Model-free ("nonmodel") control: eq. (18) without the delay estimate, τ = D̄ K_t Jᵀ V.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModelFreeParams {
+    /// Default K_A = 5, K_D = 20, K_P = 100.
+    pub gains: PositionGains,
+    /// Constant inertia D̄ = α I [kg·m²]. Default 0.1.
+    pub inertia: f64,
+    /// D̄ = diag(values), one per joint, instead of `inertia`·I. Default `None`.
+    pub joint_inertia: Option<PerJoint>,
+    /// Torque constant K_t. Default 200.
+    pub torque_constant: f64,
+}
+
+impl Default for ModelFreeParams {
+    fn default() -> Self {
+        Self {
+            gains: PositionGains::new(5.0, 20.0, 100.0),
+            inertia: 0.1,
+            joint_inertia: None,
+            torque_constant: 200.0,
+        }
+    }
+}
+
+/// Time-delayed control, eq. (18) (default) or eq. (17).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TimeDelayParams {
+    /// Default K_A = 5, K_D = 20, K_P = 100.
+    pub gains: PositionGains,
+    /// Constant inertia D̄ [kg·m²]. Default 0.1.
+    pub inertia: f64,
+    /// D̄ = diag(values), one per joint, instead of `inertia`·I. Default `None`.
+    pub joint_inertia: Option<PerJoint>,
+    /// Torque constant K_t (eq. 18 only). Default 200.
+    pub torque_constant: f64,
+    pub law: TdcLaw,
+    /// Used only for the initial torque τ_{−1} = Ĝ(q0).
+    pub model: ModelError,
+}
+
+impl Default for TimeDelayParams {
+    fn default() -> Self {
+        let mf = ModelFreeParams::default();
+        Self {
+            gains: mf.gains,
+            inertia: mf.inertia,
+            joint_inertia: None,
+            torque_constant: mf.torque_constant,
+            law: TdcLaw::JacobianTranspose,
+            model: ModelError::default(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ControllerParams {
+    ComputedTorque(ComputedTorqueParams),
+    ModelFree(ModelFreeParams),
+    TimeDelay(TimeDelayParams),
+}
+
+impl ControllerParams {
+    /// D̄ per joint, when given (model-free and TDC).
+    pub fn joint_inertia(&self) -> Option<&PerJoint> {
+        match self {
+            ControllerParams::ComputedTorque(_) => None,
+            ControllerParams::ModelFree(p) => p.joint_inertia.as_ref(),
+            ControllerParams::TimeDelay(p) => p.joint_inertia.as_ref(),
+        }
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        let gains = |g: &PositionGains| g.validate();
+        match self {
+            ControllerParams::ComputedTorque(p) => {
+                gains(&p.gains)?;
+                p.model.validate().map_err(|e| e.within("model"))
+            }
+            ControllerParams::ModelFree(p) => {
+                gains(&p.gains)?;
+                check::positive("inertia", p.inertia)?;
+                check_joint_inertia(&p.joint_inertia)?;
+                check::positive("torque_constant", p.torque_constant)
+            }
+            ControllerParams::TimeDelay(p) => {
+                gains(&p.gains)?;
+                check::positive("inertia", p.inertia)?;
+                check_joint_inertia(&p.joint_inertia)?;
+                check::positive("torque_constant", p.torque_constant)?;
+                p.model.validate().map_err(|e| e.within("model"))
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::robot::three_link::Vec3;
+
+    #[test]
+    fn command_is_eq39() {
+        let g = PositionGains::new(5.0, 20.0, 100.0);
+        let d = Desired {
+            position: Vec3::new(1.0, 0.0, 0.0),
+            velocity: Vec3::new(0.0, 1.0, 0.0),
+            acceleration: Vec3::new(0.0, 0.0, 5.0),
+        };
+        let v = g.command(&d, &Vec3::zeros(), &Vec3::zeros());
+        assert_eq!(v, Vec3::new(20.0, 4.0, 1.0));
+        let unscaled = PositionGains {
+            scale_feedforward: false,
+            ..g
+        };
+        let v = unscaled.command(&d, &Vec3::zeros(), &Vec3::zeros());
+        assert_eq!(v, Vec3::new(20.0, 4.0, 5.0));
+    }
+}

@@ -1,0 +1,201 @@
+//! Stages 2–7 of a period (SPEC §10, §14), written once over a scalar `T`: environment force
+//! → force sensor → force control (fed by the measured force) → task reference → control
+//! law → actuator, with the controller told what was applied. A scalar run
+//! (`Simulation::step_to_plant`) is the `f64` case; a lane group (`sim::lane_stages`) is four
+//! runs of one structure packed into [`F64x4`]. The callers only gather what is per run (the
+//! plant state and kinematics, each run's noise draw and references at its own t) and record
+//! each run's sample; no stage or law is written twice.
+
+use nalgebra::{SVector, Vector3};
+
+use crate::control::controller::{not_finite, Controller, ControllerModel, Measured};
+use crate::control::filter::ForceControl;
+use crate::control::reference::Sample;
+use crate::control::task::{Desired, TaskFrame};
+use crate::robot::{Kinematics, Orientation};
+use crate::scalar::{F64x4, Real, LANES};
+use crate::world::actuator::Actuator;
+use crate::world::environment::Wall;
+use crate::world::sensor::ForceSensor;
+
+/// The state machines of stages 3–7 and the task frame, over `T`; `M`: computed torque's
+/// model (an arm for one run, four models in lanes).
+#[derive(Debug, Clone)]
+pub struct Pipeline<T: Real, M, const N: usize> {
+    pub sensor: ForceSensor<T>,
+    pub force_control: Option<ForceControl<T>>,
+    pub frame: TaskFrame<T>,
+    pub controller: Controller<T, M, N>,
+    pub actuator: Actuator<N, T>,
+}
+
+/// What a period's stages read: the encoders (q, q̇) and the tip kinematics at them, the
+/// environment, the sensor's standard normal draw, and the references at t_k.
+pub struct Inputs<'a, T: Real, const N: usize> {
+    /// The lanes at sample 0.
+    pub first: T::SimdBool,
+    pub q: &'a SVector<T, N>,
+    pub qd: &'a SVector<T, N>,
+    pub kinematics: &'a Kinematics<N, T>,
+    /// The tip's rotation terms, for a pose task (`Controller::pose`).
+    pub orientation: Option<&'a Orientation<N, T>>,
+    pub wall: Option<&'a Wall<T>>,
+    /// Whether the wall reads the tip's rate (a damped wall); without it Ẋ is taken as 0.
+    pub needs_rate: bool,
+    pub noise: T,
+    /// f_d(t_k).
+    pub force_reference: Sample<T>,
+    /// s(t_k), the motion along t̂.
+    pub motion_reference: Sample<T>,
+}
+
+/// What a period's stages give: the sample's record and the torque to hold.
+pub struct Outputs<T: Real, const N: usize> {
+    /// The true contact force along n and the penetration (NaN without a wall).
+    pub force: T,
+    pub penetration: T,
+    pub measured: T,
+    /// The outer loop's x_a (zero for position control) and the task reference.
+    pub x_a: Sample<T>,
+    pub desired: Desired<T>,
+    pub command: SVector<T, N>,
+    /// The applied torque (the command where every lane failed).
+    pub tau: SVector<T, N>,
+    /// The lanes whose Jacobian failed, and those whose command is not finite: their runs
+    /// end at this sample.
+    pub singular: T::SimdBool,
+    pub non_finite: T::SimdBool,
+}
+
+impl<T: Real, M: ControllerModel<T, N>, const N: usize> Pipeline<T, M, N> {
+    /// Stages 2–7 at t_k. Where every lane failed (always, for a failed scalar run), the
+    /// actuator and the controller's memory are left as they were.
+    #[inline(always)]
+    pub fn step(&mut self, input: &Inputs<T, N>, at: &M::At) -> Outputs<T, N> {
+        let kin = input.kinematics;
+        // 2. environment: the true force along n
+        let (force, penetration) = match input.wall {
+            Some(w) => {
+                let velocity = if input.needs_rate {
+                    kin.jacobian * input.qd
+                } else {
+                    Vector3::zeros()
+                };
+                (
+                    w.force(&kin.position, &velocity),
+                    w.penetration(&kin.position),
+                )
+            }
+            None => (T::zero(), T::splat(f64::NAN)),
+        };
+        // 3. force sensor
+        let measured = self.sensor.read(input.first, force, input.noise);
+        // 4.–5. force control, fed by the measured force; then the task reference
+        let s = &input.motion_reference;
+        let (x_a, desired) = match &mut self.force_control {
+            Some(fc) => {
+                let x_a = fc.step(&input.force_reference, measured);
+                (x_a, self.frame.force_reference(&x_a, s))
+            }
+            None => (Sample::default(), self.frame.motion_reference(s)),
+        };
+        // 6. control law
+        let measurement = Measured {
+            q: input.q,
+            qd: input.qd,
+            kinematics: kin,
+            orientation: input.orientation,
+            force: measured,
+            normal: &self.frame.normal,
+        };
+        let (command, singular) = self.controller.command(&measurement, at, &desired);
+        let non_finite = not_finite(&command);
+        let mut tau = command;
+        if !T::all(singular | non_finite) {
+            // 7. actuator; TDC remembers what was applied
+            tau = self.actuator.apply_lanes(input.first, &command);
+            self.controller.applied(&tau, input.qd);
+        }
+        Outputs {
+            force,
+            penetration,
+            measured,
+            x_a,
+            desired,
+            command,
+            tau,
+            singular,
+            non_finite,
+        }
+    }
+}
+
+impl<T: Real, M, const N: usize> Pipeline<T, M, N> {
+    /// Every stage back at its initial state.
+    pub fn reset(&mut self) {
+        self.sensor.reset();
+        if let Some(f) = &mut self.force_control {
+            f.reset();
+        }
+        self.controller.reset();
+        self.actuator.reset();
+    }
+}
+
+impl<M, const N: usize> Pipeline<F64x4, M, N> {
+    /// Four runs' stages of one structure in lanes, from their current state (`None` if
+    /// their structures differ: sensor latency, actuator delay, outer loop kind, controller
+    /// structure); `models` packs computed torque's four models.
+    pub fn pack<R>(
+        p: [&Pipeline<f64, R, N>; LANES],
+        models: impl FnOnce([&R; LANES]) -> M,
+    ) -> Option<Self> {
+        let p0 = p[0];
+        let uniform = p.iter().all(|x| {
+            x.sensor.latency() == p0.sensor.latency()
+                && x.actuator.delay() == p0.actuator.delay()
+                && x.force_control.is_some() == p0.force_control.is_some()
+        });
+        if !uniform {
+            return None;
+        }
+        let force_control = match p.map(|x| x.force_control.as_ref()) {
+            [Some(a), Some(b), Some(c), Some(d)] => Some(ForceControl::pack([a, b, c, d])?),
+            _ => None,
+        };
+        Some(Self {
+            sensor: ForceSensor::pack(p.map(|x| &x.sensor)),
+            force_control,
+            frame: TaskFrame::pack(p.map(|x| &x.frame)),
+            controller: Controller::pack(p.map(|x| &x.controller), models)?,
+            actuator: Actuator::pack(p.map(|x| &x.actuator)),
+        })
+    }
+
+    /// Lane `l` takes the run's stages `p`, which must have this group's structure (the
+    /// lane key's promise); false, with the lane half-written, if they do not.
+    pub fn put_lane<R>(
+        &mut self,
+        l: usize,
+        p: &Pipeline<f64, R, N>,
+        model: impl FnOnce(&mut M, &R),
+    ) -> bool {
+        if p.sensor.latency() != self.sensor.latency()
+            || p.actuator.delay() != self.actuator.delay()
+        {
+            return false;
+        }
+        let force_control = match (&mut self.force_control, &p.force_control) {
+            (Some(f), Some(g)) => f.put_lane(l, g),
+            (None, None) => true,
+            _ => false,
+        };
+        if !force_control || !self.controller.put_lane(l, &p.controller, model) {
+            return false;
+        }
+        self.sensor.put_lane(l, &p.sensor);
+        self.frame.put_lane(l, &p.frame);
+        self.actuator.put_lane(l, &p.actuator);
+        true
+    }
+}
