@@ -18,4 +18,5 @@ pub mod world;
 mod python;
 
 pub use error::{Error, Result};
-pub use sim::simulation::{simulate, RunResult, ScenarioConfig, Simulation};
+pub use sim::dispatch::simulate;
+pub use sim::simulation::{RunResult, ScenarioConfig, Simulation};

@@ -723,7 +723,7 @@ impl Stepper {
 fn simulate<'py>(scenario: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyDict>> {
     let py = scenario.py();
     let config = scenario_from(scenario)?;
-    let run = py.detach(move || crate::sim::simulation::simulate(&config));
+    let run = py.detach(move || crate::sim::dispatch::simulate(&config));
     run_to_dict(py, run.map_err(|e| to_py_err(py, e))?)
 }
 

@@ -376,32 +376,52 @@ impl<T: Real, M, const N: usize> Controller<T, M, N> {
     }
 }
 
-/// Whether two runs' controllers have one structure: the same kind (with its switches), the
-/// same path, the same task terms present and one `scale_feedforward`. Everything else is a
-/// number a lane carries.
-fn same_structure<A, B, const N: usize>(
-    a: &Controller<f64, A, N>,
-    b: &Controller<f64, B, N>,
-) -> bool {
-    law_kind(&a.law) == law_kind(&b.law)
-        && task_shape(&a.task) == task_shape(&b.task)
-        && a.gains.scale_feedforward == b.gains.scale_feedforward
+/// What runs must share for their controllers to advance in one lane group: the law's kind
+/// with its structural switch, the path with the task terms present, and
+/// `scale_feedforward`. Everything else (gains, D̄, K_t, λ, R0, q0, the memory) is a number
+/// a lane carries. A new law kind adds a variant here, or `Controller::lane_key` does not
+/// compile.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ControllerKey {
+    pub law: LawKey,
+    /// `None`: the square path; else the general task path with (pose, posture).
+    pub task: Option<TaskKey>,
+    pub scale_feedforward: bool,
 }
 
-/// A law's kind with its structural switch: computed torque's contact compensation, TDC's
-/// law.
-fn law_kind<T: Real, M, const N: usize>(law: &Law<T, M, N>) -> (u8, bool, Option<TdcLaw>) {
-    match law {
-        Law::ComputedTorque { compensation, .. } => (0, *compensation, None),
-        Law::ModelFree => (1, false, None),
-        Law::TimeDelay(m) => (2, false, Some(m.law)),
+/// The law's kind with what changes its code path.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LawKey {
+    ComputedTorque { contact_compensation: bool },
+    ModelFree,
+    TimeDelay(TdcLaw),
+}
+
+/// The general task path's terms: orientation rows (a pose task) and a posture term.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TaskKey {
+    pub pose: bool,
+    pub posture: bool,
+}
+
+impl<T: Real, M, const N: usize> Controller<T, M, N> {
+    /// This controller's structure (see [`ControllerKey`]).
+    pub fn lane_key(&self) -> ControllerKey {
+        ControllerKey {
+            law: match &self.law {
+                Law::ComputedTorque { compensation, .. } => LawKey::ComputedTorque {
+                    contact_compensation: *compensation,
+                },
+                Law::ModelFree => LawKey::ModelFree,
+                Law::TimeDelay(m) => LawKey::TimeDelay(m.law),
+            },
+            task: self.task.as_ref().map(|t| TaskKey {
+                pose: t.start_rotation.is_some(),
+                posture: t.posture.is_some(),
+            }),
+            scale_feedforward: self.gains.scale_feedforward,
+        }
     }
-}
-
-/// Which task terms a controller has: `None` on the square path, else (pose, posture).
-fn task_shape<T: Real, const N: usize>(t: &Option<TaskSetup<T, N>>) -> Option<(bool, bool)> {
-    t.as_ref()
-        .map(|t| (t.start_rotation.is_some(), t.posture.is_some()))
 }
 
 impl<M, const N: usize> Controller<F64x4, M, N> {
@@ -411,7 +431,7 @@ impl<M, const N: usize> Controller<F64x4, M, N> {
         c: [&Controller<f64, R, N>; LANES],
         models: impl FnOnce([&R; LANES]) -> M,
     ) -> Option<Self> {
-        if !c.iter().all(|x| same_structure(c[0], x)) {
+        if !c.iter().all(|x| x.lane_key() == c[0].lane_key()) {
             return None;
         }
         let law = match &c[0].law {
@@ -459,7 +479,7 @@ impl<M, const N: usize> Controller<F64x4, M, N> {
         c: &Controller<f64, R, N>,
         model: impl FnOnce(&mut M, &R),
     ) -> bool {
-        if !self.fits(c) {
+        if self.lane_key() != c.lane_key() {
             return false;
         }
         if let (Law::ComputedTorque { model: m, .. }, Law::ComputedTorque { model: r, .. }) =
@@ -469,13 +489,6 @@ impl<M, const N: usize> Controller<F64x4, M, N> {
         }
         self.put_numbers(l, c);
         true
-    }
-
-    /// Whether `c` has this group's structure.
-    fn fits<R>(&self, c: &Controller<f64, R, N>) -> bool {
-        law_kind(&self.law) == law_kind(&c.law)
-            && task_shape(&self.task) == task_shape(&c.task)
-            && self.gains.scale_feedforward == c.gains.scale_feedforward
     }
 
     /// Lane `l`'s numbers and memory from `c`.

@@ -238,6 +238,25 @@ pub enum ForceControl<T: Real = f64> {
     Impedance { effective_stiffness: T },
 }
 
+/// The outer loop's kind: what runs must share for their outer loops to advance in one lane
+/// group (every coefficient is a number a lane carries).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ForceControlKey {
+    /// Eqs. (21)–(38), any scheme.
+    Admittance,
+    /// Eq. (20).
+    Impedance,
+}
+
+impl<T: Real> ForceControl<T> {
+    pub fn lane_key(&self) -> ForceControlKey {
+        match self {
+            ForceControl::Admittance(_) => ForceControlKey::Admittance,
+            ForceControl::Impedance { .. } => ForceControlKey::Impedance,
+        }
+    }
+}
+
 impl ForceControl<F64x4> {
     /// Four outer loops of one kind in lanes; `None` if the kinds differ.
     pub fn pack(f: [&ForceControl; LANES]) -> Option<Self> {

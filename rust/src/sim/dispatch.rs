@@ -6,11 +6,17 @@
 use crate::error::{Error, Result};
 use crate::robot::chain::{UrdfArm, UrdfArmParams};
 use crate::robot::{RobotModel, ThreeLinkArm};
+use crate::sim::lanes::{ArmKey, LaneKey};
 use crate::sim::metrics::Metrics;
 use crate::sim::outcome::Outcome;
 use crate::sim::scenario::{RobotConfig, ScenarioConfig};
 use crate::sim::simulation::{RunResult, Simulation};
 use crate::sim::trace::Trace;
+
+/// Validates, builds and runs one scenario, whatever its arm.
+pub fn simulate(config: &ScenarioConfig) -> Result<RunResult> {
+    Ok(AnySimulation::new(config)?.run())
+}
 
 /// A simulation of any supported arm.
 #[derive(Debug, Clone)]
@@ -142,6 +148,27 @@ impl AnySimulation {
 
     pub fn set_state(&mut self, values: &[f64]) -> Result<()> {
         dispatch!(self, s => s.set_state(values))
+    }
+
+    /// Which runs this one may share lanes with: the arm's structure from its block, the
+    /// plant's substeps and contact law, and the stages' own [`crate::sim::pipeline::StageKey`].
+    pub fn lane_key(&self) -> LaneKey {
+        let arm = match &self.config().robot {
+            RobotConfig::ThreeLink(_) => ArmKey::ThreeLink,
+            // The task kind decides the orientation rows and the posture term (SPEC §11).
+            RobotConfig::Urdf(p) => ArmKey::Urdf {
+                document: p.urdf.clone(),
+                base_link: p.base_link.clone(),
+                tip_link: p.tip_link.clone(),
+                task: p.task,
+            },
+        };
+        dispatch!(self, s => LaneKey {
+            arm,
+            substeps: s.plant().substeps(),
+            wall: s.plant().wall().map(|w| w.model),
+            stages: s.stages().lane_key(),
+        })
     }
 }
 

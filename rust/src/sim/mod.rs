@@ -6,9 +6,7 @@
 //! `lanes` advances four `simulation`s' plants together in SIMD lanes; `sweep` runs many
 //! `simulation`s, in lanes where their structure allows.
 
-pub mod chain_stages;
 pub mod dispatch;
-pub mod lane_stages;
 pub mod lanes;
 pub mod metrics;
 pub mod outcome;

@@ -1,15 +1,17 @@
 //! Stages 2–7 of a period (SPEC §10, §14), written once over a scalar `T`: environment force
 //! → force sensor → force control (fed by the measured force) → task reference → control
 //! law → actuator, with the controller told what was applied. A scalar run
-//! (`Simulation::step_to_plant`) is the `f64` case; a lane group (`sim::lane_stages`) is four
+//! (`Simulation::step_to_plant`) is the `f64` case; a lane group (`sim::lanes::stages`) is four
 //! runs of one structure packed into [`F64x4`]. The callers only gather what is per run (the
 //! plant state and kinematics, each run's noise draw and references at its own t) and record
 //! each run's sample; no stage or law is written twice.
 
 use nalgebra::{SVector, Vector3};
 
-use crate::control::controller::{not_finite, Controller, ControllerModel, Measured};
-use crate::control::filter::ForceControl;
+use crate::control::controller::{
+    not_finite, Controller, ControllerKey, ControllerModel, Measured,
+};
+use crate::control::filter::{ForceControl, ForceControlKey};
 use crate::control::reference::Sample;
 use crate::control::task::{Desired, TaskFrame};
 use crate::robot::{Kinematics, Orientation};
@@ -27,6 +29,19 @@ pub struct Pipeline<T: Real, M, const N: usize> {
     pub frame: TaskFrame<T>,
     pub controller: Controller<T, M, N>,
     pub actuator: Actuator<N, T>,
+}
+
+/// What runs must share for their stages to advance in one lane group, each part given by
+/// its stage: the sensor's latency and the actuator's delay (buffer lengths), the outer
+/// loop's kind and the controller's structure. Every number (gains, limits, noise,
+/// cut-offs, D̄, λ, …) and every on/off limit is per lane.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StageKey {
+    pub sensor_latency: usize,
+    pub actuator_delay: usize,
+    /// `None`: position control only.
+    pub force_control: Option<ForceControlKey>,
+    pub controller: ControllerKey,
 }
 
 /// What a period's stages read: the encoders (q, q̇) and the tip kinematics at them, the
@@ -131,6 +146,16 @@ impl<T: Real, M: ControllerModel<T, N>, const N: usize> Pipeline<T, M, N> {
 }
 
 impl<T: Real, M, const N: usize> Pipeline<T, M, N> {
+    /// The stages' structure (see [`StageKey`]).
+    pub fn lane_key(&self) -> StageKey {
+        StageKey {
+            sensor_latency: self.sensor.latency(),
+            actuator_delay: self.actuator.delay(),
+            force_control: self.force_control.as_ref().map(ForceControl::lane_key),
+            controller: self.controller.lane_key(),
+        }
+    }
+
     /// Every stage back at its initial state.
     pub fn reset(&mut self) {
         self.sensor.reset();
@@ -144,19 +169,12 @@ impl<T: Real, M, const N: usize> Pipeline<T, M, N> {
 
 impl<M, const N: usize> Pipeline<F64x4, M, N> {
     /// Four runs' stages of one structure in lanes, from their current state (`None` if
-    /// their structures differ: sensor latency, actuator delay, outer loop kind, controller
-    /// structure); `models` packs computed torque's four models.
+    /// their [`StageKey`]s differ); `models` packs computed torque's four models.
     pub fn pack<R>(
         p: [&Pipeline<f64, R, N>; LANES],
         models: impl FnOnce([&R; LANES]) -> M,
     ) -> Option<Self> {
-        let p0 = p[0];
-        let uniform = p.iter().all(|x| {
-            x.sensor.latency() == p0.sensor.latency()
-                && x.actuator.delay() == p0.actuator.delay()
-                && x.force_control.is_some() == p0.force_control.is_some()
-        });
-        if !uniform {
+        if !p.iter().all(|x| x.lane_key() == p[0].lane_key()) {
             return None;
         }
         let force_control = match p.map(|x| x.force_control.as_ref()) {
@@ -172,27 +190,22 @@ impl<M, const N: usize> Pipeline<F64x4, M, N> {
         })
     }
 
-    /// Lane `l` takes the run's stages `p`, which must have this group's structure (the
-    /// lane key's promise); false, with the lane half-written, if they do not.
+    /// Lane `l` takes the run's stages `p`; false, with nothing changed, if their
+    /// [`StageKey`] is not this group's.
     pub fn put_lane<R>(
         &mut self,
         l: usize,
         p: &Pipeline<f64, R, N>,
         model: impl FnOnce(&mut M, &R),
     ) -> bool {
-        if p.sensor.latency() != self.sensor.latency()
-            || p.actuator.delay() != self.actuator.delay()
-        {
+        if p.lane_key() != self.lane_key() {
             return false;
         }
-        let force_control = match (&mut self.force_control, &p.force_control) {
-            (Some(f), Some(g)) => f.put_lane(l, g),
-            (None, None) => true,
-            _ => false,
-        };
-        if !force_control || !self.controller.put_lane(l, &p.controller, model) {
-            return false;
+        // One key: the outer loops are of one kind and the controllers of one structure.
+        if let (Some(f), Some(g)) = (&mut self.force_control, &p.force_control) {
+            f.put_lane(l, g);
         }
+        self.controller.put_lane(l, &p.controller, model);
         self.sensor.put_lane(l, &p.sensor);
         self.frame.put_lane(l, &p.frame);
         self.actuator.put_lane(l, &p.actuator);

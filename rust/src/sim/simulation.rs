@@ -61,7 +61,7 @@ pub type ThreeLinkSimulation = Simulation<ThreeLinkArm, 3>;
 
 impl Simulation<ThreeLinkArm, 3> {
     /// Validates `config` and builds the pipeline for its three-link arm (an error if the
-    /// scenario's arm is a URDF chain: use [`crate::sim::dispatch::AnySimulation`]).
+    /// scenario's arm is a URDF chain: `sim::dispatch`'s `AnySimulation` runs any arm).
     pub fn new(config: &ScenarioConfig) -> Result<Self> {
         config.validate()?;
         match config.robot.three_link() {
@@ -84,7 +84,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         &mut self.plant
     }
 
-    /// Stages 2–7's state machines, for the lanes that pack them (`sim::lane_stages`).
+    /// Stages 2–7's state machines, for the lanes that pack them (`sim::lanes::stages`).
     pub(crate) fn stages(&self) -> &Pipeline<f64, R, N> {
         &self.stages
     }
@@ -338,7 +338,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
 
     /// Stage 8 of the current sample: records `row` (trace and online metrics) and moves
     /// to the next sample. Returns false if that was the run's last sample. The lanes
-    /// (`sim::lane_stages`) close their samples here too: one bookkeeping for both.
+    /// (`sim::lanes::stages`) close their samples here too: one bookkeeping for both.
     #[inline(always)]
     pub(crate) fn close_sample(&mut self, row: &Row) -> bool {
         self.record(row);
@@ -470,11 +470,6 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
     }
 }
 
-/// Validates, builds and runs one scenario.
-pub fn simulate(config: &ScenarioConfig) -> Result<RunResult> {
-    Ok(crate::sim::dispatch::AnySimulation::new(config)?.run())
-}
-
 impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
     /// Replaces the desired force f_d(t) from here on (the analysis holds it at one value
     /// and perturbs it; SPEC §12).
@@ -488,6 +483,7 @@ mod tests {
     use super::*;
     use crate::control::filter::AdmittanceParams;
     use crate::control::params::{ControllerParams, ModelFreeParams, PositionGains};
+    use crate::sim::dispatch::simulate;
 
     use crate::world::actuator::ActuatorParams;
     use crate::world::sensor::SensorParams;

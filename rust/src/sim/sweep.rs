@@ -3,13 +3,10 @@
 
 use rayon::prelude::*;
 
-use crate::control::filter::ForceControlParams;
-use crate::control::params::{ControllerParams, TdcLaw};
 use crate::error::{Error, Result};
 use crate::sim::dispatch::AnySimulation;
-use crate::sim::lanes::{run_lanes, LaneKey, StageKey};
+use crate::sim::lanes::{run_lanes, LaneKey};
 use crate::sim::metrics::Metrics;
-use crate::sim::scenario::RobotConfig;
 use crate::sim::simulation::{Outcome, RunResult, ScenarioConfig};
 use crate::sim::trace::Trace;
 
@@ -87,51 +84,6 @@ const LANE_BLOCK: usize = 64;
 /// What runs may share lanes: one arm structure (the three-link arm, or one URDF chain with
 /// one task kind), substep count and contact law, and one stage structure (`StageKey`), as
 /// every arm's stages 1–8 run in lanes. Every parameter may differ (lanes carry their own).
-fn lane_key(c: &ScenarioConfig) -> LaneKey {
-    let urdf = match &c.robot {
-        RobotConfig::ThreeLink(_) => None,
-        // The task kind decides the orientation rows and the posture term (SPEC §11).
-        RobotConfig::Urdf(p) => Some((
-            p.urdf.clone(),
-            p.base_link.clone(),
-            p.tip_link.clone(),
-            p.task,
-        )),
-    };
-    LaneKey {
-        urdf,
-        substeps: c.substeps,
-        wall: c.wall.as_ref().map(|w| w.model),
-        stages: stage_key(c),
-    }
-}
-
-fn stage_key(c: &ScenarioConfig) -> StageKey {
-    let (controller, gains) = match &c.controller {
-        ControllerParams::ComputedTorque(p) => ((0, p.contact_compensation, false), p.gains),
-        ControllerParams::ModelFree(p) => ((1, false, p.joint_inertia.is_some()), p.gains),
-        ControllerParams::TimeDelay(p) => (
-            (
-                2,
-                p.law == TdcLaw::InverseJacobian,
-                p.joint_inertia.is_some(),
-            ),
-            p.gains,
-        ),
-    };
-    StageKey {
-        controller,
-        scale_feedforward: gains.scale_feedforward,
-        force_control: match &c.admittance {
-            None => 0,
-            Some(ForceControlParams::Admittance(_)) => 1,
-            Some(ForceControlParams::Impedance(_)) => 2,
-        },
-        sensor_latency: c.sensor.latency,
-        actuator_delay: c.actuator.delay,
-    }
-}
-
 /// Consecutive runs, at most `size` per block, in run order.
 fn blocks(n: usize, size: usize) -> Vec<std::ops::Range<usize>> {
     (0..n.div_ceil(size))
@@ -173,21 +125,23 @@ fn run_block(
         }
         return Ok(out.into_iter().flatten().collect());
     }
-    let keys: Vec<LaneKey> = block.clone().map(|i| lane_key(&configs[i])).collect();
+    // Each run's key comes from its built stages, so grouping and packing cannot disagree.
+    let mut sims: Vec<Option<AnySimulation>> = block
+        .clone()
+        .map(|i| build(i).map(Some))
+        .collect::<std::result::Result<_, _>>()?;
+    let keys: Vec<LaneKey> = sims.iter().flatten().map(AnySimulation::lane_key).collect();
     let mut groups: Vec<Vec<usize>> = Vec::new();
     for (k, key) in keys.iter().enumerate() {
-        match groups.iter_mut().find(|g| keys[g[0] - block.start] == *key) {
-            Some(g) => g.push(block.start + k),
-            None => groups.push(vec![block.start + k]),
+        match groups.iter_mut().find(|g| keys[g[0]] == *key) {
+            Some(g) => g.push(k),
+            None => groups.push(vec![k]),
         }
     }
     for members in groups {
-        let sims = members
-            .iter()
-            .map(|&i| build(i))
-            .collect::<std::result::Result<Vec<_>, _>>()?;
-        for (&i, r) in members.iter().zip(run_group(sims)) {
-            out[i - block.start] = Some(summary(r, keep_traces));
+        let group: Vec<AnySimulation> = members.iter().filter_map(|&k| sims[k].take()).collect();
+        for (&k, r) in members.iter().zip(run_group(group)) {
+            out[k] = Some(summary(r, keep_traces));
         }
     }
     Ok(out.into_iter().flatten().collect())
@@ -295,7 +249,7 @@ mod tests {
         // The scalar path is `simulate` bit for bit; lanes agree with it to 1e-9 (SPEC §13).
         let scalar = run_batch_with(&c, Some(2), true, false).unwrap();
         for ((cfg, s), l) in c.iter().zip(&scalar).zip(&one) {
-            let alone = crate::sim::simulation::simulate(cfg).unwrap();
+            let alone = crate::sim::dispatch::simulate(cfg).unwrap();
             assert!(s.trace.as_ref() == Some(&alone.trace));
             let (Some(a), Some(b)) = (&s.trace, &l.trace) else {
                 panic!("traces were kept");
@@ -330,10 +284,11 @@ mod tests {
     /// stages 1–8 run in lanes); parameters do not split groups.
     #[test]
     fn urdf_lane_key_holds_the_stage_structure() {
-        use crate::control::params::{ModelFreeParams, TimeDelayParams};
+        use crate::control::params::{ControllerParams, ModelFreeParams, TimeDelayParams};
         use crate::robot::chain::{TaskKind, UrdfArmParams};
+        use crate::sim::scenario::RobotConfig;
         let arm = UrdfArmParams {
-            urdf: "<robot name='r'/>".to_owned(),
+            urdf: include_str!("../../../examples/data/three_link.urdf").to_owned(),
             tip_link: "tip".to_owned(),
             ..UrdfArmParams::default()
         };
@@ -344,7 +299,7 @@ mod tests {
                 ..ScenarioConfig::default()
             };
             c.sensor.latency = latency;
-            lane_key(&c)
+            AnySimulation::new(&c).unwrap().lane_key()
         };
         let tdc = |inertia: f64| {
             ControllerParams::TimeDelay(TimeDelayParams {
@@ -357,10 +312,10 @@ mod tests {
         assert_ne!(key, run(&arm, tdc(0.1), 1));
         let mf = ControllerParams::ModelFree(ModelFreeParams::default());
         assert_ne!(key, run(&arm, mf, 0));
-        let position = UrdfArmParams {
-            task: Some(TaskKind::Position),
+        let pose = UrdfArmParams {
+            task: Some(TaskKind::Pose),
             ..arm.clone()
         };
-        assert_ne!(key, run(&position, tdc(0.1), 0));
+        assert_ne!(key, run(&pose, tdc(0.1), 0));
     }
 }

@@ -6,16 +6,15 @@
 //! `Simulation` (`close_sample`: the record and online metrics exist once).
 //!
 //! An arm brings what differs through [`StageArm`]: its kinematics in lanes (the
-//! three-link closed form here; URDF chains' frames, 6×N Jacobian and tip rotation in
-//! `sim::chain_stages`) and computed torque's model in lanes.
+//! three-link closed form in `lanes::three_link`; URDF chains' frames, 6×N Jacobian and tip
+//! rotation in `lanes::chain`) and computed torque's model in lanes.
 
-use nalgebra::{SVector, Vector3};
+use nalgebra::SVector;
 use simba::simd::SimdValue;
 
 use crate::control::controller::ControllerModel;
 use crate::control::reference::Sample;
-use crate::robot::three_link::{ClosedForm, Trig};
-use crate::robot::{Dynamics, Kinematics, Orientation, ThreeLinkArm};
+use crate::robot::{Kinematics, Orientation};
 use crate::scalar::{lane, lane_of, mask_from, pack_vector, F64x4, Real, LANES};
 use crate::sim::lanes::{Front, LaneArm, PackedPlant};
 use crate::sim::outcome::Divergence;
@@ -52,54 +51,7 @@ pub trait StageArm<const N: usize>: LaneArm<N> {
 
 /// Four runs' stages 1–8 in lanes, for any arm with a [`StageArm`].
 pub struct LaneStages<R: StageArm<N>, const N: usize> {
-    stages: Pipeline<F64x4, R::Model, N>,
-}
-
-/// The three-link arm's lane stages.
-pub type ThreeLinkStages = LaneStages<ThreeLinkArm, 3>;
-
-impl ControllerModel<F64x4, 3> for ClosedForm<F64x4> {
-    type At = Trig<F64x4>;
-
-    #[inline(always)]
-    fn terms(
-        &self,
-        trig: &Trig<F64x4>,
-        _: &Vector3<F64x4>,
-        qd: &Vector3<F64x4>,
-    ) -> (Dynamics<3, F64x4>, Vector3<F64x4>) {
-        (self.dynamics(trig, qd), self.friction(qd))
-    }
-}
-
-impl StageArm<3> for ThreeLinkArm {
-    type Model = ClosedForm<F64x4>;
-    type At = Trig<F64x4>;
-
-    fn pack_model(arms: [&Self; LANES]) -> ClosedForm<F64x4> {
-        ClosedForm::pack(arms.map(|a| a.closed_form()))
-    }
-
-    fn put_model(model: &mut ClosedForm<F64x4>, l: usize, arm: &Self) {
-        model.put_lane(l, arm.closed_form());
-    }
-
-    #[inline(always)]
-    fn lane_kinematics(
-        plant: &PackedPlant<ClosedForm<F64x4>>,
-        lanes: [&Simulation<Self, 3>; LANES],
-        _: &Vector3<F64x4>,
-        qd: &Vector3<F64x4>,
-        _: bool,
-    ) -> (
-        Kinematics<3, F64x4>,
-        Option<Orientation<3, F64x4>>,
-        Trig<F64x4>,
-    ) {
-        // Each lane's fresh trig of q, as the scalar plant holds it.
-        let trig = Trig::pack(lanes.map(|s| s.plant().config()));
-        (plant.arm.kinematics(&trig, qd), None, trig)
-    }
+    pub(crate) stages: Pipeline<F64x4, R::Model, N>,
 }
 
 impl<R: StageArm<N>, const N: usize> Front<R, N> for LaneStages<R, N> {
@@ -192,6 +144,7 @@ impl<R: StageArm<N>, const N: usize> Front<R, N> for LaneStages<R, N> {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use crate::robot::ThreeLinkArm;
 
     type Sim = Simulation<ThreeLinkArm, 3>;
     use crate::control::params::{ControllerParams, TimeDelayParams};
@@ -280,7 +233,7 @@ pub(crate) mod tests {
         let c = configs();
         let all = lanes(&c);
         for (cfg, r) in c.iter().zip(&all) {
-            let alone = crate::sim::simulation::simulate(cfg).unwrap();
+            let alone = crate::sim::dispatch::simulate(cfg).unwrap();
             assert_eq!(r.outcome, alone.outcome);
             worst_trace_gap(&alone, r, 1e-12);
         }
@@ -326,10 +279,176 @@ pub(crate) mod tests {
             let packed = LaneStages::pack([&sims[0], &sims[1], &sims[2], &sims[3]]);
             assert!(packed.is_some_and(|p| p.stages.controller.task_path()));
             for (cfg, r) in c.iter().zip(lanes(&c)) {
-                let alone = crate::sim::simulation::simulate(cfg).unwrap();
+                let alone = crate::sim::dispatch::simulate(cfg).unwrap();
                 assert_eq!(r.outcome, alone.outcome);
                 worst_trace_gap(&alone, &r, 1e-12);
             }
+        }
+    }
+}
+
+/// Every controller kind × outer loop × arm kind runs its stages in lanes (no fallback) and
+/// agrees with `simulate`; a caller's mixed group takes the explicit per-lane fallback.
+#[cfg(test)]
+mod every_kind {
+    use super::tests::{varied, worst_trace_gap};
+    use crate::control::filter::{AdmittanceParams, ForceControlParams, ImpedanceParams};
+    use crate::control::params::{
+        ComputedTorqueParams, ControllerParams, ModelFreeParams, PerJoint, TdcLaw, TimeDelayParams,
+    };
+    use crate::robot::chain::{UrdfArm, UrdfArmParams};
+    use crate::robot::{RobotModel, ThreeLinkArm};
+    use crate::sim::dispatch::simulate;
+    use crate::sim::lanes::tests::with_stack;
+    use crate::sim::lanes::{run_lanes_on, LaneArm, StagePath};
+    use crate::sim::outcome::Outcome;
+    use crate::sim::scenario::RobotConfig;
+    use crate::sim::simulation::{ScenarioConfig, Simulation};
+
+    /// Every controller kind with its structural switches (`joints`: for the per-joint D̄).
+    fn controllers(joints: usize) -> Vec<ControllerParams> {
+        let per_joint = PerJoint::from_slice(&vec![0.1; joints]);
+        let mut out = vec![];
+        for contact_compensation in [false, true] {
+            out.push(ControllerParams::ComputedTorque(ComputedTorqueParams {
+                contact_compensation,
+                ..ComputedTorqueParams::default()
+            }));
+        }
+        for joint_inertia in [None, per_joint] {
+            out.push(ControllerParams::ModelFree(ModelFreeParams {
+                joint_inertia,
+                ..ModelFreeParams::default()
+            }));
+            for law in [TdcLaw::JacobianTranspose, TdcLaw::InverseJacobian] {
+                out.push(ControllerParams::TimeDelay(TimeDelayParams {
+                    joint_inertia,
+                    law,
+                    ..TimeDelayParams::default()
+                }));
+            }
+        }
+        out
+    }
+
+    fn outer_loops() -> [Option<ForceControlParams>; 4] {
+        [
+            None,
+            Some(ForceControlParams::Admittance(AdmittanceParams::scheme1(
+                800.0, 400.0, 0.1,
+            ))),
+            Some(ForceControlParams::Admittance(AdmittanceParams::scheme2(
+                800.0, 0.1,
+            ))),
+            Some(ForceControlParams::Impedance(ImpedanceParams {
+                k: 400.0,
+                assumed_stiffness: 3e4,
+            })),
+        ]
+    }
+
+    /// Four runs of each controller × outer loop on `robot` through `run_lanes_on`: the
+    /// stages ran in lanes, and each run ends as `simulate`'s (a completed run within 1e-9
+    /// of it). Returns the number of groups.
+    fn check<R: LaneArm<N>, const N: usize>(
+        robot: RobotConfig,
+        build: impl Fn(&ScenarioConfig) -> Simulation<R, N>,
+    ) -> usize {
+        let mut groups = 0;
+        for controller in controllers(N) {
+            for admittance in outer_loops() {
+                let configs: Vec<ScenarioConfig> = (0..4)
+                    .map(|i| ScenarioConfig {
+                        robot: robot.clone(),
+                        admittance,
+                        duration: 0.01,
+                        ..varied(i, controller)
+                    })
+                    .collect();
+                let mut sims: Vec<_> = configs.iter().map(&build).collect();
+                let (runs, path) = run_lanes_on(&mut sims);
+                assert_eq!(path, StagePath::Lanes, "{controller:?} {admittance:?}");
+                for (c, r) in configs.iter().zip(&runs) {
+                    let alone = simulate(c).unwrap();
+                    match (r.outcome, alone.outcome) {
+                        (Outcome::Completed, Outcome::Completed) => {
+                            worst_trace_gap(&alone, r, 1.0);
+                        }
+                        (Outcome::Diverged { time: a, .. }, Outcome::Diverged { time: b, .. }) => {
+                            assert_eq!(a, b)
+                        }
+                        (a, b) => panic!("lanes {a:?}, simulate {b:?}"),
+                    }
+                }
+                groups += 1;
+            }
+        }
+        groups
+    }
+
+    fn urdf(document: &str, tip: &str) -> UrdfArmParams {
+        UrdfArmParams {
+            urdf: document.to_owned(),
+            tip_link: tip.to_owned(),
+            ..UrdfArmParams::default()
+        }
+    }
+
+    #[test]
+    fn every_controller_filter_and_arm_runs_in_lanes() {
+        with_stack(every_kind);
+    }
+
+    fn every_kind() {
+        let paper =
+            check::<ThreeLinkArm, 3>(RobotConfig::default(), |c| Simulation::new(c).unwrap());
+        let three = urdf(
+            include_str!("../../../../examples/data/three_link.urdf"),
+            "tip",
+        );
+        let chain3 = check::<UrdfArm<3>, 3>(RobotConfig::Urdf(three.clone()), |c| {
+            Simulation::with_robot(c, UrdfArm::<3>::new(&three).unwrap()).unwrap()
+        });
+        // 7 joints: pose task (orientation rows) with a null-space posture term.
+        let panda = urdf(
+            include_str!("../../../../examples/data/panda.urdf"),
+            "panda_hand_tcp",
+        );
+        let arm = UrdfArm::<7>::new(&panda).unwrap();
+        assert!(arm
+            .orientation(&arm.configure(&arm.initial_position()), &Default::default())
+            .is_some());
+        let chain7 = check::<UrdfArm<7>, 7>(RobotConfig::Urdf(panda.clone()), |c| {
+            Simulation::with_robot(c, arm.clone()).unwrap()
+        });
+        assert_eq!((paper, chain3, chain7), (32, 32, 32));
+    }
+
+    /// Runs of different stage structures given to `run_lanes_on` together still run,
+    /// each exactly as `simulate` (stages lane by lane, plants in lanes), and say so.
+    #[test]
+    fn a_mixed_group_takes_the_explicit_fallback() {
+        with_stack(mixed);
+    }
+
+    fn mixed() {
+        let configs: Vec<ScenarioConfig> = controllers(3)
+            .into_iter()
+            .take(4)
+            .enumerate()
+            .map(|(i, c)| ScenarioConfig {
+                duration: 0.05,
+                ..varied(i, c)
+            })
+            .collect();
+        let mut sims: Vec<Simulation<ThreeLinkArm, 3>> = configs
+            .iter()
+            .map(|c| Simulation::new(c).unwrap())
+            .collect();
+        let (runs, path) = run_lanes_on(&mut sims);
+        assert_eq!(path, StagePath::PerLane);
+        for (c, r) in configs.iter().zip(&runs) {
+            worst_trace_gap(&simulate(c).unwrap(), r, 1.0);
         }
     }
 }

@@ -1,19 +1,90 @@
-//! Stages 1–8 of a URDF chain's runs in lanes (SPEC §11, §13): what a chain brings to the
-//! shared lane orchestration (`sim::lane_stages::LaneStages`). Its kinematics come from the
+//! URDF chains in lanes (SPEC §11, §13): four chains of one structure packed for RK4
+//! (`ChainLanes`), and what a chain brings to the shared lane stages (`stages::LaneStages`). Its kinematics come from the
 //! packed chain at the lanes' q (`SerialChain<F64x4, N>`: frames, the 6×N tip Jacobian and
 //! J̇q̇, the tip rotation for a pose task), and computed torque's model is the four
 //! controllers' chains (their mass scale) and friction packed.
 
-use nalgebra::SVector;
+use nalgebra::{SVector, Vector3};
 
 use crate::control::controller::ControllerModel;
-use crate::robot::chain::arm::JointFriction;
-use crate::robot::chain::{SerialChain, UrdfArm};
+use crate::robot::chain::arm::{accelerate as chain_accelerate, JointFriction};
+use crate::robot::chain::{Frames, SerialChain, UrdfArm};
 use crate::robot::{Dynamics, Kinematics, Orientation};
 use crate::scalar::{F64x4, LANES};
-use crate::sim::lane_stages::{LaneStages, StageArm};
-use crate::sim::lanes::{ChainLanes, PackedPlant};
+use crate::sim::lanes::stages::{LaneStages, StageArm};
+use crate::sim::lanes::{ArmLanes, LaneArm, PackedPlant};
 use crate::sim::simulation::Simulation;
+
+/// Four URDF chains of one structure in lanes.
+pub struct ChainLanes<const N: usize> {
+    pub(crate) chain: SerialChain<F64x4, N>,
+    friction: JointFriction<F64x4, N>,
+}
+
+impl<const N: usize> LaneArm<N> for UrdfArm<N> {
+    type Lanes = ChainLanes<N>;
+    type Front = ChainStages<N>;
+    const READS_EACH_CONFIG: bool = false;
+
+    fn same_structure(&self, other: &Self) -> bool {
+        self.chain.same_structure(&other.chain)
+    }
+
+    fn pack(arms: [&Self; LANES]) -> ChainLanes<N> {
+        ChainLanes {
+            chain: SerialChain::pack(arms.map(|a| &a.chain)),
+            friction: JointFriction::pack(arms.map(|a| &a.friction)),
+        }
+    }
+
+    #[inline(always)]
+    fn pack_config(
+        lanes: &ChainLanes<N>,
+        q: &SVector<F64x4, N>,
+        _: [&Frames<f64, N>; LANES],
+    ) -> Frames<F64x4, N> {
+        // The chain evaluates its frames afresh at every stage anyway.
+        lanes.chain.frames(q)
+    }
+}
+
+impl<const N: usize> ArmLanes<N> for ChainLanes<N> {
+    type Config = Frames<F64x4, N>;
+
+    #[inline(always)]
+    fn shift(
+        &self,
+        _: &Frames<F64x4, N>,
+        _: &SVector<F64x4, N>,
+        shifted: &SVector<F64x4, N>,
+        out: &mut Frames<F64x4, N>,
+    ) {
+        self.chain.frames_into(shifted, out);
+    }
+
+    #[inline(always)]
+    fn accelerate(
+        &self,
+        c: &Frames<F64x4, N>,
+        qd: &SVector<F64x4, N>,
+        tau: &SVector<F64x4, N>,
+        contact: &impl Fn(F64x4, F64x4) -> F64x4,
+        normal: &Vector3<F64x4>,
+        needs_rate: bool,
+    ) -> SVector<F64x4, N> {
+        chain_accelerate(
+            &self.chain,
+            &self.friction,
+            c,
+            qd,
+            tau,
+            contact,
+            normal,
+            needs_rate,
+        )
+        .0
+    }
+}
 
 /// A URDF chain's lane stages.
 pub type ChainStages<const N: usize> = LaneStages<UrdfArm<N>, N>;
@@ -106,16 +177,17 @@ mod tests {
     };
     use crate::robot::chain::{UrdfArm, UrdfArmParams};
     use crate::robot::RobotModel;
-    use crate::sim::chain_stages::ChainStages;
-    use crate::sim::lane_stages::tests::{varied, worst_trace_gap};
+    use crate::sim::dispatch::simulate;
+    use crate::sim::lanes::chain::ChainStages;
+    use crate::sim::lanes::stages::tests::{varied, worst_trace_gap};
     use crate::sim::lanes::tests::with_stack;
     use crate::sim::lanes::{run_lanes, Front};
     use crate::sim::outcome::Outcome;
     use crate::sim::scenario::RobotConfig;
-    use crate::sim::simulation::{simulate, RunResult, ScenarioConfig, Simulation};
+    use crate::sim::simulation::{RunResult, ScenarioConfig, Simulation};
 
-    const PANDA: &str = include_str!("../../../examples/data/panda.urdf");
-    const THREE_LINK: &str = include_str!("../../../examples/data/three_link.urdf");
+    const PANDA: &str = include_str!("../../../../examples/data/panda.urdf");
+    const THREE_LINK: &str = include_str!("../../../../examples/data/three_link.urdf");
 
     fn params(urdf: &str, tip: &str) -> UrdfArmParams {
         UrdfArmParams {

@@ -5,9 +5,10 @@
 //! for all four lanes on [`F64x4`]: the same `rk4_period`, `ClosedForm` / chain ABA and
 //! `Wall` code the scalar plant runs, with the four arms' and walls' parameters packed.
 //! Stages 1–8 (environment, sensor, references, filter, controller, actuator, record) run
-//! in lanes too, for every arm ([`Front`]: `sim::lane_stages` with the three-link arm's
-//! kinematics, `sim::chain_stages` with a URDF chain's, including the general task path of
-//! SPEC §11): the same generic stage code `step_to_plant` runs. A group whose runs do not
+//! in lanes too, for every arm ([`Front`]: `stages::LaneStages`, the same
+//! `sim::pipeline::Pipeline` a scalar run steps, over [`F64x4`]). What an arm brings lives
+//! in its own file: `three_link` (the closed form) and `chain` (URDF chains, with the
+//! general task path of SPEC §11). A group whose runs do not
 //! share one stage structure (a caller's mixed group; sweeps group by [`LaneKey`]) runs
 //! its stages lane by lane through `Simulation::step_to_plant`.
 //!
@@ -19,16 +20,17 @@
 
 use nalgebra::{SVector, Vector3};
 
-use crate::robot::chain::arm::{accelerate as chain_accelerate, JointFriction};
-use crate::robot::chain::{Frames, SerialChain, TaskKind, UrdfArm};
-use crate::robot::three_link::{ClosedForm, Trig};
-use crate::robot::{RobotModel, ThreeLinkArm};
+use crate::robot::chain::TaskKind;
+use crate::robot::RobotModel;
 use crate::scalar::{splat, F64x4, Real, LANES};
-use crate::sim::chain_stages::ChainStages;
-use crate::sim::lane_stages::ThreeLinkStages;
+use crate::sim::pipeline::StageKey;
 use crate::sim::plant::{rk4_period, Plant, PlantState, Stages};
 use crate::sim::simulation::{RunResult, Simulation};
 use crate::world::environment::{ContactModel, Wall};
+
+pub mod chain;
+pub mod stages;
+pub mod three_link;
 
 /// An arm whose runs can advance in lanes: four arms of one structure packed into one.
 pub trait LaneArm<const N: usize>: RobotModel<N> {
@@ -82,129 +84,6 @@ pub trait ArmLanes<const N: usize> {
     ) -> SVector<F64x4, N>;
 }
 
-impl LaneArm<3> for ThreeLinkArm {
-    type Lanes = ClosedForm<F64x4>;
-    type Front = ThreeLinkStages;
-    const READS_EACH_CONFIG: bool = true;
-
-    fn same_structure(&self, _: &Self) -> bool {
-        true
-    }
-
-    fn pack(arms: [&Self; LANES]) -> ClosedForm<F64x4> {
-        ClosedForm::pack(arms.map(|a| a.closed_form()))
-    }
-
-    #[inline(always)]
-    fn pack_config(
-        _: &ClosedForm<F64x4>,
-        _: &Vector3<F64x4>,
-        configs: [&Trig; LANES],
-    ) -> Trig<F64x4> {
-        // Each lane's own fresh evaluation (libm's sincos), as the scalar plant starts from.
-        Trig::pack(configs)
-    }
-}
-
-impl ArmLanes<3> for ClosedForm<F64x4> {
-    type Config = Trig<F64x4>;
-
-    #[inline(always)]
-    fn shift(
-        &self,
-        c: &Trig<F64x4>,
-        delta: &Vector3<F64x4>,
-        shifted: &Vector3<F64x4>,
-        out: &mut Trig<F64x4>,
-    ) {
-        *out = c.shifted(delta, shifted);
-    }
-
-    #[inline(always)]
-    fn accelerate(
-        &self,
-        c: &Trig<F64x4>,
-        qd: &Vector3<F64x4>,
-        tau: &Vector3<F64x4>,
-        contact: &impl Fn(F64x4, F64x4) -> F64x4,
-        normal: &Vector3<F64x4>,
-        needs_rate: bool,
-    ) -> Vector3<F64x4> {
-        ClosedForm::accelerate(self, c, qd, tau, contact, normal, needs_rate).0
-    }
-}
-
-/// Four URDF chains of one structure in lanes.
-pub struct ChainLanes<const N: usize> {
-    pub(crate) chain: SerialChain<F64x4, N>,
-    friction: JointFriction<F64x4, N>,
-}
-
-impl<const N: usize> LaneArm<N> for UrdfArm<N> {
-    type Lanes = ChainLanes<N>;
-    type Front = ChainStages<N>;
-    const READS_EACH_CONFIG: bool = false;
-
-    fn same_structure(&self, other: &Self) -> bool {
-        self.chain.same_structure(&other.chain)
-    }
-
-    fn pack(arms: [&Self; LANES]) -> ChainLanes<N> {
-        ChainLanes {
-            chain: SerialChain::pack(arms.map(|a| &a.chain)),
-            friction: JointFriction::pack(arms.map(|a| &a.friction)),
-        }
-    }
-
-    #[inline(always)]
-    fn pack_config(
-        lanes: &ChainLanes<N>,
-        q: &SVector<F64x4, N>,
-        _: [&Frames<f64, N>; LANES],
-    ) -> Frames<F64x4, N> {
-        // The chain evaluates its frames afresh at every stage anyway.
-        lanes.chain.frames(q)
-    }
-}
-
-impl<const N: usize> ArmLanes<N> for ChainLanes<N> {
-    type Config = Frames<F64x4, N>;
-
-    #[inline(always)]
-    fn shift(
-        &self,
-        _: &Frames<F64x4, N>,
-        _: &SVector<F64x4, N>,
-        shifted: &SVector<F64x4, N>,
-        out: &mut Frames<F64x4, N>,
-    ) {
-        self.chain.frames_into(shifted, out);
-    }
-
-    #[inline(always)]
-    fn accelerate(
-        &self,
-        c: &Frames<F64x4, N>,
-        qd: &SVector<F64x4, N>,
-        tau: &SVector<F64x4, N>,
-        contact: &impl Fn(F64x4, F64x4) -> F64x4,
-        normal: &Vector3<F64x4>,
-        needs_rate: bool,
-    ) -> SVector<F64x4, N> {
-        chain_accelerate(
-            &self.chain,
-            &self.friction,
-            c,
-            qd,
-            tau,
-            contact,
-            normal,
-            needs_rate,
-        )
-        .0
-    }
-}
-
 /// Stages 1–8 of a period (environment, sensor, references, filter, controller, actuator,
 /// record) for the runs in four lanes.
 pub trait Front<R: LaneArm<N>, const N: usize>: Sized {
@@ -228,34 +107,41 @@ pub trait Front<R: LaneArm<N>, const N: usize>: Sized {
     ) -> [Option<SVector<f64, N>>; LANES];
 }
 
-/// What runs must share to advance in one group of lanes: the arm's structure, the RK4
-/// loop count, the contact law's branch structure and the stages' structure
-/// ([`StageKey`]). Everything else (every parameter) may differ between lanes.
+/// What runs must share to advance in one group of lanes, each part given by its block:
+/// the arm's structure, the RK4 loop count, the contact law's branch structure and the
+/// stages' structure ([`StageKey`]). Everything else (every parameter) may differ between
+/// lanes. Sweeps group runs by it (`AnySimulation::lane_key`); a group of one key always
+/// packs into lanes (tested for every controller, outer loop and arm kind).
 #[derive(Debug, Clone, PartialEq)]
 pub struct LaneKey {
-    /// `None`: the three-link arm; else the URDF document, base and tip links and the task
-    /// kind (`None`: the chain's default).
-    pub urdf: Option<(String, Option<String>, String, Option<TaskKind>)>,
+    pub arm: ArmKey,
     pub substeps: usize,
     pub wall: Option<ContactModel>,
     pub stages: StageKey,
 }
 
-/// What the lane stages (`sim::lane_stages`) cannot select over: the kinds of controller
-/// and outer loop and the lengths of the sensor's and actuator's buffers. Numbers (gains,
-/// limits, noise, cut-offs, J⁺'s damping, orientation gains, D̄, …) and on/off limits are
-/// per lane.
+/// An arm's structure: the three-link closed form, or a URDF chain (its document, base and
+/// tip links and task kind, `None`: the chain's default).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ArmKey {
+    ThreeLink,
+    Urdf {
+        document: String,
+        base_link: Option<String>,
+        tip_link: String,
+        task: Option<TaskKind>,
+    },
+}
+
+/// How `run_lanes` advanced a group's stages 1–8.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct StageKey {
-    /// The controller's kind with its structural switches: computed torque (contact
-    /// compensation), model-free, TDC (its law); and whether a per-joint D̄ is given
-    /// (which sends a three-joint position task down the general task path).
-    pub controller: (u8, bool, bool),
-    pub scale_feedforward: bool,
-    /// 0: position only, 1: admittance filter, 2: impedance reference (eq. 20).
-    pub force_control: u8,
-    pub sensor_latency: usize,
-    pub actuator_delay: usize,
+pub enum StagePath {
+    /// In lanes: the group's runs share one [`StageKey`].
+    Lanes,
+    /// Lane by lane through `Simulation::step_to_plant` (only the RK4 plant in lanes): the
+    /// explicit fallback for a caller's group whose runs do not share one stage structure.
+    /// Sweeps never take it.
+    PerLane,
 }
 
 /// Four plants' parameters in lanes, rebuilt whenever a lane takes a new run.
@@ -327,6 +213,13 @@ impl<A: ArmLanes<N>, const N: usize> Stages<F64x4, N> for PackedPlant<A> {
 /// Runs every simulation of `sims` from its start to its end, four at a time, and returns
 /// their results in order. All must share one [`LaneKey`] (the scheduler's grouping).
 pub fn run_lanes<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> Vec<RunResult> {
+    run_lanes_on(sims).0
+}
+
+/// `run_lanes`, saying how stages 1–8 advanced ([`StagePath`]).
+pub fn run_lanes_on<R: LaneArm<N>, const N: usize>(
+    sims: &mut [Simulation<R, N>],
+) -> (Vec<RunResult>, StagePath) {
     debug_assert!(sims.windows(2).all(|w| {
         let (a, b) = (w[0].plant(), w[1].plant());
         a.arm().same_structure(b.arm())
@@ -339,21 +232,26 @@ pub fn run_lanes<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -
     #[cfg(target_arch = "x86_64")]
     if crate::sim::plant::has_avx2_fma() {
         // SAFETY: the features `lanes_avx2` is compiled for were detected just above.
-        unsafe { lanes_avx2(sims) };
-        return sims.iter_mut().map(|s| s.take_result()).collect();
+        let path = unsafe { lanes_avx2(sims) };
+        return (sims.iter_mut().map(|s| s.take_result()).collect(), path);
     }
-    lanes_loop(sims);
-    sims.iter_mut().map(|s| s.take_result()).collect()
+    let path = lanes_loop(sims);
+    (sims.iter_mut().map(|s| s.take_result()).collect(), path)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn lanes_avx2<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) {
+unsafe fn lanes_avx2<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> StagePath {
     lanes_loop(sims)
 }
 
 #[inline(always)]
-fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) {
+fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> StagePath {
+    // Stages 1–8 in lanes only if every run of the group has one stage structure (sweeps
+    // group by it; a caller's mixed group still runs, its stages lane by lane).
+    let one_structure = sims
+        .iter()
+        .all(|s| s.stages().lane_key() == sims[0].stages().lane_key());
     let mut next = 0;
     let mut slot: [Option<usize>; LANES] = [None; LANES];
     let mut packed: Option<(PackedPlant<R::Lanes>, [usize; LANES])> = None;
@@ -379,14 +277,11 @@ fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) {
         let run: [usize; LANES] = slot.map(|s| s.or(slot[first]).unwrap_or(0));
         let plant = repack(&mut packed, sims, run);
         if !tried {
-            // Only if every run of the group fits one pack (the lane key sees to it in
-            // sweeps; a caller's mixed group still runs, lane by lane).
-            let all_fit = sims.iter().all(|s| {
-                R::Front::pack([&sims[run[0]], &sims[run[0]], &sims[run[0]], s]).is_some()
-            });
-            front = all_fit
-                .then(|| R::Front::pack(run.map(|i| &sims[i])))
-                .flatten();
+            front = if one_structure {
+                R::Front::pack(run.map(|i| &sims[i]))
+            } else {
+                None
+            };
             tried = true;
         } else if let Some(f) = &mut front {
             for l in (0..LANES).filter(|&l| fresh[l]) {
@@ -455,6 +350,11 @@ fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) {
             s.plant_mut().refresh_config();
         }
     }
+    if front.is_some() || sims.is_empty() {
+        StagePath::Lanes
+    } else {
+        StagePath::PerLane
+    }
 }
 
 /// The plants of `run` packed, rebuilt only when the lanes' runs changed.
@@ -475,6 +375,7 @@ fn repack<'a, R: LaneArm<N>, const N: usize>(
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use crate::robot::ThreeLinkArm;
     use crate::sim::scenario::ScenarioConfig;
     use crate::world::environment::WallParams;
 
@@ -533,7 +434,7 @@ pub(crate) mod tests {
         let dispatched = run_lanes(&mut sims(&stiffness));
         let mut baseline = sims(&stiffness);
         baseline.iter_mut().for_each(|s| s.reset());
-        lanes_loop(&mut baseline);
+        assert_eq!(lanes_loop(&mut baseline), StagePath::Lanes);
         let baseline: Vec<RunResult> = baseline.iter_mut().map(|s| s.take_result()).collect();
         assert_eq!(bits(&dispatched), bits(&baseline));
     }
