@@ -32,6 +32,7 @@ use admit_rs::scalar::{F64x4, Real};
 use admit_rs::sim::scenario::RobotConfig;
 use admit_rs::sim::sweep::run_batch_with;
 use admit_rs::world::environment::WallParams;
+use admit_rs::world::environment::{ContactModel, Wall};
 use admit_rs::{ScenarioConfig, Simulation};
 use nalgebra::{SVector, Vector3};
 
@@ -116,8 +117,16 @@ fn evaluate<T: Real, const N: usize>(
 ) -> SVector<T, N> {
     let f = chain.frames(q);
     let normal = Vector3::new(T::one(), T::zero(), T::zero());
-    let wall = |along: T, _rate: T| (along - T::splat(0.3)).simd_max(T::zero()) * T::splat(3e4);
-    accelerate(chain, friction, &f, qd, tau, &wall, &normal, false).0
+    let wall = Wall {
+        stiffness: T::splat(3e4),
+        damping: T::zero(),
+        model: ContactModel::KelvinVoigt,
+        exponent: T::one(),
+        normal,
+        position: T::splat(0.3),
+        position_error: T::zero(),
+    };
+    accelerate(chain, friction, &f, qd, tau, &wall).0
 }
 
 /// Four evaluations one after the other, in the dispatched AVX2 + FMA code the lanes run in.

@@ -94,7 +94,6 @@ fn dynamics(c: &mut Criterion) {
             arm.evaluate(black_box(&s.q), black_box(&s.qd))
         })
     });
-    let contact = |along: f64, rate: f64| wall.force_along(along, rate);
     g.bench_function("accelerate", |b| {
         b.iter(|| {
             let (s, tau) = replay.next();
@@ -102,9 +101,7 @@ fn dynamics(c: &mut Criterion) {
                 &Trig::new(black_box(&s.q)),
                 black_box(&s.qd),
                 black_box(tau),
-                &contact,
-                &wall.normal,
-                wall.needs_rate(),
+                &wall,
             )
         })
     });

@@ -7,6 +7,7 @@
 //! the pyo3 layer lives in `python` behind the `python` feature, which maturin switches on.
 
 pub mod analysis;
+pub mod contact;
 pub mod control;
 pub mod error;
 pub mod robot;

@@ -8,6 +8,7 @@
 
 use nalgebra::{DMatrix, DVector, SMatrix, SVector, Vector3};
 
+use crate::contact::{Contact, KnownTip, Surface};
 use crate::scalar::Real;
 
 pub mod chain;
@@ -136,27 +137,24 @@ pub trait RobotModel<const N: usize>: Clone + Send + Sync {
         }
     }
 
-    /// q̈ with the contact force evaluated at this same state: one RK4 stage of the plant.
-    /// `contact(s, ṡ)` gives the force f along the wall normal `normal` from the tip's
-    /// displacement s = n·X and rate ṡ = n·Ẋ; the arm feels −f n through Jᵀ.
-    /// Returns (q̈, f).
-    ///
-    /// `needs_rate` says whether `contact` reads ṡ (a damped wall); without it ṡ is 0.
+    /// q̈ with the surface's contact evaluated at this same state: one RK4 stage of the
+    /// plant. The surface reads the tip's motion; the arm feels its force F through Jᵀ.
+    /// Returns (q̈, the contact). Arms with a faster form of the tip's motion override this.
     #[inline(always)]
     fn accelerate(
         &self,
         c: &Self::Config,
         qd: &JointVector<N>,
         tau: &JointVector<N>,
-        contact: &impl Fn(f64, f64) -> f64,
-        normal: &TaskVector,
-        needs_rate: bool,
-    ) -> (JointVector<N>, f64) {
+        surface: &impl Surface<f64>,
+    ) -> (JointVector<N>, Contact<f64>) {
         let k = self.kinematics(c, qd);
-        let jt_n = k.jacobian.transpose() * normal;
-        let rate = if needs_rate { jt_n.dot(qd) } else { 0.0 };
-        let f = contact(normal.dot(&k.position), rate);
-        (self.forward_dynamics(c, qd, tau, &(normal * -f)), f)
+        let contact = surface.contact(&KnownTip {
+            position: &k.position,
+            jacobian: &k.jacobian,
+            qd,
+        });
+        (self.forward_dynamics(c, qd, tau, &contact.force()), contact)
     }
 
     /// The model a controller believes in: masses (and inertias) scaled by `mass_scale`,

@@ -6,7 +6,8 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::{JointVector, RobotModel, TaskVector};
+use super::{JointVector, RobotModel};
+use crate::contact::{Contact, Surface, TipMotion};
 use crate::error::{check, Error, Result};
 use crate::scalar::{F64x4, Real, LANES};
 use simba::simd::SimdValue;
@@ -362,6 +363,60 @@ impl ClosedForm<F64x4> {
     }
 }
 
+/// The three-link tip's motion at one state, from the closed form's trigonometry: with
+/// r = l2 c2 + l3 c23 (distance from the yaw axis) and h = l2 s2 + l3 s23 (height above the
+/// shoulder), and the normal's horizontal part in the arm's yaw frame a = (c1, s1)·(n0, n1),
+/// b = (−s1, c1)·(n0, n1): n·X = r a + n2 (l1 + h), and Jᵀ n follows from J's entries (see
+/// `kinematics`). For the paper's n = e_x, n·X = x and Jᵀ n is J's first row.
+pub struct ClosedTip<'a, T: Real> {
+    form: &'a ClosedForm<T>,
+    trig: Trig<T>,
+    qd: &'a Vector3<T>,
+}
+
+impl<T: Real> ClosedTip<'_, T> {
+    #[inline(always)]
+    fn radius_height(&self) -> (T, T) {
+        let (f, t) = (self.form, &self.trig);
+        (f.l2 * t.c2 + f.l3 * t.c23, f.l2 * t.s2 + f.l3 * t.s23)
+    }
+
+    /// (a, b) of the normal's horizontal part in the yaw frame.
+    #[inline(always)]
+    fn yaw_frame(&self, n: &Vector3<T>) -> (T, T) {
+        let t = &self.trig;
+        (t.c1 * n[0] + t.s1 * n[1], t.c1 * n[1] - t.s1 * n[0])
+    }
+
+    /// Jᵀ n.
+    #[inline(always)]
+    pub fn jacobian_transpose(&self, n: &Vector3<T>) -> Vector3<T> {
+        let (r, h) = self.radius_height();
+        let (a, b) = self.yaw_frame(n);
+        let t = &self.trig;
+        Vector3::new(
+            r * b,
+            r * n[2] - h * a,
+            self.form.l3 * (t.c23 * n[2] - t.s23 * a),
+        )
+    }
+}
+
+impl<T: Real> TipMotion<T> for ClosedTip<'_, T> {
+    #[inline(always)]
+    fn along(&self, n: &Vector3<T>, rate: bool) -> (T, T) {
+        let (r, h) = self.radius_height();
+        let (a, _) = self.yaw_frame(n);
+        let along = r * a + n[2] * (self.form.l1 + h);
+        let rate = if rate {
+            self.jacobian_transpose(n).dot(self.qd)
+        } else {
+            T::zero()
+        };
+        (along, rate)
+    }
+}
+
 impl<T: Real> ClosedForm<T> {
     /// |det J| / (l2 l3 (l2 + l3)) = |r sin q3| / (l2 + l3): zero exactly at the singular
     /// configurations (det J = −r l2 l3 sin q3, r the tip's distance from the yaw axis).
@@ -468,35 +523,26 @@ impl<T: Real> ClosedForm<T> {
         )
     }
 
-    /// Joint accelerations with the environment's force evaluated at the same state:
-    /// eq. (1) with τ_ext = Jᵀ(−f n), f = `contact(n·X, n·Ẋ)`. Returns (q̈, f).
+    /// Joint accelerations with the surface's contact evaluated at the same state: eq. (1)
+    /// with τ_ext = Jᵀ F, F = −f n. The tip's motion along n and Jᵀn come from the closed
+    /// form ([`ClosedTip`]). Returns (q̈, the contact).
     #[inline(always)]
     pub fn accelerate(
         &self,
         t: &Trig<T>,
         qd: &Vector3<T>,
         tau: &Vector3<T>,
-        contact: &impl Fn(T, T) -> T,
-        normal: &Vector3<T>,
-        needs_rate: bool,
-    ) -> (Vector3<T>, T) {
+        surface: &impl Surface<T>,
+    ) -> (Vector3<T>, Contact<T>) {
         let t = *t;
-        let r = self.l2 * t.c2 + self.l3 * t.c23; // distance from the yaw axis
-        let h = self.l2 * t.s2 + self.l3 * t.s23; // height above the shoulder
-
-        // The normal's horizontal part in the arm's yaw frame: a = (c1, s1)·(n0, n1) and
-        // b = (−s1, c1)·(n0, n1). Then n·X = r a + n2 (l1 + h), and Jᵀ n follows from J's
-        // entries (see `kinematics`); for the paper's n = e_x, n·X = x and Jᵀ n is J's
-        // first row.
-        let (n0, n1, n2) = (normal[0], normal[1], normal[2]);
-        let a = t.c1 * n0 + t.s1 * n1;
-        let b = t.c1 * n1 - t.s1 * n0;
-        let along = r * a + n2 * (self.l1 + h);
-        let jt_n = Vector3::new(r * b, r * n2 - h * a, self.l3 * (t.c23 * n2 - t.s23 * a));
-        let rate = if needs_rate { jt_n.dot(qd) } else { T::zero() };
-        let f = contact(along, rate);
-        // The wall pushes the tip along −n.
-        let contact_torque = jt_n * -f;
+        let tip = ClosedTip {
+            form: self,
+            trig: t,
+            qd,
+        };
+        let contact = surface.contact(&tip);
+        // The surface pushes the tip along −n.
+        let contact_torque = tip.jacobian_transpose(&contact.normal) * -contact.normal_force;
         let d = self.dynamics(&t, qd);
         // q̈ = D⁻¹ (rest − τ_c), with τ_c the Coulomb friction and rest everything else. The
         // longest dependency chain of an RK4 stage runs q̇ → exp → τ_c → q̈ → next stage's q̇,
@@ -517,7 +563,7 @@ impl<T: Real> ClosedForm<T> {
             (k22 * rest[1] + k23 * rest[2]) - (k22 * tau_c[1] + k23 * tau_c[2]),
             (k23 * rest[1] + k33 * rest[2]) - (k23 * tau_c[1] + k33 * tau_c[2]),
         );
-        (qdd, f)
+        (qdd, contact)
     }
 
     /// Coulomb friction of joint `j`: f_c tanh(q̇/ε) as f_c (1 − e)/(1 + e) with
@@ -676,12 +722,9 @@ impl RobotModel<3> for ThreeLinkArm {
         t: &Trig,
         qd: &JointVector<3>,
         tau: &JointVector<3>,
-        contact: &impl Fn(f64, f64) -> f64,
-        normal: &TaskVector,
-        needs_rate: bool,
-    ) -> (JointVector<3>, f64) {
-        self.form
-            .accelerate(t, qd, tau, contact, normal, needs_rate)
+        surface: &impl Surface<f64>,
+    ) -> (JointVector<3>, Contact<f64>) {
+        self.form.accelerate(t, qd, tau, surface)
     }
 
     fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {
@@ -816,16 +859,29 @@ mod tests {
         let qd = Vec3::new(0.2, 0.3, -0.4);
         let tau = Vec3::new(1.0, 40.0, 9.0);
         let n = Vec3::new(0.6, 0.48, 0.64);
-        let contact = |s: f64, rate: f64| 1000.0 * s + 20.0 * rate;
-        let (qdd, f) = arm.accelerate(&Trig::new(&q), &qd, &tau, &contact, &n, true);
+        // A spring and damper along n that reads n·Ẋ only when `rate`.
+        struct Linear(Vec3, bool);
+        impl Surface<f64> for Linear {
+            fn contact(&self, tip: &impl TipMotion<f64>) -> Contact<f64> {
+                let (s, rate) = tip.along(&self.0, self.1);
+                Contact {
+                    normal: self.0,
+                    normal_force: 1000.0 * s + 20.0 * rate,
+                    penetration: s,
+                }
+            }
+        }
+        let (qdd, c) = arm.accelerate(&Trig::new(&q), &qd, &tau, &Linear(n, true));
         let k = arm.kinematics(&Trig::new(&q), &qd);
-        let expected = contact(n.dot(&k.position), n.dot(&(k.jacobian * qd)));
+        let expected = 1000.0 * n.dot(&k.position) + 20.0 * n.dot(&(k.jacobian * qd));
+        let f = c.normal_force;
         assert!((f - expected).abs() < 1e-12, "{f} vs {expected}");
+        assert_eq!(c.force(), n * -f);
         let reference = arm.forward_dynamics_at(&q, &qd, &tau, &(n * -f));
         assert!((qdd - reference).abs().max() < 1e-12);
         // Without the rate the contact sees ṡ = 0.
-        let (_, f0) = arm.accelerate(&Trig::new(&q), &qd, &tau, &contact, &n, false);
-        assert!((f0 - 1000.0 * n.dot(&k.position)).abs() < 1e-12);
+        let (_, c0) = arm.accelerate(&Trig::new(&q), &qd, &tau, &Linear(n, false));
+        assert!((c0.normal_force - 1000.0 * n.dot(&k.position)).abs() < 1e-12);
     }
 
     /// Angle addition agrees with a fresh evaluation to rounding, over the whole range

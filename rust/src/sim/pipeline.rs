@@ -6,7 +6,9 @@
 //! plant state and kinematics, each run's noise draw and references at its own t) and record
 //! each run's sample; no stage or law is written twice.
 
-use nalgebra::{SVector, Vector3};
+use nalgebra::SVector;
+
+use crate::contact::{FreeSpace, KnownTip, Surface};
 
 use crate::control::controller::{
     not_finite, Controller, ControllerKey, ControllerModel, Measured,
@@ -55,8 +57,6 @@ pub struct Inputs<'a, T: Real, const N: usize> {
     /// The tip's rotation terms, for a pose task (`Controller::pose`).
     pub orientation: Option<&'a Orientation<N, T>>,
     pub wall: Option<&'a Wall<T>>,
-    /// Whether the wall reads the tip's rate (a damped wall); without it Ẋ is taken as 0.
-    pub needs_rate: bool,
     pub noise: T,
     /// f_d(t_k).
     pub force_reference: Sample<T>,
@@ -88,21 +88,17 @@ impl<T: Real, M: ControllerModel<T, N>, const N: usize> Pipeline<T, M, N> {
     #[inline(always)]
     pub fn step(&mut self, input: &Inputs<T, N>, at: &M::At) -> Outputs<T, N> {
         let kin = input.kinematics;
-        // 2. environment: the true force along n
-        let (force, penetration) = match input.wall {
-            Some(w) => {
-                let velocity = if input.needs_rate {
-                    kin.jacobian * input.qd
-                } else {
-                    Vector3::zeros()
-                };
-                (
-                    w.force(&kin.position, &velocity),
-                    w.penetration(&kin.position),
-                )
-            }
-            None => (T::zero(), T::splat(f64::NAN)),
+        // 2. environment: the contact at the measured tip
+        let tip = KnownTip {
+            position: &kin.position,
+            jacobian: &kin.jacobian,
+            qd: input.qd,
         };
+        let contact = match input.wall {
+            Some(w) => w.contact(&tip),
+            None => FreeSpace.contact(&tip),
+        };
+        let (force, penetration) = (contact.normal_force, contact.penetration);
         // 3. force sensor
         let measured = self.sensor.read(input.first, force, input.noise);
         // 4.–5. force control, fed by the measured force; then the task reference

@@ -2,6 +2,7 @@
 //! substeps while the applied torque is held (zero-order hold, SPEC §6). The environment's
 //! force is evaluated inside every RK4 stage from that stage's state.
 
+use crate::contact::FreeSpace;
 use nalgebra::SVector;
 
 use crate::robot::{JointVector, RobotModel, TaskVector};
@@ -197,18 +198,8 @@ impl<R: RobotModel<N>, const N: usize> Stages<f64, N> for Plant<R, N> {
         tau: &JointVector<N>,
     ) -> JointVector<N> {
         match &self.wall {
-            Some(w) => {
-                let contact = |along: f64, rate: f64| w.force_along(along, rate);
-                self.arm
-                    .accelerate(c, qd, tau, &contact, &w.normal, w.needs_rate())
-                    .0
-            }
-            None => {
-                let free = |_: f64, _: f64| 0.0;
-                self.arm
-                    .accelerate(c, qd, tau, &free, &TaskVector::x(), false)
-                    .0
-            }
+            Some(w) => self.arm.accelerate(c, qd, tau, w).0,
+            None => self.arm.accelerate(c, qd, tau, &FreeSpace).0,
         }
     }
 
@@ -345,11 +336,7 @@ mod tests {
         let mut plant = Plant::new(arm.clone(), Some(wall), start, h * 10.0, substeps);
         let (mut q, mut qd) = (start.q, start.qd);
         let mut contact_periods = 0;
-        let contact = |along: f64, rate: f64| wall.force_along(along, rate);
-        let f = |q: &Vec3, qd: &Vec3, t: &Vec3| {
-            arm.accelerate(&Trig::new(q), qd, t, &contact, &wall.normal, false)
-                .0
-        };
+        let f = |q: &Vec3, qd: &Vec3, t: &Vec3| arm.accelerate(&Trig::new(q), qd, t, &wall).0;
         for k in 0..1000 {
             let t = tau(k);
             plant.advance(&t);

@@ -300,7 +300,6 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
                 kinematics: &kin,
                 orientation: orientation.as_ref(),
                 wall,
-                needs_rate: wall.is_some_and(|w| w.needs_rate()),
                 noise: self.stages.sensor.noise_draw(k),
                 force_reference: f_d,
                 motion_reference: self.config.z_reference.at(t),

@@ -1,6 +1,7 @@
 //! The environment stage: a unilateral wall of any orientation with Kelvin–Voigt or
 //! Hunt–Crossley contact (SPEC §10; the paper's wall of SPEC §2 is the default).
 
+use crate::contact::{Contact, Surface, TipMotion};
 use crate::error::{check, Error, Result};
 use crate::robot::TaskVector;
 use crate::scalar::{F64x4, Real, LANES};
@@ -136,12 +137,6 @@ impl Wall {
         })
     }
 
-    /// Whether the force reads the tip's rate along n (it does only with damping).
-    #[inline(always)]
-    pub fn needs_rate(&self) -> bool {
-        self.damping != 0.0
-    }
-
     /// x̂_e: where the controller believes the wall is, along n.
     #[inline]
     pub fn estimated_position(&self) -> f64 {
@@ -149,7 +144,28 @@ impl Wall {
     }
 }
 
+/// The plane {X : n·X = x_e} as a surface: the force along n from the tip's n·X and, for
+/// a damped wall, n·Ẋ.
+impl<T: Real> Surface<T> for Wall<T> {
+    #[inline(always)]
+    fn contact(&self, tip: &impl TipMotion<T>) -> Contact<T> {
+        let (along, rate) = tip.along(&self.normal, self.needs_rate());
+        Contact {
+            normal: self.normal,
+            normal_force: self.force_along(along, rate),
+            penetration: along - self.position,
+        }
+    }
+}
+
 impl<T: Real> Wall<T> {
+    /// Whether the force reads the tip's rate along n: only with damping (in lanes: in any
+    /// lane).
+    #[inline(always)]
+    pub fn needs_rate(&self) -> bool {
+        !T::all(self.damping.simd_eq(T::zero()))
+    }
+
     /// Penetration δ = n·X − x_e (positive inside the wall).
     #[inline(always)]
     pub fn penetration(&self, position: &Vector3<T>) -> T {

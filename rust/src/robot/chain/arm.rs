@@ -2,6 +2,7 @@
 //! (SPEC §11). Friction and gravity are the block's parameters (as for the three-link arm);
 //! geometry, inertias and limits come from the URDF.
 
+use crate::contact::{Contact, Surface, TipMotion};
 use nalgebra::{Matrix3, SVector, Vector3};
 
 use super::kinematics::Frames;
@@ -178,10 +179,9 @@ impl<const N: usize> JointFriction<F64x4, N> {
     }
 }
 
-/// q̈ of eq. (1) by ABA (Featherstone Table 7.1) with the environment's force evaluated at
-/// the same state, as a wrench on the last body: τ_ext = Jᵀ(−f n), f = `contact(n·X, n·Ẋ)`.
-/// Returns (q̈, f). Over any scalar: one arm, or arms in SIMD lanes.
-#[allow(clippy::too_many_arguments)]
+/// q̈ of eq. (1) by ABA (Featherstone Table 7.1) with the surface's contact evaluated at
+/// the same state, its force F applied as a wrench on the last body (τ_ext = Jᵀ F). Returns
+/// (q̈, the contact). Over any scalar: one arm, or arms in SIMD lanes.
 #[inline(always)]
 pub fn accelerate<T: Real, const N: usize>(
     chain: &SerialChain<T, N>,
@@ -189,18 +189,38 @@ pub fn accelerate<T: Real, const N: usize>(
     c: &Frames<T, N>,
     qd: &SVector<T, N>,
     tau: &SVector<T, N>,
-    contact: &impl Fn(T, T) -> T,
-    normal: &Vector3<T>,
-    needs_rate: bool,
-) -> (SVector<T, N>, T) {
-    let rate = if needs_rate {
-        normal.dot(&chain.tip_velocity(c, qd))
-    } else {
-        T::zero()
-    };
-    let f = contact(normal.dot(&c.tip.pos), rate);
-    let wrench = chain.tip_wrench(c, &(normal * -f));
-    (chain.aba(c, qd, &(tau - friction.torque(qd)), &wrench), f)
+    surface: &impl Surface<T>,
+) -> (SVector<T, N>, Contact<T>) {
+    let contact = surface.contact(&ChainTip {
+        chain,
+        frames: c,
+        qd,
+    });
+    let wrench = chain.tip_wrench(c, &contact.force());
+    (
+        chain.aba(c, qd, &(tau - friction.torque(qd)), &wrench),
+        contact,
+    )
+}
+
+/// A chain's tip motion at one state, from its frames: n·X from the tip's origin, n·Ẋ from
+/// its velocity (only when asked).
+struct ChainTip<'a, T: Real, const N: usize> {
+    chain: &'a SerialChain<T, N>,
+    frames: &'a Frames<T, N>,
+    qd: &'a SVector<T, N>,
+}
+
+impl<T: Real, const N: usize> TipMotion<T> for ChainTip<'_, T, N> {
+    #[inline(always)]
+    fn along(&self, n: &Vector3<T>, rate: bool) -> (T, T) {
+        let rate = if rate {
+            n.dot(&self.chain.tip_velocity(self.frames, self.qd))
+        } else {
+            T::zero()
+        };
+        (n.dot(&self.frames.tip.pos), rate)
+    }
 }
 
 /// A URDF chain of `N` joints as a [`RobotModel`].
@@ -351,20 +371,9 @@ impl<const N: usize> RobotModel<N> for UrdfArm<N> {
         c: &Frames<f64, N>,
         qd: &JointVector<N>,
         tau: &JointVector<N>,
-        contact: &impl Fn(f64, f64) -> f64,
-        normal: &TaskVector,
-        needs_rate: bool,
-    ) -> (JointVector<N>, f64) {
-        accelerate(
-            &self.chain,
-            &self.friction,
-            c,
-            qd,
-            tau,
-            contact,
-            normal,
-            needs_rate,
-        )
+        surface: &impl Surface<f64>,
+    ) -> (JointVector<N>, Contact<f64>) {
+        accelerate(&self.chain, &self.friction, c, qd, tau, surface)
     }
 
     fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {

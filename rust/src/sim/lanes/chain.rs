@@ -4,8 +4,9 @@
 //! J̇q̇, the tip rotation for a pose task), and computed torque's model is the four
 //! controllers' chains (their mass scale) and friction packed.
 
-use nalgebra::{SVector, Vector3};
+use nalgebra::SVector;
 
+use crate::contact::Surface;
 use crate::control::controller::ControllerModel;
 use crate::robot::chain::arm::{accelerate as chain_accelerate, JointFriction};
 use crate::robot::chain::{Frames, SerialChain, UrdfArm};
@@ -68,21 +69,9 @@ impl<const N: usize> ArmLanes<N> for ChainLanes<N> {
         c: &Frames<F64x4, N>,
         qd: &SVector<F64x4, N>,
         tau: &SVector<F64x4, N>,
-        contact: &impl Fn(F64x4, F64x4) -> F64x4,
-        normal: &Vector3<F64x4>,
-        needs_rate: bool,
+        surface: &impl Surface<F64x4>,
     ) -> SVector<F64x4, N> {
-        chain_accelerate(
-            &self.chain,
-            &self.friction,
-            c,
-            qd,
-            tau,
-            contact,
-            normal,
-            needs_rate,
-        )
-        .0
+        chain_accelerate(&self.chain, &self.friction, c, qd, tau, surface).0
     }
 }
 

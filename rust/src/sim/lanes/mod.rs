@@ -18,11 +18,12 @@
 //! on grouping, threads or chunking. They differ from `simulate` of the same run only
 //! through `exp` (a lane polynomial, within 2 ulp of libm's), far below SPEC §13's 1e-9.
 
-use nalgebra::{SVector, Vector3};
+use crate::contact::{FreeSpace, Surface};
+use nalgebra::SVector;
 
 use crate::robot::chain::TaskKind;
 use crate::robot::RobotModel;
-use crate::scalar::{splat, F64x4, Real, LANES};
+use crate::scalar::{F64x4, Real, LANES};
 use crate::sim::pipeline::StageKey;
 use crate::sim::plant::{rk4_period, Plant, PlantState, Stages};
 use crate::sim::simulation::{RunResult, Simulation};
@@ -71,16 +72,13 @@ pub trait ArmLanes<const N: usize> {
         out: &mut Self::Config,
     );
 
-    /// q̈ with the contact force evaluated at the same state (`RobotModel::accelerate`).
-    #[allow(clippy::too_many_arguments)]
+    /// q̈ with the surface's contact evaluated at the same state (`RobotModel::accelerate`).
     fn accelerate(
         &self,
         c: &Self::Config,
         qd: &SVector<F64x4, N>,
         tau: &SVector<F64x4, N>,
-        contact: &impl Fn(F64x4, F64x4) -> F64x4,
-        normal: &Vector3<F64x4>,
-        needs_rate: bool,
+        surface: &impl Surface<F64x4>,
     ) -> SVector<F64x4, N>;
 }
 
@@ -148,7 +146,6 @@ pub enum StagePath {
 pub struct PackedPlant<A> {
     pub(crate) arm: A,
     pub(crate) wall: Option<Wall<F64x4>>,
-    pub(crate) needs_rate: bool,
     substep: F64x4,
     substeps: usize,
 }
@@ -164,9 +161,6 @@ impl<A> PackedPlant<A> {
         });
         Self {
             arm: R::pack(plants.map(|p| p.arm())),
-            needs_rate: plants
-                .iter()
-                .any(|p| p.wall().is_some_and(|w| w.needs_rate())),
             wall,
             substep: F64x4::from_lanes(|i| plants[i].substep()),
             substeps: plants[0].substeps(),
@@ -185,16 +179,8 @@ impl<A: ArmLanes<N>, const N: usize> Stages<F64x4, N> for PackedPlant<A> {
         tau: &SVector<F64x4, N>,
     ) -> SVector<F64x4, N> {
         match &self.wall {
-            Some(w) => {
-                let contact = |along, rate| w.force_along(along, rate);
-                self.arm
-                    .accelerate(c, qd, tau, &contact, &w.normal, self.needs_rate)
-            }
-            None => {
-                let free = |_, _| splat::<F64x4>(0.0);
-                let x = Vector3::x().map(splat::<F64x4>);
-                self.arm.accelerate(c, qd, tau, &free, &x, false)
-            }
+            Some(w) => self.arm.accelerate(c, qd, tau, w),
+            None => self.arm.accelerate(c, qd, tau, &FreeSpace),
         }
     }
 

@@ -98,7 +98,6 @@ impl<R: StageArm<N>, const N: usize> Front<R, N> for LaneStages<R, N> {
                 kinematics: &kin,
                 orientation: orientation.as_ref(),
                 wall: plant.wall.as_ref(),
-                needs_rate: plant.needs_rate,
                 noise,
                 force_reference: Sample::pack(f_d.each_ref()),
                 motion_reference: Sample::pack(s.each_ref()),

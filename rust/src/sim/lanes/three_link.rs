@@ -4,6 +4,7 @@
 
 use nalgebra::Vector3;
 
+use crate::contact::Surface;
 use crate::control::controller::ControllerModel;
 use crate::robot::three_link::{ClosedForm, Trig};
 use crate::robot::{Dynamics, Kinematics, Orientation, ThreeLinkArm};
@@ -103,10 +104,8 @@ impl ArmLanes<3> for ClosedForm<F64x4> {
         c: &Trig<F64x4>,
         qd: &Vector3<F64x4>,
         tau: &Vector3<F64x4>,
-        contact: &impl Fn(F64x4, F64x4) -> F64x4,
-        normal: &Vector3<F64x4>,
-        needs_rate: bool,
+        surface: &impl Surface<F64x4>,
     ) -> Vector3<F64x4> {
-        ClosedForm::accelerate(self, c, qd, tau, contact, normal, needs_rate).0
+        ClosedForm::accelerate(self, c, qd, tau, surface).0
     }
 }
