@@ -31,6 +31,7 @@ use admit_rs::sim::plant::{Plant, PlantState};
 use admit_rs::sim::simulation::ThreeLinkSimulation;
 use admit_rs::sim::sweep::run_batch_with;
 use admit_rs::world::environment::{Wall, WallParams};
+use admit_rs::world::surface::Environment;
 use admit_rs::{simulate, ScenarioConfig, Simulation};
 
 /// Every sample (q, q̇, τ_k) of the fig. 14 run, replayed in a cycle so that a per-call
@@ -120,7 +121,7 @@ fn plant(c: &mut Criterion) {
     let taus: Vec<Vec3> = replay.states.iter().map(|(_, tau)| *tau).collect();
     let mut whole = Plant::new(
         arm,
-        Some(wall),
+        Environment::Plane(wall),
         replay.states[0].0,
         cfg.period,
         cfg.substeps,

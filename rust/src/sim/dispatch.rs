@@ -166,7 +166,7 @@ impl AnySimulation {
         dispatch!(self, s => LaneKey {
             arm,
             substeps: s.plant().substeps(),
-            wall: s.plant().wall().map(|w| w.model),
+            environment: s.plant().environment().lane_key(),
             stages: s.stages().lane_key(),
         })
     }

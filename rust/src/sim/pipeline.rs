@@ -8,7 +8,7 @@
 
 use nalgebra::SVector;
 
-use crate::contact::{FreeSpace, KnownTip, Surface};
+use crate::contact::{KnownTip, Surface};
 
 use crate::control::controller::{
     not_finite, Controller, ControllerKey, ControllerModel, Measured,
@@ -19,8 +19,8 @@ use crate::control::task::{Desired, TaskFrame};
 use crate::robot::{Kinematics, Orientation};
 use crate::scalar::{F64x4, Real, LANES};
 use crate::world::actuator::Actuator;
-use crate::world::environment::Wall;
 use crate::world::sensor::ForceSensor;
+use crate::world::surface::Environment;
 
 /// The state machines of stages 3–7 and the task frame, over `T`; `M`: computed torque's
 /// model (an arm for one run, four models in lanes).
@@ -56,7 +56,7 @@ pub struct Inputs<'a, T: Real, const N: usize> {
     pub kinematics: &'a Kinematics<N, T>,
     /// The tip's rotation terms, for a pose task (`Controller::pose`).
     pub orientation: Option<&'a Orientation<N, T>>,
-    pub wall: Option<&'a Wall<T>>,
+    pub environment: &'a Environment<T>,
     pub noise: T,
     /// f_d(t_k).
     pub force_reference: Sample<T>,
@@ -94,10 +94,7 @@ impl<T: Real, M: ControllerModel<T, N>, const N: usize> Pipeline<T, M, N> {
             jacobian: &kin.jacobian,
             qd: input.qd,
         };
-        let contact = match input.wall {
-            Some(w) => w.contact(&tip),
-            None => FreeSpace.contact(&tip),
-        };
+        let contact = input.environment.contact(&tip);
         let (force, penetration) = (contact.normal_force, contact.penetration);
         // 3. force sensor
         let measured = self.sensor.read(input.first, force, input.noise);

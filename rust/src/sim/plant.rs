@@ -2,12 +2,11 @@
 //! substeps while the applied torque is held (zero-order hold, SPEC §6). The environment's
 //! force is evaluated inside every RK4 stage from that stage's state.
 
-use crate::contact::FreeSpace;
 use nalgebra::SVector;
 
-use crate::robot::{JointVector, RobotModel, TaskVector};
+use crate::robot::{JointVector, RobotModel};
 use crate::scalar::Real;
-use crate::world::environment::Wall;
+use crate::world::surface::Environment;
 
 /// Whether this CPU runs the AVX2 + FMA builds of the step loop (`Plant::advance`,
 /// `Simulation::run`). std caches the answer, so asking costs a load and a branch.
@@ -28,7 +27,7 @@ pub struct PlantState<const N: usize> {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plant<R: RobotModel<N>, const N: usize> {
     arm: R,
-    wall: Option<Wall>,
+    environment: Environment,
     substeps: usize,
     substep: f64,
     initial: PlantState<N>,
@@ -41,7 +40,7 @@ pub struct Plant<R: RobotModel<N>, const N: usize> {
 impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
     pub fn new(
         arm: R,
-        wall: Option<Wall>,
+        environment: Environment,
         initial: PlantState<N>,
         period: f64,
         substeps: usize,
@@ -49,7 +48,7 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
         let config = arm.configure(&initial.q);
         Self {
             arm,
-            wall,
+            environment,
             substeps,
             substep: period / substeps as f64,
             initial,
@@ -66,8 +65,9 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
         &self.arm
     }
 
-    pub fn wall(&self) -> Option<&Wall> {
-        self.wall.as_ref()
+    /// What the tip touches.
+    pub fn environment(&self) -> &Environment {
+        &self.environment
     }
 
     #[inline]
@@ -102,14 +102,6 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
     #[inline(always)]
     pub fn orientation(&self) -> Option<crate::robot::Orientation<N>> {
         self.arm.orientation(&self.config, &self.state.qd)
-    }
-
-    /// The true contact force along n at tip position `position` and velocity `velocity`.
-    #[inline]
-    pub fn contact_force(&self, position: &TaskVector, velocity: &TaskVector) -> f64 {
-        self.wall
-            .as_ref()
-            .map_or(0.0, |w| w.force(position, velocity))
     }
 
     /// One control period: `substeps` classical RK4 steps with τ held.
@@ -197,10 +189,7 @@ impl<R: RobotModel<N>, const N: usize> Stages<f64, N> for Plant<R, N> {
         qd: &JointVector<N>,
         tau: &JointVector<N>,
     ) -> JointVector<N> {
-        match &self.wall {
-            Some(w) => self.arm.accelerate(c, qd, tau, w).0,
-            None => self.arm.accelerate(c, qd, tau, &FreeSpace).0,
-        }
+        self.arm.accelerate(c, qd, tau, &self.environment).0
     }
 
     #[inline(always)]
@@ -256,7 +245,7 @@ mod tests {
     use super::*;
     use crate::robot::three_link::{Trig, Vec3};
     use crate::robot::{RobotParams, ThreeLinkArm};
-    use crate::world::environment::{ContactModel, WallParams};
+    use crate::world::environment::{ContactModel, Wall, WallParams};
 
     /// RK4 is fourth order: halving the step cuts the error ~16×.
     #[test]
@@ -271,7 +260,13 @@ mod tests {
             qd: Vec3::new(0.5, -0.3, 0.2),
         };
         let run = |substeps: usize| {
-            let mut plant = Plant::new(ThreeLinkArm::new(&p), None, start, 0.01, substeps);
+            let mut plant = Plant::new(
+                ThreeLinkArm::new(&p),
+                Environment::Free,
+                start,
+                0.01,
+                substeps,
+            );
             for _ in 0..20 {
                 plant.advance(&Vec3::new(1.0, 40.0, 8.0));
             }
@@ -333,7 +328,13 @@ mod tests {
         let (arm, wall, start) = pressed_into_wall(Vec3::new(0.0, 0.4, -0.6));
         let tau = |k: usize| sagging_torque(k, 0.0);
         let (h, substeps) = (1e-4, 10);
-        let mut plant = Plant::new(arm.clone(), Some(wall), start, h * 10.0, substeps);
+        let mut plant = Plant::new(
+            arm.clone(),
+            Environment::Plane(wall),
+            start,
+            h * 10.0,
+            substeps,
+        );
         let (mut q, mut qd) = (start.q, start.qd);
         let mut contact_periods = 0;
         let f = |q: &Vec3, qd: &Vec3, t: &Vec3| arm.accelerate(&Trig::new(q), qd, t, &wall).0;
@@ -372,7 +373,13 @@ mod tests {
         };
         let (arm, wall, start) = pressed_into(&p, Vec3::new(0.0, 0.4, -0.6));
         let (h, substeps) = (1e-4, 10);
-        let mut plant = Plant::new(arm.clone(), Some(wall), start, h * 10.0, substeps);
+        let mut plant = Plant::new(
+            arm.clone(),
+            Environment::Plane(wall),
+            start,
+            h * 10.0,
+            substeps,
+        );
         let f = |q: &Vec3, qd: &Vec3, t: &Vec3| {
             let c = Trig::new(q);
             let k = arm.kinematics(&c, qd);
@@ -404,7 +411,7 @@ mod tests {
     #[test]
     fn instruction_sets_agree_bit_for_bit() {
         let (arm, wall, start) = pressed_into_wall(Vec3::new(0.1, 0.4, -0.6));
-        let mut dispatched = Plant::new(arm, Some(wall), start, 1e-3, 10);
+        let mut dispatched = Plant::new(arm, Environment::Plane(wall), start, 1e-3, 10);
         let mut baseline = dispatched.clone();
         for k in 0..500 {
             let tau = sagging_torque(k, 0.5);
@@ -424,7 +431,7 @@ mod tests {
             q: q0,
             qd: Vec3::zeros(),
         };
-        let mut plant = Plant::new(arm, None, start, 1e-3, 10);
+        let mut plant = Plant::new(arm, Environment::Free, start, 1e-3, 10);
         for _ in 0..1000 {
             plant.advance(&g);
         }

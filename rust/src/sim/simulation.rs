@@ -23,6 +23,7 @@ use crate::sim::trace::{Row, Trace};
 use crate::world::actuator::Actuator;
 use crate::world::environment::Wall;
 use crate::world::sensor::ForceSensor;
+use crate::world::surface::Environment;
 
 /// A finished run.
 #[derive(Debug, Clone, PartialEq)]
@@ -103,13 +104,11 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         let controller = Controller::new(&config.controller, &robot, config.period, &task);
         let q0 = robot.initial_position();
         let start = robot.tip_position(&robot.configure(&q0));
-        let wall = config
-            .wall
-            .as_ref()
-            .map(|w| Wall::new(w, &start))
-            .transpose()
-            .map_err(|e| e.within("wall"))?;
-        let frame = match &wall {
+        let environment = match &config.wall {
+            Some(w) => Environment::Plane(Wall::new(w, &start).map_err(|e| e.within("wall"))?),
+            None => Environment::Free,
+        };
+        let frame = match environment.plane() {
             Some(w) => TaskFrame::new(w.normal, start, w.estimated_position()),
             None => TaskFrame::new(TaskVector::x(), start, start[0]),
         };
@@ -121,7 +120,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         Ok(Self {
             plant: Plant::new(
                 robot,
-                wall,
+                environment,
                 PlantState {
                     q: q0,
                     qd: JointVector::zeros(),
@@ -290,7 +289,6 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             None
         };
         // 2.–7., with this run's noise draw and references at t_k
-        let wall = self.plant.wall();
         let f_d = self.config.force_reference.at(t);
         let out = self.stages.step(
             &Inputs {
@@ -299,7 +297,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
                 qd: &qd,
                 kinematics: &kin,
                 orientation: orientation.as_ref(),
-                wall,
+                environment: self.plant.environment(),
                 noise: self.stages.sensor.noise_draw(k),
                 force_reference: f_d,
                 motion_reference: self.config.z_reference.at(t),

@@ -4,3 +4,4 @@
 pub mod actuator;
 pub mod environment;
 pub mod sensor;
+pub mod surface;

@@ -18,7 +18,7 @@
 //! on grouping, threads or chunking. They differ from `simulate` of the same run only
 //! through `exp` (a lane polynomial, within 2 ulp of libm's), far below SPEC §13's 1e-9.
 
-use crate::contact::{FreeSpace, Surface};
+use crate::contact::Surface;
 use nalgebra::SVector;
 
 use crate::robot::chain::TaskKind;
@@ -27,7 +27,7 @@ use crate::scalar::{F64x4, Real, LANES};
 use crate::sim::pipeline::StageKey;
 use crate::sim::plant::{rk4_period, Plant, PlantState, Stages};
 use crate::sim::simulation::{RunResult, Simulation};
-use crate::world::environment::{ContactModel, Wall};
+use crate::world::surface::{Environment, EnvironmentKey};
 
 pub mod chain;
 pub mod stages;
@@ -114,7 +114,7 @@ pub trait Front<R: LaneArm<N>, const N: usize>: Sized {
 pub struct LaneKey {
     pub arm: ArmKey,
     pub substeps: usize,
-    pub wall: Option<ContactModel>,
+    pub environment: EnvironmentKey,
     pub stages: StageKey,
 }
 
@@ -145,23 +145,20 @@ pub enum StagePath {
 /// Four plants' parameters in lanes, rebuilt whenever a lane takes a new run.
 pub struct PackedPlant<A> {
     pub(crate) arm: A,
-    pub(crate) wall: Option<Wall<F64x4>>,
+    pub(crate) environment: Environment<F64x4>,
     substep: F64x4,
     substeps: usize,
 }
 
 impl<A> PackedPlant<A> {
     fn new<R: LaneArm<N, Lanes = A>, const N: usize>(plants: [&Plant<R, N>; LANES]) -> Self {
-        let wall = plants[0].wall().map(|_| {
-            Wall::pack(std::array::from_fn(|i| {
-                plants[i]
-                    .wall()
-                    .expect("a lane group shares wall presence (LaneKey)")
-            }))
-        });
+        let environment = match Environment::pack(plants.map(|p| p.environment())) {
+            Some(e) => e,
+            None => unreachable!("run_lanes_on checked one environment key"),
+        };
         Self {
             arm: R::pack(plants.map(|p| p.arm())),
-            wall,
+            environment,
             substep: F64x4::from_lanes(|i| plants[i].substep()),
             substeps: plants[0].substeps(),
         }
@@ -178,10 +175,7 @@ impl<A: ArmLanes<N>, const N: usize> Stages<F64x4, N> for PackedPlant<A> {
         qd: &SVector<F64x4, N>,
         tau: &SVector<F64x4, N>,
     ) -> SVector<F64x4, N> {
-        match &self.wall {
-            Some(w) => self.arm.accelerate(c, qd, tau, w),
-            None => self.arm.accelerate(c, qd, tau, &FreeSpace),
-        }
+        self.arm.accelerate(c, qd, tau, &self.environment)
     }
 
     #[inline(always)]
@@ -206,12 +200,20 @@ pub fn run_lanes<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -
 pub fn run_lanes_on<R: LaneArm<N>, const N: usize>(
     sims: &mut [Simulation<R, N>],
 ) -> (Vec<RunResult>, StagePath) {
-    debug_assert!(sims.windows(2).all(|w| {
+    // Plants of different structures cannot share RK4 lanes: a caller's mixed group runs
+    // one by one (sweeps group by `LaneKey`, which holds these).
+    let one_plant = sims.windows(2).all(|w| {
         let (a, b) = (w[0].plant(), w[1].plant());
         a.arm().same_structure(b.arm())
             && a.substeps() == b.substeps()
-            && a.wall().map(|w| w.model) == b.wall().map(|w| w.model)
-    }));
+            && a.environment().lane_key() == b.environment().lane_key()
+    });
+    if !one_plant {
+        return (
+            sims.iter_mut().map(|s| s.run()).collect(),
+            StagePath::PerLane,
+        );
+    }
     for s in sims.iter_mut() {
         s.reset();
     }

@@ -97,7 +97,7 @@ impl<R: StageArm<N>, const N: usize> Front<R, N> for LaneStages<R, N> {
                 qd: &qd,
                 kinematics: &kin,
                 orientation: orientation.as_ref(),
-                wall: plant.wall.as_ref(),
+                environment: &plant.environment,
                 noise,
                 force_reference: Sample::pack(f_d.each_ref()),
                 motion_reference: Sample::pack(s.each_ref()),
