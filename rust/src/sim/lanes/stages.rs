@@ -450,4 +450,29 @@ mod every_kind {
             worst_trace_gap(&simulate(c).unwrap(), r, 1.0);
         }
     }
+
+    /// Plants that cannot share RK4 lanes (a wall and free space) given together run one
+    /// by one, each exactly `simulate`'s run (bit for bit), and say so.
+    #[test]
+    fn mixed_plants_run_one_by_one() {
+        let configs: Vec<ScenarioConfig> = (0..3)
+            .map(|i| ScenarioConfig {
+                duration: 0.05,
+                wall: (i != 1).then(crate::world::environment::WallParams::default),
+                admittance: None,
+                ..ScenarioConfig::default()
+            })
+            .collect();
+        let mut sims: Vec<Simulation<ThreeLinkArm, 3>> = configs
+            .iter()
+            .map(|c| Simulation::new(c).unwrap())
+            .collect();
+        let (runs, path) = run_lanes_on(&mut sims);
+        assert_eq!(path, StagePath::PerLane);
+        for (c, r) in configs.iter().zip(&runs) {
+            // Debug prints each f64 exactly (and NaN, which `==` refuses, as NaN).
+            let alone = simulate(c).unwrap().trace;
+            assert_eq!(format!("{:?}", r.trace), format!("{alone:?}"));
+        }
+    }
 }
