@@ -9,7 +9,6 @@
 use nalgebra::SVector;
 
 use crate::contact::{KnownTip, Surface};
-
 use crate::control::controller::{
     not_finite, Controller, ControllerKey, ControllerModel, Measured,
 };
