@@ -22,8 +22,16 @@ PREDICTION_NAMES: Final[list[str]]
 # is both a ValueError and an admit_rs.AdmitError); it defines no exception class itself.
 
 def defaults() -> dict[str, dict[str, Any]]:
-    """The core's default parameters per block (robot, wall, sensor, actuator, model,
-    computed_torque, model_free, time_delay, admittance, scenario)."""
+    """Every block's Rust ``Default``, serialised by its serde declaration, keyed like
+    :func:`schema` (three_link, urdf, wall, sensor, actuator, model, computed_torque,
+    model_free, time_delay, admittance, scenario); tagged blocks carry ``kind``."""
+
+def schema() -> dict[str, dict[str, Any]]:
+    """Every block's JSON schema (draft 2020-12) from its Rust declaration: ``properties``
+    with ``description`` (the field docs), ``type`` and, where the block has a Rust
+    ``Default``, ``default``. Keyed by the blocks' kind tags (three_link, urdf, wall, sensor,
+    actuator, model, computed_torque, model_free, time_delay, admittance, impedance, step,
+    sine, sampled) and ``scenario``."""
 
 def check_block(kind: str, params: dict[str, Any]) -> None:
     """Validate one block (kind: robot, wall, controller, admittance, signal, model, sensor,

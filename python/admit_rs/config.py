@@ -185,6 +185,7 @@ class Robot(_Block):
     q0: Vector3 = (0.0, math.pi / 4, -math.pi / 4)
     """Initial joint angles [rad]."""
 
+    _kind: ClassVar[str] = "three_link"
     _check: ClassVar[str] = "robot"
 
     def __post_init__(self) -> None:
@@ -582,13 +583,15 @@ class _ConstantInertiaLaw(_Controller):
 
     command_divisor: float = 5.0
     """K_A of eq. (39), formerly ``ka``: V = (Ẍ_d + K_D ė + K_P e) / K_A, it divides the
-    whole Cartesian command [dimensionless]."""
+    whole Cartesian command, feed-forward included (only the feedback with
+    ``scale_feedforward=False``) [dimensionless]."""
     kd: float = 20.0
     """K_D of eq. (39) [1/s]."""
     kp: float = 100.0
     """K_P of eq. (39) [1/s²]."""
     scale_feedforward: bool = True
-    """See :attr:`ComputedTorque.scale_feedforward`."""
+    """``True`` (SPEC, the paper as written): K_A⁻¹ multiplies Ẍ_d too. ``False``:
+    V = Ẍ_d + K_A⁻¹(K_D ė + K_P e), a variant reading (see docs/reproduction.md)."""
     inertia: float | tuple[float, ...] | tuple[tuple[float, ...], ...] = 0.1
     """Constant inertia D̄ [kg·m²]: one number (D̄ = α I, the paper's), one per joint
     (D̄ = diag(...)) or an n×n symmetric positive definite matrix (rows), for URDF arms

@@ -11,6 +11,7 @@ pub mod control;
 pub mod error;
 pub mod robot;
 pub mod scalar;
+pub mod schema;
 pub mod sim;
 pub mod world;
 

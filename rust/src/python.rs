@@ -478,96 +478,23 @@ macro_rules! py_dict {
     }};
 }
 
-fn gains_dict<'py>(py: Python<'py>, g: &PositionGains) -> PyResult<Bound<'py, PyDict>> {
-    Ok(py_dict!(py, {
-        "command_divisor": g.ka, "kd": g.kd, "kp": g.kp,
-        "scale_feedforward": g.scale_feedforward,
-    }))
+/// Serde's value as plain Python objects (dicts, lists, floats, strings, None).
+fn to_python<'py>(py: Python<'py>, value: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
+    pythonize::pythonize(py, value).map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
-fn model_dict<'py>(py: Python<'py>, m: &ModelError) -> PyResult<Bound<'py, PyDict>> {
-    Ok(py_dict!(py, { "mass_scale": m.mass_scale, "friction_scale": m.friction_scale }))
-}
-
-/// The core's default parameters, block by block (`Default` impls): the one source the
-/// Python dataclass defaults are tested against.
+/// The core's default parameters, block by block: each block's `Default` serialised by its
+/// serde declaration (`schema::defaults`), the one source the Python dataclass defaults are
+/// tested against.
 #[pyfunction]
-fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
-    let robot = RobotParams::default();
-    let wall = WallParams::default();
-    let sensor = SensorParams::default();
-    let actuator = ActuatorParams::default();
-    let ct = ComputedTorqueParams::default();
-    let mf = ModelFreeParams::default();
-    let tdc = TimeDelayParams::default();
-    let adm = AdmittanceParams::default();
-    let scenario = ScenarioConfig::default();
-    let computed_torque = gains_dict(py, &ct.gains)?;
-    computed_torque.set_item("contact_compensation", ct.contact_compensation)?;
-    let model_free = gains_dict(py, &mf.gains)?;
-    model_free.set_item("inertia", mf.inertia)?;
-    model_free.set_item("torque_constant", mf.torque_constant)?;
-    let time_delay = gains_dict(py, &tdc.gains)?;
-    time_delay.set_item("inertia", tdc.inertia)?;
-    time_delay.set_item("torque_constant", tdc.torque_constant)?;
-    time_delay.set_item(
-        "law",
-        match tdc.law {
-            TdcLaw::JacobianTranspose => "jacobian_transpose",
-            TdcLaw::InverseJacobian => "inverse_jacobian",
-        },
-    )?;
-    Ok(py_dict!(py, {
-        "robot": py_dict!(py, {
-            "lengths": robot.lengths.to_vec(),
-            "masses": robot.masses.to_vec(),
-            "mass_model": match robot.mass_model {
-                MassModel::Rod => "rod",
-                MassModel::Point => "point",
-            },
-            "viscous_friction": robot.viscous_friction.to_vec(),
-            "coulomb_friction": robot.coulomb_friction.to_vec(),
-            "friction_smoothing": robot.friction_smoothing,
-            "gravity": robot.gravity,
-            "q0": robot.q0.to_vec(),
-        }),
-        "wall": py_dict!(py, {
-            "stiffness": wall.stiffness,
-            "damping": wall.damping,
-            "model": match wall.model {
-                ContactModel::KelvinVoigt => "kelvin_voigt",
-                ContactModel::HuntCrossley => "hunt_crossley",
-            },
-            "exponent": wall.exponent,
-            "normal": wall.normal.to_vec(),
-            "position": wall.position,
-            "position_error": wall.position_error,
-        }),
-        "sensor": py_dict!(py, {
-            "bias": sensor.bias,
-            "noise_std": sensor.noise_std,
-            "resolution": sensor.resolution,
-            "cutoff": sensor.cutoff,
-            "latency": sensor.latency,
-        }),
-        "actuator": py_dict!(py, {
-            "torque_limit": actuator.torque_limit,
-            "rate_limit": actuator.rate_limit,
-            "delay": actuator.delay,
-        }),
-        "model": model_dict(py, &ModelError::default())?,
-        "computed_torque": computed_torque,
-        "model_free": model_free,
-        "time_delay": time_delay,
-        "admittance": py_dict!(py, { "m": adm.m, "b": adm.b, "k": adm.k, "ka": adm.ka }),
-        "scenario": py_dict!(py, {
-            "seed": scenario.seed,
-            "period": scenario.period,
-            "substeps": scenario.substeps,
-            "duration": scenario.duration,
-            "velocity_limit": scenario.velocity_limit,
-        }),
-    }))
+fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+    to_python(py, &crate::schema::defaults())
+}
+
+/// Every block's JSON schema (`schema::schemas`): field names, types, docs and defaults.
+#[pyfunction]
+fn schema(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+    to_python(py, &crate::schema::schemas())
 }
 
 /// Validates one building block on its own, so a dataclass can fail at construction.
@@ -1105,6 +1032,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     m.add_class::<Stepper>()?;
     m.add_function(wrap_pyfunction!(defaults, m)?)?;
+    m.add_function(wrap_pyfunction!(schema, m)?)?;
     m.add_function(wrap_pyfunction!(check_block, m)?)?;
     m.add_function(wrap_pyfunction!(validate, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;

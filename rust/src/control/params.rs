@@ -4,6 +4,8 @@
 //! `control::laws`, the state machine in `control::controller`.
 
 use nalgebra::Vector3;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 use crate::control::task::Desired;
 use crate::error::{check, Result};
@@ -11,15 +13,22 @@ use crate::robot::{JointMatrix, JointVector, RobotModel};
 use crate::scalar::{F64x4, Real, LANES};
 
 /// Gains of eq. (39): V = K_A⁻¹ (Ẍ_d + K_D (Ẋ_d − Ẋ) + K_P (X_d − X)), each a scalar times I.
-/// Over `f64`, or four runs' gains in lanes (one `scale_feedforward`).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Over `f64`, or four runs' gains in lanes (one `scale_feedforward`). Serialised flat into
+/// its controller's block; K_A is spelled `command_divisor` (`ka` is its deprecated alias).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
 pub struct PositionGains<T: Real = f64> {
+    /// K_A of eq. (39), formerly ``ka``: V = (Ẍ_d + K_D ė + K_P e) / K_A, it divides the
+    /// whole Cartesian command, feed-forward included (only the feedback with
+    /// ``scale_feedforward=False``) [dimensionless].
+    #[serde(rename = "command_divisor", alias = "ka")]
     pub ka: T,
+    /// K_D of eq. (39) [1/s].
     pub kd: T,
+    /// K_P of eq. (39) [1/s²].
     pub kp: T,
-    /// `true` (SPEC §4, the paper as written): K_A⁻¹ multiplies the feed-forward Ẍ_d too.
-    /// `false`: V = Ẍ_d + K_A⁻¹ (K_D ė + K_P e), a reading under which computed torque
-    /// tracks X_d exactly; offered as a labelled variant, never the default.
+    /// ``True`` (SPEC, the paper as written): K_A⁻¹ multiplies Ẍ_d too. ``False``:
+    /// V = Ẍ_d + K_A⁻¹(K_D ė + K_P e), a variant reading (see docs/reproduction.md).
     pub scale_feedforward: bool,
 }
 
@@ -74,11 +83,12 @@ impl<T: Real> PositionGains<T> {
 }
 
 /// The controller's belief about the arm, relative to the plant (SPEC §4, for sweeps).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
 pub struct ModelError {
-    /// Factor on every link mass (and so every inertia). Default 1.
+    /// Factor on every link mass (and inertia) in the controller's model [dimensionless].
     pub mass_scale: f64,
-    /// Factor on viscous and Coulomb friction. Default 1.
+    /// Factor on viscous and Coulomb friction in the controller's model [dimensionless].
     pub friction_scale: f64,
 }
 
@@ -104,7 +114,8 @@ impl ModelError {
 }
 
 /// Which TDC law.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
 pub enum TdcLaw {
     /// eq. (18): τ = D̄ K_t Jᵀ V + τ_{k−1} − D̄ q̈_{k−1}.
     JacobianTranspose,
@@ -113,12 +124,15 @@ pub enum TdcLaw {
 }
 
 /// Computed torque, eq. (7) in joint space: τ = D̂ J⁻¹ (V − J̇q̇) + Ĉ + Ĝ + τ̂_f.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
 pub struct ComputedTorqueParams {
     /// Default K_A = 0.1, K_D = 20, K_P = 100.
+    #[serde(flatten)]
     pub gains: PositionGains,
-    /// Add f J_xᵀ to cancel the measured contact force. Default false.
+    /// Add f J_xᵀ to cancel the measured contact force.
     pub contact_compensation: bool,
+    /// The controller's model of the arm.
     pub model: ModelError,
 }
 
@@ -220,7 +234,13 @@ pub fn check_inertia_for<const N: usize>(p: &PerJoint) -> Result<()> {
 }
 
 /// Model-free ("nonmodel") control: eq. (18) without the delay estimate, τ = D̄ K_t Jᵀ V.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Crosses serde as `schema::ModelFreeBlock`: one `inertia` field for `inertia` and
+/// `joint_inertia`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(
+    try_from = "crate::schema::ModelFreeBlock",
+    into = "crate::schema::ModelFreeBlock"
+)]
 pub struct ModelFreeParams {
     /// Default K_A = 5, K_D = 20, K_P = 100.
     pub gains: PositionGains,
@@ -243,8 +263,13 @@ impl Default for ModelFreeParams {
     }
 }
 
-/// Time-delayed control, eq. (18) (default) or eq. (17).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Time-delayed control, eq. (18) (default) or eq. (17). Crosses serde as
+/// `schema::TimeDelayBlock`: one `inertia` field for `inertia` and `joint_inertia`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(
+    try_from = "crate::schema::TimeDelayBlock",
+    into = "crate::schema::TimeDelayBlock"
+)]
 pub struct TimeDelayParams {
     /// Default K_A = 5, K_D = 20, K_P = 100.
     pub gains: PositionGains,
@@ -273,7 +298,9 @@ impl Default for TimeDelayParams {
     }
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The inner position loop, tagged by `kind` as the Python blocks are.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(tag = "kind", rename_all = "snake_case")]
 pub enum ControllerParams {
     ComputedTorque(ComputedTorqueParams),
     ModelFree(ModelFreeParams),

@@ -7,6 +7,8 @@
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 use rand_pcg::Pcg64Mcg;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 use crate::error::{check, Error, Result};
 use crate::scalar::{choose, mask_from, put, F64x4, Real, LANES};
@@ -16,17 +18,19 @@ use simba::simd::SimdValue;
 pub const MAX_LATENCY: usize = 100_000;
 
 /// Sensor parameters. Defaults are the ideal sensor of the paper (it reads f exactly).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
 pub struct SensorParams {
-    /// Constant offset added to the reading [N]. Default 0.
+    /// Constant offset added to the reading [N].
     pub bias: f64,
-    /// Standard deviation of white Gaussian noise [N]. Default 0.
+    /// Standard deviation of white Gaussian noise [N].
     pub noise_std: f64,
-    /// Quantisation step [N]; 0: none. Default 0.
+    /// Quantisation step [N]; 0: none.
     pub resolution: f64,
-    /// Low-pass cut-off f_c [Hz]; `None`: no filter. Default `None`.
+    /// First-order low-pass cut-off f_c [Hz]; ``None``: no filter.
     pub cutoff: Option<f64>,
-    /// Delay of the output in whole controller periods. Default 0.
+    /// Delay of the output in whole controller periods (0 to 100 000).
+    #[serde(deserialize_with = "crate::schema::count")]
     pub latency: usize,
 }
 
