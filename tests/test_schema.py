@@ -13,8 +13,6 @@ from admit_rs import _core, config
 
 SCHEMA = _core.schema()
 DEFAULTS = _core.defaults()
-PYTHON_ONLY = {"Scenario": {"label"}, "UrdfArm": {"path"}}
-"""Fields that stay in Python: a free-text label, the file a URDF was read from."""
 WITHOUT_RUST_DEFAULTS = {"impedance", "step", "sine", "sampled"}
 """Blocks with no Rust ``Default`` (a signal's defaults depend on what it drives; the
 impedance reference has no paper preset): their Python defaults are the only ones."""
@@ -30,7 +28,7 @@ BLOCKS = {_key(cls): cls for cls in config._BLOCKS}
 
 def _plain(v):
     if isinstance(v, config._Block):
-        return {k: _plain(x) for k, x in v.to_dict().items() if k != "label"}
+        return _plain(v._to_core())
     if isinstance(v, tuple | list):
         return [_plain(x) for x in v]
     if isinstance(v, dict):
@@ -39,7 +37,8 @@ def _plain(v):
 
 
 def _python_fields(cls):
-    return [f for f in dataclasses.fields(cls) if f.name not in PYTHON_ONLY.get(cls.__name__, ())]
+    # Python-only: a scenario's free-text label, the file a URDF was read from.
+    return [f for f in dataclasses.fields(cls) if f.name not in cls._PYTHON_ONLY]
 
 
 def _doc(cls, name):
@@ -92,3 +91,58 @@ def test_tagged_blocks_carry_their_kind():
         kind = schema["properties"].get("kind", {}).get("const")
         if kind is not None:
             assert BLOCKS[key]._kind == kind == key
+
+
+# -- the core decodes by the declaration, with errors as good as the blocks' ---------------
+
+
+def _core_error(change):
+    core = ar.Scenario()._to_core()
+    change(core)
+    with pytest.raises(Exception) as info:
+        _core.validate(core)
+    return info.value
+
+
+def test_core_unknown_keys_name_the_closest_valid_ones():
+    err = _core_error(lambda c: c["wall"].update(stifness=1.0))
+    assert isinstance(err, ar.UnknownParameterError)
+    assert str(err).startswith("wall: unknown key 'stifness'") and "stiffness" in err.suggestions
+    err = _core_error(lambda c: c["controller"].update(kdd=1.0))  # a tagged, flattened block
+    assert isinstance(err, ar.UnknownParameterError) and "kd" in err.suggestions
+    err = _core_error(lambda c: c.update(duraton=1.0))
+    assert str(err).startswith("scenario: unknown key 'duraton'; did you mean duration")
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "allowed"),
+    [
+        (lambda c: c["wall"].update(model="x"), "wall.model", "'kelvin_voigt', 'hunt_crossley'"),
+        (lambda c: c["robot"].update(mass_model="x"), "robot.mass_model", "'rod', 'point'"),
+        (lambda c: c["controller"].update(law="x"), "controller.law", "'jacobian_transpose'"),
+        (lambda c: c["controller"].update(kind="x"), "controller.kind", "'computed_torque'"),
+        (lambda c: c["sensor"].update(latency=2.5), "sensor.latency", "from 0 to 100000"),
+        (lambda c: c.update(substeps=0), "substeps", "from 1 to"),
+        (lambda c: c["controller"].update(inertia=[[1.0, 2.0]]), "controller.inertia", "n×n"),
+    ],
+)
+def test_core_bad_values_are_parameter_errors_naming_the_field(change, field, allowed):
+    err = _core_error(change)
+    assert type(err) is ar.ParameterError, err
+    assert err.field == field and allowed in err.allowed, (err.field, err.allowed)
+    assert str(err).startswith(f"{field} = ")
+
+
+def test_core_wrong_types_are_type_errors():
+    err = _core_error(lambda c: c["wall"].update(stiffness="a"))
+    assert type(err) is TypeError and str(err) == "wall.stiffness must be a number, got str"
+    err = _core_error(lambda c: c["controller"].update(kp=True))
+    assert type(err) is TypeError and "must be a number, got a bool" in str(err)
+
+
+def test_numpy_scalars_cross_as_numbers():
+    import numpy as np
+
+    sc = ar.Scenario(duration=0.01).replace(**{"sensor.latency": np.int64(2)})
+    assert sc._to_core()["sensor"]["latency"] == 2
+    ar.simulate(sc)

@@ -1,7 +1,11 @@
 """Type stubs for the Rust extension ``admit_rs._core``.
 
 The functions take plain nested dicts as produced by ``Scenario._to_core()`` and the
-blocks' ``_to_core()``; users call them through the dataclasses in :mod:`admit_rs.config`.
+blocks' ``_to_core()`` (Python field names, ``kind`` on tagged blocks), decoded by the
+blocks' serde declaration in Rust (:func:`schema`); users call them through the
+dataclasses in :mod:`admit_rs.config`. A bad value raises ``ParameterError`` naming the
+dotted field, an unknown key ``UnknownParameterError`` with the closest valid names, a
+wrong type ``TypeError``.
 """
 
 from typing import Any, Final

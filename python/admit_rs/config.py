@@ -60,20 +60,15 @@ def _check_integer(name: str, value: Any, high: int) -> None:
 
 
 def _core_value(value: Any) -> Any:
+    """A field's value as the core decodes it (serde through pythonize): blocks as dicts,
+    tuples as lists, NumPy scalars as Python numbers."""
     if isinstance(value, _Block):
         return value._to_core()
     if isinstance(value, tuple):
-        return list(value)
+        return [_core_value(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
     return value
-
-
-_CORE_KEYS: dict[str, str] = {"command_divisor": "ka"}
-"""Python field name -> the Rust core's dict key, where they differ."""
-
-
-def _core_path(path: str) -> str:
-    """A dotted parameter path in the Rust core's key names."""
-    return ".".join(_CORE_KEYS.get(part, part) for part in path.split("."))
 
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
@@ -116,17 +111,21 @@ class _Block:
 
     _kind: ClassVar[str | None] = None
     _check: ClassVar[str] = ""
+    _PYTHON_ONLY: ClassVar[frozenset[str]] = frozenset({"label"})
+    """Fields that stay in Python (not in the Rust declaration, not sent to the core)."""
     _RENAMED: ClassVar[dict[str, str]] = {}
     """Deprecated field name -> its new name; the old one still works, with a warning."""
 
     def _to_core(self) -> dict[str, Any]:
+        """The dict the core decodes by the block's serde declaration (Python field names,
+        ``kind`` on tagged blocks)."""
         out: dict[str, Any] = {}
         if self._kind is not None:
             out["kind"] = self._kind
         for f in dataclasses.fields(self):  # type: ignore[arg-type]
-            if f.name == "label":
+            if f.name in self._PYTHON_ONLY:
                 continue
-            out[_CORE_KEYS.get(f.name, f.name)] = _core_value(getattr(self, f.name))
+            out[f.name] = _core_value(getattr(self, f.name))
         return out
 
     def _validate(self) -> None:
@@ -288,6 +287,7 @@ class UrdfArm(_Block):
 
     _kind: ClassVar[str] = "urdf"
     _check: ClassVar[str] = "robot"
+    _PYTHON_ONLY: ClassVar[frozenset[str]] = frozenset({"path"})
 
     def __post_init__(self) -> None:
         for name in ("path", "tip_link", "urdf"):

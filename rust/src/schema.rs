@@ -79,9 +79,9 @@ pub mod optional_numbers {
 /// Largest whole number a float holds exactly (2^53).
 const MAX_EXACT: f64 = 9_007_199_254_740_992.0;
 
-/// A whole number given as an int or an integral float (TOML and NumPy write `2.0`);
-/// anything else is a parameter error (see [`parameter_message`]).
-pub fn count<'de, D, T>(d: D) -> Result<T, D::Error>
+/// A whole number from `lo` to `hi`, given as an int or an integral float (TOML and NumPy
+/// write `2.0`); anything else is a parameter error (see [`parameter_message`]).
+fn whole<'de, D, T>(d: D, lo: u64, hi: u64, allowed: &str) -> Result<T, D::Error>
 where
     D: Deserializer<'de>,
     T: TryFrom<u64>,
@@ -92,18 +92,52 @@ where
         Int(u64),
         Float(f64),
     }
-    let bad = |shown: String| {
-        serde::de::Error::custom(Error::parameter("", shown, "an integer from 0 to 2^53"))
-    };
+    let bad = |shown: String| serde::de::Error::custom(Error::parameter("", shown, allowed));
     let n = match Whole::deserialize(d)? {
         Whole::Int(n) => n,
         Whole::Float(v) if v.fract() == 0.0 && (0.0..=MAX_EXACT).contains(&v) => v as u64,
         Whole::Float(v) => return Err(bad(v.to_string())),
     };
-    if n as f64 > MAX_EXACT {
+    if n < lo || n > hi {
         return Err(bad(n.to_string()));
     }
     T::try_from(n).map_err(|_| bad(n.to_string()))
+}
+
+/// `Scenario.seed`: a whole number from 0 to 2^53 (exact in a float).
+pub fn seed<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
+    whole(d, 0, MAX_EXACT as u64, "an integer from 0 to 2^53")
+}
+
+/// `Scenario.substeps`: a whole number from 1 to `MAX_SUBSTEPS`.
+pub fn substeps<'de, D: Deserializer<'de>>(d: D) -> Result<usize, D::Error> {
+    let max = crate::sim::scenario::MAX_SUBSTEPS;
+    whole(d, 1, max as u64, &format!("an integer from 1 to {max}"))
+}
+
+/// `ForceSensor.latency`: a whole number of samples from 0 to `MAX_LATENCY`.
+pub fn latency<'de, D: Deserializer<'de>>(d: D) -> Result<usize, D::Error> {
+    let max = crate::world::sensor::MAX_LATENCY;
+    whole(d, 0, max as u64, &format!("an integer from 0 to {max}"))
+}
+
+/// `Actuator.delay`: a whole number of samples from 0 to `MAX_DELAY`.
+pub fn delay<'de, D: Deserializer<'de>>(d: D) -> Result<usize, D::Error> {
+    let max = crate::world::actuator::MAX_DELAY;
+    whole(d, 0, max as u64, &format!("an integer from 0 to {max}"))
+}
+
+/// The field an enum of the blocks is held in, named by its first variant: serde's
+/// "unknown variant" message names the variants but not the field when the enum sits
+/// inside a `kind`-tagged block. Tags themselves are `kind`.
+pub fn enum_field(first_variant: &str) -> &'static str {
+    match first_variant {
+        "rod" => "mass_model",
+        "jacobian_transpose" => "law",
+        "kelvin_voigt" => "model",
+        "position" => "task",
+        _ => "kind",
+    }
 }
 
 /// The text of a parameter error raised inside a deserializer: `Error`'s own display with
@@ -404,8 +438,22 @@ mod tests {
             parse_parameter_message(&e.to_string()).expect("a parameter message");
         assert_eq!(
             (value.as_str(), allowed.as_str()),
-            ("2.5", "an integer from 0 to 2^53")
+            ("2.5", "an integer from 0 to 100000")
         );
+    }
+
+    #[test]
+    fn every_enum_names_its_field() {
+        let s = schemas().to_string();
+        for (first, field) in [
+            ("rod", "mass_model"),
+            ("jacobian_transpose", "law"),
+            ("kelvin_voigt", "model"),
+            ("position", "task"),
+        ] {
+            assert_eq!(enum_field(first), field);
+            assert!(s.contains(&format!("\"{first}\"")), "{first}");
+        }
     }
 
     #[test]

@@ -75,12 +75,12 @@ pub struct ScenarioConfig {
     /// The motors; the default applies the command exactly.
     pub actuator: ActuatorParams,
     /// Seed of the sensor noise (0 to 2^53). Sweeps derive each run's from (seed, run_id).
-    #[serde(deserialize_with = "crate::schema::count")]
+    #[serde(deserialize_with = "crate::schema::seed")]
     pub seed: u64,
     /// Controller period T [s].
     pub period: f64,
     /// RK4 substeps per period.
-    #[serde(deserialize_with = "crate::schema::count")]
+    #[serde(deserialize_with = "crate::schema::substeps")]
     pub substeps: usize,
     /// Run length [s], a multiple of ``period``.
     pub duration: f64,

@@ -24,7 +24,7 @@ pub struct ActuatorParams {
     /// Largest |dτ/dt| [N·m/s]: the torque moves at most ``rate_limit``·T per period.
     pub rate_limit: Option<f64>,
     /// Delay of the command in whole controller periods (0 to 100 000).
-    #[serde(deserialize_with = "crate::schema::count")]
+    #[serde(deserialize_with = "crate::schema::delay")]
     pub delay: usize,
 }
 

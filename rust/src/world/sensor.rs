@@ -30,7 +30,7 @@ pub struct SensorParams {
     /// First-order low-pass cut-off f_c [Hz]; ``None``: no filter.
     pub cutoff: Option<f64>,
     /// Delay of the output in whole controller periods (0 to 100 000).
-    #[serde(deserialize_with = "crate::schema::count")]
+    #[serde(deserialize_with = "crate::schema::latency")]
     pub latency: usize,
 }
 
