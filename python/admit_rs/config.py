@@ -982,7 +982,10 @@ def _kind_of(t: type[_Block]) -> str:
 
 
 def _table_type(key: str, table: Mapping[str, Any], where: str) -> type[_Block]:
-    """The block type of TOML table ``key``: its ``kind``, else the one type its keys fit."""
+    """The block type of TOML table ``key``, by its ``kind`` tag; a table without ``kind``
+    is the field's default block. A table without ``kind`` whose keys fit only another
+    kind is still read as that kind, with a DeprecationWarning (keys are no longer a way
+    to choose a kind; the next release reads such a table as the default block)."""
     types = _SLOTS[key]
     kinds = {_kind_of(t): t for t in types}
     if "kind" in table:
@@ -998,13 +1001,14 @@ def _table_type(key: str, table: Mapping[str, Any], where: str) -> type[_Block]:
         return kinds[kind]
     if len(types) == 1:
         return types[0]
-    # No kind: the field's default block if it has every key, else the one kind that has.
+    # No kind: the field's default block. Choosing a kind by the keys is deprecated.
     keys = set(table)
     fit = [t for t in types if keys <= set(_field_names(t)) | set(t._RENAMED)]
     default = type(_SLOT_DEFAULTS[key])
     if default in fit:
         return default
     if len(fit) == 1:
+        _warn_kind_guessed(where, _kind_of(fit[0]))
         return fit[0]
     if fit:
         raise UnknownParameterError(
@@ -1020,6 +1024,19 @@ def _table_type(key: str, table: Mapping[str, Any], where: str) -> type[_Block]:
         f"{err} ({key} kinds: {', '.join(kinds)}; add kind = ... to choose one)",
         bad,
         err.suggestions,
+    )
+
+
+def _warn_kind_guessed(where: str, kind: str) -> None:
+    """DeprecationWarning for a table whose kind was chosen by its keys."""
+    level, frame = 2, sys._getframe(1)
+    while frame is not None and _in_package(frame.f_code.co_filename):
+        level, frame = level + 1, frame.f_back  # type: ignore[assignment]
+    warnings.warn(
+        f"{where}: a table without kind is the field's default block; choosing the kind by "
+        f"its keys is deprecated and will be removed in the next release: add kind = {kind!r}",
+        DeprecationWarning,
+        stacklevel=level,
     )
 
 
