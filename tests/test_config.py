@@ -171,7 +171,7 @@ def test_scenario_level_errors_name_the_dotted_path():
     assert info.value.field == "stiffness"
     from admit_rs import _core
 
-    core = sc._to_core()  # the core's dict names command_divisor "ka"
+    core = sc._to_core()  # the dict the core decodes by its serde declaration
     core["wall"]["stiffness"] = -3.0
     with pytest.raises(ar.ParameterError) as info:
         _core.validate(core)

@@ -13,7 +13,7 @@ from pathlib import Path
 import admit_rs as ar
 import pytest
 import tomllib
-from admit_rs import config, errors
+from admit_rs import _core, config, errors
 from admit_rs._names import check_column
 
 # --- one root ---------------------------------------------------------------------------
@@ -222,12 +222,23 @@ def test_toml_admittance_without_kind_is_the_filter():
     assert sc.admittance == ar.AdmittanceFilter(m=1.0, b=200.0, k=0.0, ka=2.0)
 
 
-def test_toml_table_without_kind_takes_the_only_kind_its_keys_fit():
-    sc = _toml("[admittance]\nassumed_stiffness = 5e4\n")
+def test_toml_tables_are_read_by_kind():
+    sc = _toml('[admittance]\nkind = "impedance"\nassumed_stiffness = 5e4\n')
     assert sc.admittance == ar.ImpedanceReference(k=10_000.0, assumed_stiffness=5e4)
-    sc = _toml("[controller]\ncontact_compensation = true\n")
+    sc = _toml('[robot]\nkind = "three_link"\ngravity = 9.0\n')
+    assert sc.robot == ar.Robot(gravity=9.0)
+
+
+def test_toml_kind_chosen_by_keys_is_deprecated_but_still_read():
+    # A table without kind whose keys fit only another kind: read as that kind, warning.
+    with pytest.warns(DeprecationWarning, match="add kind = 'impedance'"):
+        sc = _toml("[admittance]\nassumed_stiffness = 5e4\n")
+    assert sc.admittance == ar.ImpedanceReference(k=10_000.0, assumed_stiffness=5e4)
+    with pytest.warns(DeprecationWarning, match="add kind = 'computed_torque'"):
+        sc = _toml("[controller]\ncontact_compensation = true\n")
     assert type(sc.controller) is ar.ComputedTorque and sc.controller.contact_compensation
-    sc = _toml("[force_reference]\noffset = 10.0\namplitude = 5.0\n")
+    with pytest.warns(DeprecationWarning, match="add kind = 'sine'"):
+        sc = _toml("[force_reference]\noffset = 10.0\namplitude = 5.0\n")
     assert sc.force_reference == ar.Sine(offset=10.0, amplitude=5.0)
     # Keys the default block has: the default block (TDC, Step), like any omitted field.
     sc = _toml("[controller]\nkd = 30.0\n[force_reference]\nvalue = 4.0\n")
@@ -287,7 +298,11 @@ def test_command_divisor_is_k_a_of_eq_39_and_admittance_ka_is_unchanged():
     assert sc.controller.command_divisor == 0.1 and sc.admittance.ka == 1.0
     assert "command_divisor=0.1" in repr(sc.controller) and "ka=" not in repr(sc.controller)
     assert sc.to_dict()["controller"]["command_divisor"] == 0.1
-    assert sc._to_core()["controller"]["ka"] == 0.1  # the Rust core's key is unchanged
+    # The core's serde declaration spells it command_divisor too, with ka as its alias.
+    assert sc._to_core()["controller"]["command_divisor"] == 0.1
+    core = sc._to_core()
+    core["controller"]["ka"] = core["controller"].pop("command_divisor")
+    _core.validate(core)
 
 
 def test_deprecated_controller_ka_still_works_and_warns():

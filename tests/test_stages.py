@@ -1,14 +1,12 @@
 """The loop as stages (SPEC §10): walls of any orientation and damping, force sensors,
 actuators, stepping and the explicit state, each against an independent answer."""
 
-import dataclasses
 import math
 
 import admit_rs as ar
 import numpy as np
 import polars as pl
 import pytest
-from admit_rs import _core, config
 from scipy import signal
 
 # An ideal inner loop: computed torque with the true model, contact compensation and fast
@@ -21,62 +19,7 @@ def ideal_scenario(**changes):
     return sc.replace(**changes)
 
 
-# -- one source of truth for defaults ---------------------------------------------------
-
-def _core_kind(cls):
-    """The key of a block in ``_core.defaults()``: its kind tag, else the block it checks
-    as (robot, wall, sensor, actuator, model)."""
-    return cls._kind or cls._check
-
-
-RUST = _core.defaults()
-PYTHON = {_core_kind(cls): cls for cls in config._BLOCKS if cls is not ar.Scenario}
-WITHOUT_RUST_DEFAULTS = {"urdf", "impedance", "step", "sine", "sampled"}
-"""Python blocks the core exposes no defaults for (UrdfArm needs a file; the others have
-no Rust Default). Any other Python block must have its Rust defaults compared."""
-
-
-def _plain(v):
-    return list(v) if isinstance(v, tuple) else v
-
-
-def test_every_block_is_on_both_sides():
-    assert {"sensor", "actuator"} <= set(PYTHON)  # the walk sees ForceSensor and Actuator
-    # Every Rust block has its Python block; every Python block is compared, or known to
-    # have no Rust defaults.
-    assert set(RUST) - {"scenario"} <= set(PYTHON), set(RUST) - set(PYTHON)
-    assert set(PYTHON) - set(RUST) <= WITHOUT_RUST_DEFAULTS, set(PYTHON) - set(RUST)
-
-
-@pytest.mark.parametrize("kind", sorted(set(RUST) & set(PYTHON)))
-def test_every_dataclass_default_equals_the_cores(kind):
-    rust = RUST[kind]
-    block = PYTHON[kind]()
-    python = {k: v for k, v in block.to_dict().items() if k != "kind" and not isinstance(v, dict)}
-    # A field on one side only fails here, by name.
-    assert set(rust) == set(python), (set(rust) ^ set(python), kind)
-    for name, value in rust.items():
-        assert _plain(python[name]) == value, f"{kind}.{name}: {python[name]!r} != {value!r}"
-    # Nested blocks (a controller's model) are blocks of their own, compared above.
-    for f in dataclasses.fields(block):
-        value = getattr(block, f.name)
-        if isinstance(value, config._Block):
-            assert _core_kind(type(value)) in RUST, (kind, f.name)
-            assert value == type(value)(), (kind, f.name)
-
-
-def test_scenario_scalar_defaults_equal_the_cores():
-    sc = ar.Scenario()
-    scalars = {f.name for f in dataclasses.fields(sc)} - {"label"}  # label stays in Python
-    scalars = {n for n in scalars if not isinstance(getattr(sc, n), config._Block | None)}
-    assert set(RUST["scenario"]) == scalars, set(RUST["scenario"]) ^ scalars
-    for name, value in RUST["scenario"].items():
-        assert getattr(sc, name) == value, name
-    # The scenario's default blocks are the blocks' own defaults (the paper's fig. 14 sets
-    # only the controller and the filter).
-    for name in ("robot", "wall", "sensor", "actuator"):
-        block = getattr(sc, name)
-        assert _core_kind(type(block)) in RUST and block == type(block)(), name
+# -- one source of truth for defaults: tests/test_schema.py -------------------------------
 
 
 # -- environment -------------------------------------------------------------------------

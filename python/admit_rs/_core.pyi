@@ -1,7 +1,11 @@
 """Type stubs for the Rust extension ``admit_rs._core``.
 
 The functions take plain nested dicts as produced by ``Scenario._to_core()`` and the
-blocks' ``_to_core()``; users call them through the dataclasses in :mod:`admit_rs.config`.
+blocks' ``_to_core()`` (Python field names, ``kind`` on tagged blocks), decoded by the
+blocks' serde declaration in Rust (:func:`schema`); users call them through the
+dataclasses in :mod:`admit_rs.config`. A bad value raises ``ParameterError`` naming the
+dotted field, an unknown key ``UnknownParameterError`` with the closest valid names, a
+wrong type ``TypeError``.
 """
 
 from typing import Any, Final
@@ -22,8 +26,16 @@ PREDICTION_NAMES: Final[list[str]]
 # is both a ValueError and an admit_rs.AdmitError); it defines no exception class itself.
 
 def defaults() -> dict[str, dict[str, Any]]:
-    """The core's default parameters per block (robot, wall, sensor, actuator, model,
-    computed_torque, model_free, time_delay, admittance, scenario)."""
+    """Every block's Rust ``Default``, serialised by its serde declaration, keyed like
+    :func:`schema` (three_link, urdf, wall, sensor, actuator, model, computed_torque,
+    model_free, time_delay, admittance, scenario); tagged blocks carry ``kind``."""
+
+def schema() -> dict[str, dict[str, Any]]:
+    """Every block's JSON schema (draft 2020-12) from its Rust declaration: ``properties``
+    with ``description`` (the field docs), ``type`` and, where the block has a Rust
+    ``Default``, ``default``. Keyed by the blocks' kind tags (three_link, urdf, wall, sensor,
+    actuator, model, computed_torque, model_free, time_delay, admittance, impedance, step,
+    sine, sampled) and ``scenario``."""
 
 def check_block(kind: str, params: dict[str, Any]) -> None:
     """Validate one block (kind: robot, wall, controller, admittance, signal, model, sensor,

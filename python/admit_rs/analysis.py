@@ -26,7 +26,7 @@ import numpy as np
 import polars as pl
 
 from admit_rs import _core
-from admit_rs.config import Scenario, Step, _check_path, _core_path
+from admit_rs.config import Scenario, Step, _check_path, _core_value
 from admit_rs.errors import AnalysisError, ParameterError
 
 __all__ = [
@@ -231,10 +231,10 @@ def _cell_configs(
         config = copy.deepcopy(base)
         for path, value in point.items():
             node = config
-            *parents, leaf = _core_path(path).split(".")
+            *parents, leaf = path.split(".")
             for p in parents:
                 node = node[p]
-            node[leaf] = int(round(value)) if path in ints else value
+            node[leaf] = int(round(value)) if path in ints else _core_value(value)
         out.append(config)
     return out
 

@@ -60,20 +60,15 @@ def _check_integer(name: str, value: Any, high: int) -> None:
 
 
 def _core_value(value: Any) -> Any:
+    """A field's value as the core decodes it (serde through pythonize): blocks as dicts,
+    tuples as lists, NumPy scalars as Python numbers."""
     if isinstance(value, _Block):
         return value._to_core()
     if isinstance(value, tuple):
-        return list(value)
+        return [_core_value(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
     return value
-
-
-_CORE_KEYS: dict[str, str] = {"command_divisor": "ka"}
-"""Python field name -> the Rust core's dict key, where they differ."""
-
-
-def _core_path(path: str) -> str:
-    """A dotted parameter path in the Rust core's key names."""
-    return ".".join(_CORE_KEYS.get(part, part) for part in path.split("."))
 
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
@@ -116,17 +111,21 @@ class _Block:
 
     _kind: ClassVar[str | None] = None
     _check: ClassVar[str] = ""
+    _PYTHON_ONLY: ClassVar[frozenset[str]] = frozenset({"label"})
+    """Fields that stay in Python (not in the Rust declaration, not sent to the core)."""
     _RENAMED: ClassVar[dict[str, str]] = {}
     """Deprecated field name -> its new name; the old one still works, with a warning."""
 
     def _to_core(self) -> dict[str, Any]:
+        """The dict the core decodes by the block's serde declaration (Python field names,
+        ``kind`` on tagged blocks)."""
         out: dict[str, Any] = {}
         if self._kind is not None:
             out["kind"] = self._kind
         for f in dataclasses.fields(self):  # type: ignore[arg-type]
-            if f.name == "label":
+            if f.name in self._PYTHON_ONLY:
                 continue
-            out[_CORE_KEYS.get(f.name, f.name)] = _core_value(getattr(self, f.name))
+            out[f.name] = _core_value(getattr(self, f.name))
         return out
 
     def _validate(self) -> None:
@@ -185,6 +184,7 @@ class Robot(_Block):
     q0: Vector3 = (0.0, math.pi / 4, -math.pi / 4)
     """Initial joint angles [rad]."""
 
+    _kind: ClassVar[str] = "three_link"
     _check: ClassVar[str] = "robot"
 
     def __post_init__(self) -> None:
@@ -287,6 +287,7 @@ class UrdfArm(_Block):
 
     _kind: ClassVar[str] = "urdf"
     _check: ClassVar[str] = "robot"
+    _PYTHON_ONLY: ClassVar[frozenset[str]] = frozenset({"path"})
 
     def __post_init__(self) -> None:
         for name in ("path", "tip_link", "urdf"):
@@ -582,13 +583,15 @@ class _ConstantInertiaLaw(_Controller):
 
     command_divisor: float = 5.0
     """K_A of eq. (39), formerly ``ka``: V = (Ẍ_d + K_D ė + K_P e) / K_A, it divides the
-    whole Cartesian command [dimensionless]."""
+    whole Cartesian command, feed-forward included (only the feedback with
+    ``scale_feedforward=False``) [dimensionless]."""
     kd: float = 20.0
     """K_D of eq. (39) [1/s]."""
     kp: float = 100.0
     """K_P of eq. (39) [1/s²]."""
     scale_feedforward: bool = True
-    """See :attr:`ComputedTorque.scale_feedforward`."""
+    """``True`` (SPEC, the paper as written): K_A⁻¹ multiplies Ẍ_d too. ``False``:
+    V = Ẍ_d + K_A⁻¹(K_D ė + K_P e), a variant reading (see docs/reproduction.md)."""
     inertia: float | tuple[float, ...] | tuple[tuple[float, ...], ...] = 0.1
     """Constant inertia D̄ [kg·m²]: one number (D̄ = α I, the paper's), one per joint
     (D̄ = diag(...)) or an n×n symmetric positive definite matrix (rows), for URDF arms
@@ -979,7 +982,10 @@ def _kind_of(t: type[_Block]) -> str:
 
 
 def _table_type(key: str, table: Mapping[str, Any], where: str) -> type[_Block]:
-    """The block type of TOML table ``key``: its ``kind``, else the one type its keys fit."""
+    """The block type of TOML table ``key``, by its ``kind`` tag; a table without ``kind``
+    is the field's default block. A table without ``kind`` whose keys fit only another
+    kind is still read as that kind, with a DeprecationWarning (keys are no longer a way
+    to choose a kind; the next release reads such a table as the default block)."""
     types = _SLOTS[key]
     kinds = {_kind_of(t): t for t in types}
     if "kind" in table:
@@ -995,13 +1001,14 @@ def _table_type(key: str, table: Mapping[str, Any], where: str) -> type[_Block]:
         return kinds[kind]
     if len(types) == 1:
         return types[0]
-    # No kind: the field's default block if it has every key, else the one kind that has.
+    # No kind: the field's default block. Choosing a kind by the keys is deprecated.
     keys = set(table)
     fit = [t for t in types if keys <= set(_field_names(t)) | set(t._RENAMED)]
     default = type(_SLOT_DEFAULTS[key])
     if default in fit:
         return default
     if len(fit) == 1:
+        _warn_kind_guessed(where, _kind_of(fit[0]))
         return fit[0]
     if fit:
         raise UnknownParameterError(
@@ -1017,6 +1024,19 @@ def _table_type(key: str, table: Mapping[str, Any], where: str) -> type[_Block]:
         f"{err} ({key} kinds: {', '.join(kinds)}; add kind = ... to choose one)",
         bad,
         err.suggestions,
+    )
+
+
+def _warn_kind_guessed(where: str, kind: str) -> None:
+    """DeprecationWarning for a table whose kind was chosen by its keys."""
+    level, frame = 2, sys._getframe(1)
+    while frame is not None and _in_package(frame.f_code.co_filename):
+        level, frame = level + 1, frame.f_back  # type: ignore[assignment]
+    warnings.warn(
+        f"{where}: a table without kind is the field's default block; choosing the kind by "
+        f"its keys is deprecated and will be removed in the next release: add kind = {kind!r}",
+        DeprecationWarning,
+        stacklevel=level,
     )
 
 

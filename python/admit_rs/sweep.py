@@ -33,7 +33,7 @@ import polars as pl
 from polars.exceptions import PanicException
 
 from admit_rs import _core
-from admit_rs.config import Scenario, _Block, _check_path, _core_path, _python_error
+from admit_rs.config import Scenario, _Block, _check_path, _core_value, _python_error
 from admit_rs.errors import AdmitError, ParameterError, for_run
 
 if TYPE_CHECKING:
@@ -273,11 +273,7 @@ def _set_path(config: dict[str, Any], path: str, value: Any) -> None:
     node = config
     for p in parents:
         node = node[p]
-    if isinstance(value, _Block):
-        value = value._to_core()
-    elif isinstance(value, tuple):
-        value = list(value)
-    node[leaf] = value
+    node[leaf] = _core_value(value)
 
 
 def noise_seed(seed: int, run_id: int) -> int:
@@ -299,7 +295,7 @@ def _configs(
         config = copy.deepcopy(base)
         config["seed"] = noise_seed(seed, run_id)  # a varied "seed" path overrides it
         for path, value in row.items():
-            _set_path(config, _core_path(path), value)
+            _set_path(config, path, value)
         out.append(config)
     return out
 

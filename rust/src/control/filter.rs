@@ -3,6 +3,8 @@
 //! the position modification x_a with its rate and acceleration for feed-forward.
 
 use nalgebra::{Matrix2, Matrix3, Vector2};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 use crate::error::{check, Error, Result};
 use crate::scalar::{pack_vector, put, put_vector, F64x4, Real, LANES};
@@ -13,15 +15,16 @@ use crate::control::reference::Sample;
 
 /// `m ẍ_a + b ẋ_a + k x_a = k_a e_f`, e_f = f_d − f.
 /// Scheme 1 (eq. 30) has k > 0; Scheme 2 (eq. 38) has k = 0.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
 pub struct AdmittanceParams {
-    /// Mass m [kg]. Default 1.
+    /// Mass [kg].
     pub m: f64,
-    /// Damping b [N·s/m]. Default 800.
+    /// Damping [N·s/m].
     pub b: f64,
-    /// Stiffness k [N/m]; 0 is Scheme 2. Default 0.
+    /// Stiffness [N/m]; 0 is Scheme 2.
     pub k: f64,
-    /// Filter gain k_a [-]. Default 1.
+    /// Filter gain k_a of eqs. (30)/(38): the filter input is k_a e_f [dimensionless].
     pub ka: f64,
 }
 
@@ -195,9 +198,10 @@ impl<T: Real> AdmittanceFilter<T> {
 
 /// Eq. (20): x_d = x̂_e + f_d / k_eff with k_eff = k k̂_e / (k + k̂_e), an assumed wall
 /// stiffness and no force feedback. The baseline the admittance schemes improve on.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
 pub struct ImpedanceParams {
-    /// Impedance stiffness k [N/m].
+    /// Impedance stiffness [N/m].
     pub k: f64,
     /// The wall stiffness the designer assumes, k̂_e [N/m].
     pub assumed_stiffness: f64,
@@ -214,8 +218,9 @@ impl ImpedanceParams {
     }
 }
 
-/// Which outer loop shapes the x reference.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Which outer loop shapes the x reference, tagged by `kind` as the Python blocks are.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(tag = "kind", rename_all = "snake_case")]
 pub enum ForceControlParams {
     Admittance(AdmittanceParams),
     Impedance(ImpedanceParams),

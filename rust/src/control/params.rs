@@ -4,22 +4,31 @@
 //! `control::laws`, the state machine in `control::controller`.
 
 use nalgebra::Vector3;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 use crate::control::task::Desired;
-use crate::error::{check, Result};
+use crate::error::{check, Error, Result};
 use crate::robot::{JointMatrix, JointVector, RobotModel};
 use crate::scalar::{F64x4, Real, LANES};
 
 /// Gains of eq. (39): V = K_A⁻¹ (Ẍ_d + K_D (Ẋ_d − Ẋ) + K_P (X_d − X)), each a scalar times I.
-/// Over `f64`, or four runs' gains in lanes (one `scale_feedforward`).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Over `f64`, or four runs' gains in lanes (one `scale_feedforward`). Serialised flat into
+/// its controller's block; K_A is spelled `command_divisor` (`ka` is its deprecated alias).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
 pub struct PositionGains<T: Real = f64> {
+    /// K_A of eq. (39), formerly ``ka``: V = (Ẍ_d + K_D ė + K_P e) / K_A, it divides the
+    /// whole Cartesian command, feed-forward included (only the feedback with
+    /// ``scale_feedforward=False``) [dimensionless].
+    #[serde(rename = "command_divisor", alias = "ka")]
     pub ka: T,
+    /// K_D of eq. (39) [1/s].
     pub kd: T,
+    /// K_P of eq. (39) [1/s²].
     pub kp: T,
-    /// `true` (SPEC §4, the paper as written): K_A⁻¹ multiplies the feed-forward Ẍ_d too.
-    /// `false`: V = Ẍ_d + K_A⁻¹ (K_D ė + K_P e), a reading under which computed torque
-    /// tracks X_d exactly; offered as a labelled variant, never the default.
+    /// ``True`` (SPEC, the paper as written): K_A⁻¹ multiplies Ẍ_d too. ``False``:
+    /// V = Ẍ_d + K_A⁻¹(K_D ė + K_P e), a variant reading (see docs/reproduction.md).
     pub scale_feedforward: bool,
 }
 
@@ -74,11 +83,12 @@ impl<T: Real> PositionGains<T> {
 }
 
 /// The controller's belief about the arm, relative to the plant (SPEC §4, for sweeps).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
 pub struct ModelError {
-    /// Factor on every link mass (and so every inertia). Default 1.
+    /// Factor on every link mass (and inertia) in the controller's model [dimensionless].
     pub mass_scale: f64,
-    /// Factor on viscous and Coulomb friction. Default 1.
+    /// Factor on viscous and Coulomb friction in the controller's model [dimensionless].
     pub friction_scale: f64,
 }
 
@@ -104,7 +114,8 @@ impl ModelError {
 }
 
 /// Which TDC law.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
 pub enum TdcLaw {
     /// eq. (18): τ = D̄ K_t Jᵀ V + τ_{k−1} − D̄ q̈_{k−1}.
     JacobianTranspose,
@@ -113,12 +124,15 @@ pub enum TdcLaw {
 }
 
 /// Computed torque, eq. (7) in joint space: τ = D̂ J⁻¹ (V − J̇q̇) + Ĉ + Ĝ + τ̂_f.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
 pub struct ComputedTorqueParams {
     /// Default K_A = 0.1, K_D = 20, K_P = 100.
+    #[serde(flatten)]
     pub gains: PositionGains,
-    /// Add f J_xᵀ to cancel the measured contact force. Default false.
+    /// Add f J_xᵀ to cancel the measured contact force.
     pub contact_compensation: bool,
+    /// The controller's model of the arm.
     pub model: ModelError,
 }
 
@@ -220,7 +234,10 @@ pub fn check_inertia_for<const N: usize>(p: &PerJoint) -> Result<()> {
 }
 
 /// Model-free ("nonmodel") control: eq. (18) without the delay estimate, τ = D̄ K_t Jᵀ V.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Crosses serde as `ModelFreeBlock`: one `inertia` field for `inertia` and
+/// `joint_inertia`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(try_from = "ModelFreeBlock", into = "ModelFreeBlock")]
 pub struct ModelFreeParams {
     /// Default K_A = 5, K_D = 20, K_P = 100.
     pub gains: PositionGains,
@@ -243,8 +260,10 @@ impl Default for ModelFreeParams {
     }
 }
 
-/// Time-delayed control, eq. (18) (default) or eq. (17).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Time-delayed control, eq. (18) (default) or eq. (17). Crosses serde as
+/// `TimeDelayBlock`: one `inertia` field for `inertia` and `joint_inertia`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(try_from = "TimeDelayBlock", into = "TimeDelayBlock")]
 pub struct TimeDelayParams {
     /// Default K_A = 5, K_D = 20, K_P = 100.
     pub gains: PositionGains,
@@ -273,7 +292,9 @@ impl Default for TimeDelayParams {
     }
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The inner position loop, tagged by `kind` as the Python blocks are.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(tag = "kind", rename_all = "snake_case")]
 pub enum ControllerParams {
     ComputedTorque(ComputedTorqueParams),
     ModelFree(ModelFreeParams),
@@ -310,6 +331,164 @@ impl ControllerParams {
                 check::positive("torque_constant", p.torque_constant)?;
                 p.model.validate().map_err(|e| e.within("model"))
             }
+        }
+    }
+}
+
+/// D̄ of eqs. (17)/(18): one number (D̄ = α I), one per joint (diagonal) or the rows of an
+/// n×n symmetric positive definite matrix.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(untagged)]
+pub enum Inertia {
+    One(f64),
+    PerJoint(Vec<f64>),
+    Rows(Vec<Vec<f64>>),
+}
+
+impl Inertia {
+    /// (`inertia`, `joint_inertia`) as the controller blocks hold them.
+    fn split(self) -> Result<(f64, Option<PerJoint>)> {
+        let values = match self {
+            Inertia::One(x) => return Ok((x, None)),
+            Inertia::PerJoint(v) => v,
+            Inertia::Rows(rows)
+                if !rows.is_empty() && rows.iter().all(|r| r.len() == rows.len()) =>
+            {
+                rows.concat()
+            }
+            Inertia::Rows(rows) => {
+                return Err(Error::parameter(
+                    "inertia",
+                    format!("{rows:?}"),
+                    &format!("one number, one per joint or an n×n matrix (n ≤ {MAX_JOINTS})"),
+                ))
+            }
+        };
+        match values.as_slice() {
+            [one] => Ok((*one, None)),
+            many => match PerJoint::from_slice(many) {
+                Some(p) if !many.is_empty() => Ok((many[0], Some(p))),
+                _ => Err(Error::parameter(
+                    "inertia",
+                    format!("{many:?}"),
+                    &format!("one number, one per joint or an n×n matrix (n ≤ {MAX_JOINTS})"),
+                )),
+            },
+        }
+    }
+
+    fn join(inertia: f64, joint: &Option<PerJoint>) -> Self {
+        match joint {
+            None => Inertia::One(inertia),
+            Some(p) => {
+                let v = p.as_slice();
+                let n = (v.len() as f64).sqrt() as usize;
+                if v.len() > 1 && n * n == v.len() && n > 1 {
+                    Inertia::Rows(v.chunks(n).map(<[f64]>::to_vec).collect())
+                } else {
+                    Inertia::PerJoint(v.to_vec())
+                }
+            }
+        }
+    }
+}
+
+/// `ModelFreeParams` as it crosses serde: the Python `ModelFree` block.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ModelFreeBlock {
+    #[serde(flatten)]
+    pub gains: PositionGains,
+    /// Constant inertia D̄ [kg·m²]: one number (D̄ = α I, the paper's), one per joint
+    /// (D̄ = diag(...)) or an n×n symmetric positive definite matrix (rows), for URDF arms
+    /// whose inertias differ by orders of magnitude between shoulder and wrist.
+    #[serde(default = "default_inertia")]
+    pub inertia: Inertia,
+    /// Torque constant K_t (eq. 18).
+    #[serde(default = "default_torque_constant")]
+    pub torque_constant: f64,
+}
+
+fn default_inertia() -> Inertia {
+    Inertia::One(ModelFreeParams::default().inertia)
+}
+
+fn default_torque_constant() -> f64 {
+    ModelFreeParams::default().torque_constant
+}
+
+fn default_law() -> TdcLaw {
+    TimeDelayParams::default().law
+}
+
+impl TryFrom<ModelFreeBlock> for ModelFreeParams {
+    type Error = String;
+    fn try_from(b: ModelFreeBlock) -> std::result::Result<Self, String> {
+        let (inertia, joint_inertia) = b.inertia.split().map_err(|e| e.to_string())?;
+        Ok(Self {
+            gains: b.gains,
+            inertia,
+            joint_inertia,
+            torque_constant: b.torque_constant,
+        })
+    }
+}
+
+impl From<ModelFreeParams> for ModelFreeBlock {
+    fn from(p: ModelFreeParams) -> Self {
+        Self {
+            gains: p.gains,
+            inertia: Inertia::join(p.inertia, &p.joint_inertia),
+            torque_constant: p.torque_constant,
+        }
+    }
+}
+
+/// `TimeDelayParams` as it crosses serde: the Python `TimeDelayControl` block.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TimeDelayBlock {
+    #[serde(flatten)]
+    pub gains: PositionGains,
+    /// Constant inertia D̄ [kg·m²]: one number (D̄ = α I, the paper's), one per joint
+    /// (D̄ = diag(...)) or an n×n symmetric positive definite matrix (rows), for URDF arms
+    /// whose inertias differ by orders of magnitude between shoulder and wrist.
+    #[serde(default = "default_inertia")]
+    pub inertia: Inertia,
+    /// Torque constant K_t (eq. 18).
+    #[serde(default = "default_torque_constant")]
+    pub torque_constant: f64,
+    /// ``"jacobian_transpose"``: eq. (18); ``"inverse_jacobian"``: eq. (17).
+    #[serde(default = "default_law")]
+    pub law: TdcLaw,
+    /// Used only for the initial torque τ_{−1} = Ĝ(q0).
+    #[serde(default)]
+    pub model: ModelError,
+}
+
+impl TryFrom<TimeDelayBlock> for TimeDelayParams {
+    type Error = String;
+    fn try_from(b: TimeDelayBlock) -> std::result::Result<Self, String> {
+        let (inertia, joint_inertia) = b.inertia.split().map_err(|e| e.to_string())?;
+        Ok(Self {
+            gains: b.gains,
+            inertia,
+            joint_inertia,
+            torque_constant: b.torque_constant,
+            law: b.law,
+            model: b.model,
+        })
+    }
+}
+
+impl From<TimeDelayParams> for TimeDelayBlock {
+    fn from(p: TimeDelayParams) -> Self {
+        Self {
+            gains: p.gains,
+            inertia: Inertia::join(p.inertia, &p.joint_inertia),
+            torque_constant: p.torque_constant,
+            law: p.law,
+            model: p.model,
         }
     }
 }

@@ -1,5 +1,8 @@
 //! Reference signals for the desired force and the z position (SPEC §3).
 
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
 use crate::error::{check, Error, Result};
 use crate::scalar::{F64x4, Real, LANES};
 
@@ -24,21 +27,39 @@ impl Sample<F64x4> {
 }
 
 /// A scalar signal of time. Derivatives are analytic where the signal has them; a step
-/// contributes no impulse to the derivatives.
-#[derive(Debug, Clone, PartialEq)]
+/// contributes no impulse to the derivatives. Tagged by `kind` as the Python blocks are;
+/// no `Default` (a signal's defaults depend on what it drives).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Signal {
     /// `initial` before `time`, `value` from `time` on.
-    Step { value: f64, time: f64, initial: f64 },
+    Step {
+        /// Value from ``time`` on [unit of the signal: N for a force, m for z].
+        value: f64,
+        /// Step time [s].
+        time: f64,
+        /// Value before ``time`` [unit of the signal].
+        initial: f64,
+    },
     /// `offset + amplitude · sin(omega t + phase)`, omega in rad/s.
     Sine {
+        /// Mean value [unit of the signal: N for a force, m for z].
         offset: f64,
+        /// Amplitude [unit of the signal].
         amplitude: f64,
+        /// Angular frequency [rad/s].
         omega: f64,
+        /// Phase at t = 0 [rad].
         phase: f64,
     },
     /// Linear interpolation through (times, values), held constant outside; the rate is
     /// the segment's slope and the acceleration zero.
-    Sampled { times: Vec<f64>, values: Vec<f64> },
+    Sampled {
+        /// Sample times, increasing [s].
+        times: Vec<f64>,
+        /// Sample values, one per time [unit of the signal: N for a force, m for z].
+        values: Vec<f64>,
+    },
 }
 
 impl Signal {

@@ -19,7 +19,10 @@ pub type Kinematics = super::Kinematics<3>;
 pub type Dynamics = super::Dynamics<3>;
 
 /// How link mass is distributed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
+#[serde(rename_all = "snake_case")]
 pub enum MassModel {
     /// Uniform thin rods: centre of mass at l/2, transverse inertia m l²/12, axial 0.
     Rod,
@@ -28,23 +31,24 @@ pub enum MassModel {
 }
 
 /// Parameters of the three-link arm. Defaults are the paper's Table 1 (SPEC §1).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(default, deny_unknown_fields)]
 pub struct RobotParams {
-    /// Link lengths l1, l2, l3 [m]. Default 0.66, 0.43, 0.43.
+    /// Link lengths l1, l2, l3 [m].
     pub lengths: [f64; 3],
-    /// Link masses [kg]. Default 30, 17.4, 4.8.
+    /// Link masses [kg].
     pub masses: [f64; 3],
-    /// Mass distribution. Default `Rod`.
+    /// ``"rod"``: uniform thin rods; ``"point"``: a point mass at each link's end.
     pub mass_model: MassModel,
-    /// Viscous friction per joint [N·m·s/rad]. Default 3.
+    /// Viscous friction per joint [N·m·s/rad].
     pub viscous_friction: [f64; 3],
-    /// Coulomb friction per joint [N·m]. Default 5.
+    /// Coulomb friction per joint [N·m].
     pub coulomb_friction: [f64; 3],
-    /// Coulomb smoothing ε [rad/s]: sgn(q̇) ≈ tanh(q̇/ε); ε ≤ 0 uses the exact sign. Default 0.01.
+    /// ε [rad/s] of sgn(q̇) ≈ tanh(q̇/ε); ε ≤ 0 uses the exact sign.
     pub friction_smoothing: f64,
-    /// Gravity along −z [m/s²]. Default 9.81.
+    /// Gravity along -z [m/s²].
     pub gravity: f64,
-    /// Initial joint angles [rad]. Default [0, π/4, −π/4].
+    /// Initial joint angles [rad].
     pub q0: [f64; 3],
 }
 

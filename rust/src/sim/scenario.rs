@@ -16,7 +16,9 @@ pub const MAX_SAMPLES: usize = 10_000_000;
 pub const MAX_SUBSTEPS: usize = 10_000;
 
 /// The arm: the paper's three-link arm in closed form, or a serial chain from a URDF.
-#[derive(Debug, Clone, PartialEq)]
+/// Tagged by `kind` (`"three_link"`, `"urdf"`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(tag = "kind", rename_all = "snake_case")]
 pub enum RobotConfig {
     ThreeLink(RobotParams),
     Urdf(UrdfArmParams),
@@ -53,31 +55,36 @@ impl RobotConfig {
 }
 
 /// Everything that defines one run. Defaults are the paper preset of fig. 14.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(default, deny_unknown_fields)]
 pub struct ScenarioConfig {
+    /// The arm (plant): the paper's three-link arm or a URDF arm.
     pub robot: RobotConfig,
-    /// `None`: free space.
+    /// The environment; ``None``: free space.
     pub wall: Option<WallParams>,
+    /// The inner position loop: ComputedTorque, ModelFree or TimeDelayControl.
     pub controller: ControllerParams,
-    /// The outer force loop; `None` is position-only control (X_d = X0 + s t̂).
+    /// The outer force loop; ``None`` is position-only control (x held at X0 x).
     pub admittance: Option<ForceControlParams>,
-    /// Desired contact force f_d(t) along n [N].
+    /// Desired contact force f_d(t) [N].
     pub force_reference: Signal,
-    /// Desired motion along t̂ from the start: s(t) [m] (z for the paper's wall).
+    /// Desired motion s(t) along t̂ from the start [m]; z_d = z0 + s(t) for the paper's wall.
     pub z_reference: Signal,
-    /// The force sensor. Default: ideal.
+    /// The force sensor; the default reads the force exactly.
     pub sensor: SensorParams,
-    /// The motors. Default: ideal.
+    /// The motors; the default applies the command exactly.
     pub actuator: ActuatorParams,
-    /// Seed of the sensor noise. Default 0.
+    /// Seed of the sensor noise (0 to 2^53). Sweeps derive each run's from (seed, run_id).
+    #[serde(deserialize_with = "crate::schema::fields::seed")]
     pub seed: u64,
-    /// Controller period T [s]. Default 1 ms.
+    /// Controller period T [s].
     pub period: f64,
-    /// RK4 substeps per period. Default 10.
+    /// RK4 substeps per period.
+    #[serde(deserialize_with = "substeps")]
     pub substeps: usize,
-    /// Run length [s]; a multiple of `period`. Default 10.
+    /// Run length [s], a multiple of ``period``.
     pub duration: f64,
-    /// |q̇| at or above this [rad/s] stops the run as diverged. Default 100.
+    /// A run stops as unstable when any |q̇| reaches this [rad/s].
     pub velocity_limit: f64,
 }
 
@@ -166,6 +173,12 @@ impl ScenarioConfig {
     pub fn samples(&self) -> usize {
         (self.duration / self.period).round() as usize + 1
     }
+}
+
+/// `Scenario.substeps` from serde: a whole number from 1 to `MAX_SUBSTEPS`.
+fn substeps<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<usize, D::Error> {
+    let max = MAX_SUBSTEPS;
+    crate::schema::fields::whole(d, 1, max as u64, &format!("an integer from 1 to {max}"))
 }
 
 #[cfg(test)]

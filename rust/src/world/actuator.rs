@@ -3,6 +3,8 @@
 
 use crate::error::{check, Error, Result};
 use nalgebra::SVector;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 use simba::simd::SimdValue;
 
 use crate::robot::JointVector;
@@ -12,15 +14,17 @@ use crate::scalar::{choose_vector, mask_from, pack_vector, put, put_vector, F64x
 pub const MAX_DELAY: usize = 100_000;
 
 /// Actuator parameters. Defaults are the paper's ideal motors (no delay, no limits).
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
 pub struct ActuatorParams {
-    /// |τ_j| limit per joint [N·m]: one value for every joint, or one per joint; `None`:
-    /// unlimited.
+    /// |τ_j| limit [N·m]: one number for every joint or one per joint; ``None``: unlimited.
+    #[serde(with = "crate::schema::fields::optional_numbers")]
+    #[schemars(with = "Option<crate::schema::fields::Numbers>")]
     pub torque_limit: Option<Vec<f64>>,
-    /// |Δτ_j| per second [N·m/s]: each period the torque moves at most `rate_limit`·T;
-    /// `None`: unlimited.
+    /// Largest |dτ/dt| [N·m/s]: the torque moves at most ``rate_limit``·T per period.
     pub rate_limit: Option<f64>,
-    /// Delay of the command in whole controller periods. Default 0.
+    /// Delay of the command in whole controller periods (0 to 100 000).
+    #[serde(deserialize_with = "delay")]
     pub delay: usize,
 }
 
@@ -215,6 +219,12 @@ impl<const N: usize> Actuator<N> {
     pub fn state_len(&self) -> usize {
         N * (1 + self.in_flight.len())
     }
+}
+
+/// `Actuator.delay` from serde: a whole number of samples from 0 to `MAX_DELAY`.
+fn delay<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<usize, D::Error> {
+    let max = MAX_DELAY;
+    crate::schema::fields::whole(d, 0, max as u64, &format!("an integer from 0 to {max}"))
 }
 
 #[cfg(test)]

@@ -6,9 +6,12 @@ use crate::error::{check, Error, Result};
 use crate::robot::TaskVector;
 use crate::scalar::{F64x4, Real, LANES};
 use nalgebra::Vector3;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 /// How the contact force grows with penetration δ and its rate δ̇.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
 pub enum ContactModel {
     /// f = max(0, k δ + c δ̇): a spring and a damper in parallel.
     KelvinVoigt,
@@ -19,23 +22,24 @@ pub enum ContactModel {
 
 /// Wall parameters. The controller never sees them; it is told
 /// x̂_e = `position` + `position_error` along the normal.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
 pub struct WallParams {
-    /// Environment stiffness k_e [N/m] (Hunt–Crossley: [N/m^p]). Default 30 000.
+    /// Environment stiffness k_e [N/m] (Hunt–Crossley: [N/m^p]); unknown to the controller.
     pub stiffness: f64,
-    /// Contact damping c [N·s/m]. Default 0.
+    /// Contact damping c [N·s/m].
     pub damping: f64,
-    /// Contact law. Default Kelvin–Voigt.
+    /// Contact law: ``"kelvin_voigt"`` (spring and damper) or ``"hunt_crossley"``.
     pub model: ContactModel,
-    /// Hunt–Crossley exponent p ≥ 1 (ignored by Kelvin–Voigt). Default 1.
+    /// Hunt–Crossley exponent p, from 1 to 10 (ignored by Kelvin–Voigt).
     pub exponent: f64,
-    /// Outward normal n of the plane, pointing into the wall (any length; normalised).
-    /// Default (1, 0, 0): the paper's wall normal to x.
+    /// Normal n pointing into the wall (any length; normalised). Force is controlled along n,
+    /// motion along t̂ = normalise(e_z − (e_z·n) n).
     pub normal: [f64; 3],
-    /// Wall position x_e along n [m]: the plane is {X : n·X = x_e}. `None` means n·X0
-    /// (touching at the start, zero force).
+    /// Wall position x_e along n [m]; ``None`` puts the plane through the tip at q0
+    /// (touching, zero force).
     pub position: Option<f64>,
-    /// Error of the controller's estimate: x̂_e = x_e + position_error [m]. Default 0.
+    /// Error of the controller's estimate x̂_e = x_e + position_error [m], along n.
     pub position_error: f64,
 }
 

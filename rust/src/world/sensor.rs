@@ -7,6 +7,8 @@
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 use rand_pcg::Pcg64Mcg;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 use crate::error::{check, Error, Result};
 use crate::scalar::{choose, mask_from, put, F64x4, Real, LANES};
@@ -16,17 +18,19 @@ use simba::simd::SimdValue;
 pub const MAX_LATENCY: usize = 100_000;
 
 /// Sensor parameters. Defaults are the ideal sensor of the paper (it reads f exactly).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
 pub struct SensorParams {
-    /// Constant offset added to the reading [N]. Default 0.
+    /// Constant offset added to the reading [N].
     pub bias: f64,
-    /// Standard deviation of white Gaussian noise [N]. Default 0.
+    /// Standard deviation of white Gaussian noise [N].
     pub noise_std: f64,
-    /// Quantisation step [N]; 0: none. Default 0.
+    /// Quantisation step [N]; 0: none.
     pub resolution: f64,
-    /// Low-pass cut-off f_c [Hz]; `None`: no filter. Default `None`.
+    /// First-order low-pass cut-off f_c [Hz]; ``None``: no filter.
     pub cutoff: Option<f64>,
-    /// Delay of the output in whole controller periods. Default 0.
+    /// Delay of the output in whole controller periods (0 to 100 000).
+    #[serde(deserialize_with = "latency")]
     pub latency: usize,
 }
 
@@ -230,6 +234,12 @@ fn mix(seed: u64, k: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
+}
+
+/// `ForceSensor.latency` from serde: a whole number of samples from 0 to `MAX_LATENCY`.
+fn latency<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<usize, D::Error> {
+    let max = MAX_LATENCY;
+    crate::schema::fields::whole(d, 0, max as u64, &format!("an integer from 0 to {max}"))
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@ use nalgebra::{Matrix3, SVector, Vector3};
 use super::kinematics::Frames;
 use super::model::{ChainModel, SerialChain};
 use super::urdf;
+
 use crate::error::{check, Error, Result};
 use crate::robot::chain::spatial::Real;
 use crate::robot::three_link::friction_sign;
@@ -15,7 +16,10 @@ use crate::robot::{Dynamics, JointVector, Kinematics, Orientation, RobotModel, T
 use crate::scalar::{zeros, F64x4, LANES};
 
 /// What the task space holds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
+#[serde(rename_all = "snake_case")]
 pub enum TaskKind {
     /// The tip position (3-D).
     Position,
@@ -25,29 +29,37 @@ pub enum TaskKind {
 
 /// The parameters of `ar.UrdfArm`. Defaults: no friction, g = 9.81, q0 = 0 clipped into the
 /// limits, `task` by joint count (position below 6 joints, pose from 6).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(default, deny_unknown_fields)]
 pub struct UrdfArmParams {
-    /// The URDF document itself (not a path: a scenario carries it to other processes).
+    /// The URDF document (read from ``path`` when not given).
     pub urdf: String,
-    /// The link whose origin is the tip.
+    /// The link whose origin is the tip (contact point and task frame).
     pub tip_link: String,
-    /// The chain's base; `None`: the URDF's root link.
+    /// The chain's base link; ``None``: the URDF's root link.
     pub base_link: Option<String>,
-    /// Initial joint positions [rad or m]; `None`: zero, clipped into the position limits.
+    /// Initial joint positions [rad or m], one per joint; ``None``: zero, clipped into the
+    /// URDF's position limits.
     pub q0: Option<Vec<f64>>,
-    /// Viscous friction [N·m·s/rad], one value for every joint or one per joint. Default 0.
+    /// Viscous friction [N·m·s/rad]: one number for every joint or one per joint.
+    #[serde(with = "crate::schema::fields::numbers")]
+    #[schemars(with = "crate::schema::fields::Numbers")]
     pub viscous_friction: Vec<f64>,
-    /// Coulomb friction [N·m], one value or one per joint. Default 0.
+    /// Coulomb friction [N·m]: one number for every joint or one per joint.
+    #[serde(with = "crate::schema::fields::numbers")]
+    #[schemars(with = "crate::schema::fields::Numbers")]
     pub coulomb_friction: Vec<f64>,
-    /// ε [rad/s] of sgn(q̇) ≈ tanh(q̇/ε); ε ≤ 0: the exact sign. Default 0.01.
+    /// ε [rad/s] of sgn(q̇) ≈ tanh(q̇/ε); ε ≤ 0 uses the exact sign.
     pub friction_smoothing: f64,
-    /// Gravity along −z of the base [m/s²]. Default 9.81.
+    /// Gravity along -z of the base frame [m/s²].
     pub gravity: f64,
-    /// `None`: position for fewer than 6 joints, pose otherwise.
+    /// Task space: ``"position"`` (tip position) or ``"pose"`` (position and orientation,
+    /// held at its start); ``None``: position below 6 joints, pose from 6.
     pub task: Option<TaskKind>,
-    /// (K_P, K_D) of the orientation in a pose task; `None`: the controller's. Default `None`.
+    /// (K_P [1/s²], K_D [1/s]) of the orientation in a pose task; ``None``: the controller's
+    /// kp, kd (both divided by its command_divisor K_A, as in eq. 39).
     pub orientation_gains: Option<(f64, f64)>,
-    /// λ of the damped pseudo-inverse J⁺ = Jᵀ(J Jᵀ + λ² I)⁻¹. Default 1e-3.
+    /// λ of the damped pseudo-inverse J⁺ = Jᵀ(J Jᵀ + λ² I)⁻¹ of eqs. 7 and 17.
     pub damping: f64,
 }
 

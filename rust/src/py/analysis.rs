@@ -1,0 +1,96 @@
+//! Analysis (SPEC §12): the linearised closed loop and batched predictions, with the GIL
+//! released.
+
+use numpy::{PyArray1, PyArray2};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use super::errors::analysis_err;
+use super::params::scenario_from;
+
+fn dmatrix<'py>(
+    py: Python<'py>,
+    m: &nalgebra::DMatrix<f64>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let rows: Vec<Vec<f64>> = (0..m.nrows())
+        .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())
+        .collect();
+    if rows.is_empty() {
+        return Ok(PyArray2::zeros(py, [0, m.ncols()], false));
+    }
+    PyArray2::from_vec2(py, &rows).map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
+/// The one-period closed loop linearised about its equilibrium (or the state at `at`).
+#[pyfunction]
+#[pyo3(signature = (scenario, at=None))]
+pub(super) fn linearize<'py>(
+    scenario: &Bound<'py, PyAny>,
+    at: Option<f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let py = scenario.py();
+    let config = scenario_from(scenario)?;
+    let lin = py
+        .detach(move || crate::analysis::linearize_scenario(&config, at))
+        .map_err(|e| analysis_err(py, e))?;
+    let b = nalgebra::DMatrix::from_column_slice(lin.b.len(), 1, lin.b.as_slice());
+    let d = nalgebra::DMatrix::from_column_slice(lin.d.len(), 1, lin.d.as_slice());
+    Ok(py_dict!(py, {
+        "a": dmatrix(py, &lin.a)?,
+        "b": dmatrix(py, &b)?,
+        "c": dmatrix(py, &lin.c)?,
+        "d": dmatrix(py, &d)?,
+        "labels": lin.labels,
+        "state": PyArray1::from_vec(py, lin.state),
+        "force_desired": lin.force_desired,
+        "outputs": lin.outputs.to_vec(),
+        "reference_normal": lin.reference_normal,
+        "penetration": lin.penetration,
+        "period": lin.period,
+        "equilibrium": lin.equilibrium,
+        "iterations": lin.iterations,
+        "caveats": lin.caveats,
+    }))
+}
+
+/// `predict` for many scenarios on all cores with the GIL released. Returns one column
+/// per prediction field (`stable` as bool) and `error` (None, or why a cell has no
+/// prediction).
+#[pyfunction]
+#[pyo3(signature = (scenarios, threads=None))]
+pub(super) fn predict_batch<'py>(
+    scenarios: &Bound<'py, PyList>,
+    threads: Option<usize>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let py = scenarios.py();
+    let configs = scenarios
+        .iter()
+        .map(|s| scenario_from(&s))
+        .collect::<PyResult<Vec<_>>>()?;
+    let results = py.detach(move || crate::analysis::predict_scenarios(&configs, threads));
+    let names = crate::analysis::PREDICTION_NAMES;
+    let mut columns: Vec<Vec<f64>> = vec![Vec::with_capacity(results.len()); names.len()];
+    let errors = PyList::empty(py);
+    for r in results {
+        let (p, err) = match r {
+            Ok(p) => (p, None),
+            Err(e) => (crate::analysis::Prediction::missing(), Some(e.to_string())),
+        };
+        for (c, v) in columns.iter_mut().zip(p.values()) {
+            c.push(v);
+        }
+        errors.append(err)?;
+    }
+    let out = PyDict::new(py);
+    for (name, col) in names.iter().zip(columns) {
+        if *name == "stable" {
+            let b: Vec<bool> = col.iter().map(|v| *v == 1.0).collect();
+            out.set_item(name, PyArray1::from_vec(py, b))?;
+        } else {
+            out.set_item(name, PyArray1::from_vec(py, col))?;
+        }
+    }
+    out.set_item("error", errors)?;
+    Ok(out)
+}

@@ -1,0 +1,220 @@
+//! The parameter blocks' one declaration, as data: each block is a serde struct (defaults
+//! from its `Default`, unknown keys refused, enum tags spelled as the Python API spells them)
+//! whose JSON schema carries the field docs. This module holds the few serde helpers the
+//! blocks need (one number or many, whole numbers given as integral floats, the constant
+//! inertia D̄ as one field) and the two tables the Python blocks are checked against:
+//! [`schemas`] (fields, types, docs) and [`defaults`] (every block's `Default`, serialised).
+//! Nothing here knows Python. The field helpers the blocks use are in [`fields`].
+
+pub mod fields;
+
+use schemars::{JsonSchema, Schema};
+use serde::Serialize;
+use serde_json::{Map, Value};
+
+use crate::control::filter::{AdmittanceParams, ImpedanceParams};
+use crate::control::params::{
+    ComputedTorqueParams, ModelError, ModelFreeBlock, ModelFreeParams, TimeDelayBlock,
+    TimeDelayParams,
+};
+use crate::control::reference::Signal;
+use crate::error::Error;
+use crate::robot::chain::UrdfArmParams;
+use crate::robot::RobotParams;
+use crate::sim::scenario::ScenarioConfig;
+use crate::world::actuator::ActuatorParams;
+use crate::world::environment::WallParams;
+use crate::world::sensor::SensorParams;
+
+/// The field an enum of the blocks is held in, named by its first variant: serde's
+/// "unknown variant" message names the variants but not the field when the enum sits
+/// inside a `kind`-tagged block. Tags themselves are `kind`.
+pub fn enum_field(first_variant: &str) -> &'static str {
+    match first_variant {
+        "rod" => "mass_model",
+        "jacobian_transpose" => "law",
+        "kelvin_voigt" => "model",
+        "position" => "task",
+        _ => "kind",
+    }
+}
+
+/// The text of a parameter error raised inside a deserializer: `Error`'s own display with
+/// the field left empty (`" = 2.5 is invalid: must be …"`); the caller puts the dotted path
+/// in front. [`parse_parameter_message`] reads it back.
+pub fn parameter_message(e: &Error) -> String {
+    e.to_string()
+}
+
+/// (field, value, allowed) of a message written by `Error`'s display, if it is one.
+pub fn parse_parameter_message(msg: &str) -> Option<(String, String, String)> {
+    let (field, rest) = msg.split_once(" = ")?;
+    let (value, allowed) = rest.rsplit_once(" is invalid: must be ")?;
+    Some((field.to_owned(), value.to_owned(), allowed.to_owned()))
+}
+
+fn schema_value<T: JsonSchema>() -> Value {
+    schemars::schema_for!(T).to_value()
+}
+
+/// The variants of a `kind`-tagged enum's schema, by tag.
+fn variants(schema: &Schema) -> Map<String, Value> {
+    let mut out = Map::new();
+    let defs = schema.get("$defs").cloned();
+    for v in schema
+        .get("oneOf")
+        .and_then(Value::as_array)
+        .into_iter()
+        .flatten()
+    {
+        if let Some(kind) = v.pointer("/properties/kind/const").and_then(Value::as_str) {
+            let mut v = v.clone();
+            if let (Some(defs), Some(obj)) = (&defs, v.as_object_mut()) {
+                obj.insert("$defs".into(), defs.clone());
+            }
+            out.insert(kind.to_owned(), v);
+        }
+    }
+    out
+}
+
+/// Every block's JSON schema (draft 2020-12: properties with `description` from the doc
+/// comments, `type`, `default` where the block has a `Default`), keyed as the Python blocks
+/// are tagged: `three_link`, `urdf`, `wall`, `sensor`, `actuator`, `model`,
+/// `computed_torque`, `model_free`, `time_delay`, `admittance`, `impedance`, `step`, `sine`,
+/// `sampled` and `scenario`.
+pub fn schemas() -> Value {
+    let mut out = Map::new();
+    out.insert("three_link".into(), schema_value::<RobotParams>());
+    out.insert("urdf".into(), schema_value::<UrdfArmParams>());
+    out.insert("wall".into(), schema_value::<WallParams>());
+    out.insert("sensor".into(), schema_value::<SensorParams>());
+    out.insert("actuator".into(), schema_value::<ActuatorParams>());
+    out.insert("model".into(), schema_value::<ModelError>());
+    out.insert(
+        "computed_torque".into(),
+        schema_value::<ComputedTorqueParams>(),
+    );
+    out.insert("model_free".into(), schema_value::<ModelFreeBlock>());
+    out.insert("time_delay".into(), schema_value::<TimeDelayBlock>());
+    out.insert("admittance".into(), schema_value::<AdmittanceParams>());
+    out.insert("impedance".into(), schema_value::<ImpedanceParams>());
+    out.extend(variants(&schemars::schema_for!(Signal)));
+    out.insert("scenario".into(), schema_value::<ScenarioConfig>());
+    Value::Object(out)
+}
+
+fn to_value<T: Serialize>(v: &T) -> Value {
+    // Every block serialises to JSON (plain numbers, strings, lists and maps).
+    serde_json::to_value(v).unwrap_or(Value::Null)
+}
+
+/// Every block's `Default`, serialised as the blocks cross to Python (keys as in
+/// [`schemas`]; blocks without a `Default` — impedance, the signals — are absent).
+pub fn defaults() -> Value {
+    let mut out = Map::new();
+    out.insert("three_link".into(), to_value(&RobotParams::default()));
+    out.insert("urdf".into(), to_value(&UrdfArmParams::default()));
+    out.insert("wall".into(), to_value(&WallParams::default()));
+    out.insert("sensor".into(), to_value(&SensorParams::default()));
+    out.insert("actuator".into(), to_value(&ActuatorParams::default()));
+    out.insert("model".into(), to_value(&ModelError::default()));
+    out.insert(
+        "computed_torque".into(),
+        to_value(&ComputedTorqueParams::default()),
+    );
+    out.insert("model_free".into(), to_value(&ModelFreeParams::default()));
+    out.insert("time_delay".into(), to_value(&TimeDelayParams::default()));
+    out.insert("admittance".into(), to_value(&AdmittanceParams::default()));
+    out.insert("scenario".into(), to_value(&ScenarioConfig::default()));
+    Value::Object(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::params::ControllerParams;
+
+    #[test]
+    fn every_default_round_trips() {
+        let sc = ScenarioConfig::default();
+        let back: ScenarioConfig = serde_json::from_value(to_value(&sc)).expect("round trip");
+        assert_eq!(back, sc);
+    }
+
+    #[test]
+    fn inertia_is_one_field() {
+        let v = serde_json::json!({"kind": "time_delay", "command_divisor": 5.0, "kd": 20.0,
+            "kp": 100.0, "scale_feedforward": true, "inertia": [[2.0, 0.0], [0.0, 1.0]]});
+        let c: ControllerParams = serde_json::from_value(v).expect("tdc");
+        let ControllerParams::TimeDelay(p) = c else {
+            panic!("not TDC")
+        };
+        assert_eq!(p.inertia, 2.0);
+        assert_eq!(
+            p.joint_inertia.map(|j| j.as_slice().to_vec()),
+            Some(vec![2.0, 0.0, 0.0, 1.0])
+        );
+        assert_eq!(
+            to_value(&c)["inertia"],
+            serde_json::json!([[2.0, 0.0], [0.0, 1.0]])
+        );
+    }
+
+    #[test]
+    fn unknown_keys_are_refused() {
+        let v = serde_json::json!({"stiffness": 1.0, "stiffnes": 2.0});
+        let e = serde_json::from_value::<WallParams>(v).expect_err("unknown key");
+        assert!(e.to_string().contains("stiffnes"), "{e}");
+    }
+
+    #[test]
+    fn counts_take_integral_floats_only() {
+        let ok: SensorParams =
+            serde_json::from_value(serde_json::json!({"latency": 2.0})).expect("integral float");
+        assert_eq!(ok.latency, 2);
+        let e = serde_json::from_value::<SensorParams>(serde_json::json!({"latency": 2.5}))
+            .expect_err("fraction");
+        let (_, value, allowed) =
+            parse_parameter_message(&e.to_string()).expect("a parameter message");
+        assert_eq!(
+            (value.as_str(), allowed.as_str()),
+            ("2.5", "an integer from 0 to 100000")
+        );
+    }
+
+    #[test]
+    fn every_enum_names_its_field() {
+        let s = schemas().to_string();
+        for (first, field) in [
+            ("rod", "mass_model"),
+            ("jacobian_transpose", "law"),
+            ("kelvin_voigt", "model"),
+            ("position", "task"),
+        ] {
+            assert_eq!(enum_field(first), field);
+            assert!(s.contains(&format!("\"{first}\"")), "{first}");
+        }
+    }
+
+    #[test]
+    fn every_python_block_has_a_schema_with_docs() {
+        let s = schemas();
+        for key in [
+            "three_link",
+            "wall",
+            "sensor",
+            "actuator",
+            "step",
+            "sine",
+            "sampled",
+        ] {
+            let props = s[key]["properties"].as_object().expect(key);
+            for (name, p) in props {
+                if name != "kind" {
+                    assert!(p.get("description").is_some(), "{key}.{name} has no doc");
+                }
+            }
+        }
+    }
+}
