@@ -25,9 +25,8 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, Criterion};
 
 use admit_rs::control::params::{ControllerParams, PerJoint, PositionGains, TimeDelayParams};
-use admit_rs::robot::chain::arm::{accelerate, JointFriction};
-use admit_rs::robot::chain::{Frames, SerialChain, UrdfArm, UrdfArmParams};
-use admit_rs::robot::{JointVector, RobotModel};
+use admit_rs::robot::chain::{Chain, Frames, UrdfArm, UrdfArmParams};
+use admit_rs::robot::{ArmModel, JointVector, RobotModel};
 use admit_rs::scalar::{F64x4, Real};
 use admit_rs::sim::scenario::RobotConfig;
 use admit_rs::sim::sweep::run_batch_with;
@@ -70,7 +69,7 @@ fn states<const N: usize>() -> Vec<(JointVector<N>, JointVector<N>, JointVector<
 
 fn bench_arm<const N: usize>(c: &mut Criterion, name: &str, urdf: &str, tip: &str) {
     let arm = UrdfArm::<N>::new(&params(urdf, tip)).expect("valid URDF");
-    let chain = arm.chain;
+    let chain = arm.model.chain;
     let states = states::<N>();
     let frames: Vec<Frames<f64, N>> = states.iter().map(|(q, _, _)| chain.frames(q)).collect();
     let force = nalgebra::Vector3::new(-10.0, 0.5, 1.0);
@@ -109,13 +108,12 @@ fn bench_arm<const N: usize>(c: &mut Criterion, name: &str, urdf: &str, tip: &st
 /// as the plant runs it.
 #[inline(always)]
 fn evaluate<T: Real, const N: usize>(
-    chain: &SerialChain<T, N>,
-    friction: &JointFriction<T, N>,
+    model: &Chain<T, N>,
     q: &SVector<T, N>,
     qd: &SVector<T, N>,
     tau: &SVector<T, N>,
 ) -> SVector<T, N> {
-    let f = chain.frames(q);
+    let f = model.configure(q);
     let normal = Vector3::new(T::one(), T::zero(), T::zero());
     let wall = Wall {
         stiffness: T::splat(3e4),
@@ -126,27 +124,25 @@ fn evaluate<T: Real, const N: usize>(
         position: T::splat(0.3),
         position_error: T::zero(),
     };
-    accelerate(chain, friction, &f, qd, tau, &wall).0
+    model.accelerate(&f, qd, tau, &wall).0
 }
 
 /// Four evaluations one after the other, in the dispatched AVX2 + FMA code the lanes run in.
 #[target_feature(enable = "avx2,fma")]
 unsafe fn scalar4_avx2<const N: usize>(
-    chain: &SerialChain<f64, N>,
-    friction: &JointFriction<f64, N>,
+    model: &Chain<f64, N>,
     x: &[(JointVector<N>, JointVector<N>, JointVector<N>); 4],
 ) -> [JointVector<N>; 4] {
-    std::array::from_fn(|l| evaluate(chain, friction, &x[l].0, &x[l].1, &x[l].2))
+    std::array::from_fn(|l| evaluate(model, &x[l].0, &x[l].1, &x[l].2))
 }
 
 /// The same four evaluations in lanes.
 #[target_feature(enable = "avx2,fma")]
 unsafe fn lanes4_avx2<const N: usize>(
-    chain: &SerialChain<F64x4, N>,
-    friction: &JointFriction<F64x4, N>,
+    model: &Chain<F64x4, N>,
     x: &(SVector<F64x4, N>, SVector<F64x4, N>, SVector<F64x4, N>),
 ) -> SVector<F64x4, N> {
-    evaluate(chain, friction, &x.0, &x.1, &x.2)
+    evaluate(model, &x.0, &x.1, &x.2)
 }
 
 fn bench_eval<const N: usize>(c: &mut Criterion, name: &str, urdf: &str, tip: &str) {
@@ -172,8 +168,7 @@ fn bench_eval<const N: usize>(c: &mut Criterion, name: &str, urdf: &str, tip: &s
             )
         })
         .collect();
-    let chains = SerialChain::pack([&arm.chain; 4]);
-    let frictions = JointFriction::pack([&arm.friction; 4]);
+    let lanes = Chain::pack([&arm.model; 4]);
     let mut i = 0usize;
     let mut next = move || {
         i = (i + 1) & 255;
@@ -182,10 +177,10 @@ fn bench_eval<const N: usize>(c: &mut Criterion, name: &str, urdf: &str, tip: &s
     let mut g = c.benchmark_group("chain_eval");
     // SAFETY (both): AVX2 and FMA were detected above.
     g.bench_function(format!("{name}_scalar4"), |b| {
-        b.iter(|| unsafe { black_box(scalar4_avx2(&arm.chain, &arm.friction, &quads[next()])) })
+        b.iter(|| unsafe { black_box(scalar4_avx2(&arm.model, &quads[next()])) })
     });
     g.bench_function(format!("{name}_lanes4"), |b| {
-        b.iter(|| unsafe { black_box(lanes4_avx2(&chains, &frictions, &packed[next()])) })
+        b.iter(|| unsafe { black_box(lanes4_avx2(&lanes, &packed[next()])) })
     });
     g.finish();
 }
@@ -211,7 +206,8 @@ pub fn panda_config() -> ScenarioConfig {
     let arm = UrdfArm::<7>::new(&p).expect("valid");
     let q0 = arm.initial_position();
     let d = arm
-        .dynamics(&arm.configure(&q0), &JointVector::zeros())
+        .model
+        .dynamics(&arm.model.configure(&q0), &JointVector::zeros())
         .inertia
         * 0.8;
     let rows: Vec<f64> = d.transpose().as_slice().to_vec();

@@ -26,7 +26,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use rayon::prelude::*;
 
 use admit_rs::robot::three_link::{Trig, Vec3};
-use admit_rs::robot::{RobotModel, ThreeLinkArm};
+use admit_rs::robot::{ArmModel, RobotModel, ThreeLinkArm};
 use admit_rs::sim::plant::{Plant, PlantState};
 use admit_rs::sim::simulation::ThreeLinkSimulation;
 use admit_rs::sim::sweep::run_batch_with;
@@ -98,7 +98,7 @@ fn dynamics(c: &mut Criterion) {
     g.bench_function("accelerate", |b| {
         b.iter(|| {
             let (s, tau) = replay.next();
-            arm.accelerate(
+            arm.model().accelerate(
                 &Trig::new(black_box(&s.q)),
                 black_box(&s.qd),
                 black_box(tau),

@@ -2,9 +2,10 @@
 //! `f64` for one run, a lane type for four runs of one structure. It owns what the laws of
 //! `control::laws` need between periods and across a run: the law's kind, the gains of
 //! eq. (39), D̄ and K_t, TDC's memory τ_{k−1}, q̇_{k−1}, and the task's reference state (R0 of a
-//! pose task, q0 of a redundant arm's posture, J⁺'s damping). A scalar run is `Controller<f64,
-//! R, N>` (its model is an arm `R`); a lane group packs four of them into
-//! `Controller<F64x4, M, N>` (`M`: the four models in lanes). There is no second copy.
+//! pose task, q0 of a redundant arm's posture, J⁺'s damping). Computed torque's model is any
+//! [`ArmModel`] over the same scalar: a scalar run is `Controller<f64, M, N>` (`M` an arm's
+//! `f64` equations); a lane group packs four of them into `Controller<F64x4, M, N>` (`M`
+//! the four models in lanes). There is no second copy.
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use simba::simd::SimdValue;
@@ -15,36 +16,8 @@ use crate::control::laws::{
 use crate::control::params::{constant_inertia, ControllerParams, PositionGains, TdcLaw};
 use crate::control::task::Desired;
 use crate::robot::chain::arm::rotation_vector;
-use crate::robot::{Dynamics, JointVector, Kinematics, Orientation, RobotModel, TaskOptions};
+use crate::robot::{ArmModel, JointVector, Kinematics, Orientation, RobotModel, TaskOptions};
 use crate::scalar::{finite, mask_from, no_lane, put, put_vector, F64x4, Real, LANES};
-
-/// What computed torque asks of the model it believes in: (D̂, Ĉ q̇, Ĝ) and τ̂_f at the
-/// measured state. `At` is what the arm's kinematics already computed and the model may
-/// reuse (the three-link arm's trig in lanes; nothing for a scalar arm, which configures
-/// itself at q).
-pub trait ControllerModel<T: Real, const N: usize> {
-    type At;
-    fn terms(
-        &self,
-        at: &Self::At,
-        q: &SVector<T, N>,
-        qd: &SVector<T, N>,
-    ) -> (Dynamics<N, T>, SVector<T, N>);
-}
-
-impl<R: RobotModel<N>, const N: usize> ControllerModel<f64, N> for R {
-    type At = ();
-
-    #[inline(always)]
-    fn terms(
-        &self,
-        _: &(),
-        q: &JointVector<N>,
-        qd: &JointVector<N>,
-    ) -> (Dynamics<N>, JointVector<N>) {
-        (self.dynamics(&self.configure(q), qd), self.friction(qd))
-    }
-}
 
 /// What the controller reads at t_k: the encoders' state, the tip kinematics the plant
 /// evaluated once, the tip orientation terms when the task holds the orientation, and the
@@ -108,9 +81,9 @@ pub struct TaskAtStart<const N: usize> {
 impl<const N: usize> TaskAtStart<N> {
     /// What `robot`'s task holds: R0 (a pose task), q0 where N exceeds the task's dimension.
     pub fn of<R: RobotModel<N>>(robot: &R) -> Self {
-        let q0 = robot.initial_position();
-        let start_rotation = robot
-            .orientation(&robot.configure(&q0), &JointVector::zeros())
+        let (q0, model) = (robot.initial_position(), robot.model());
+        let start_rotation = model
+            .orientation(&model.configure(&q0), &JointVector::zeros())
             .map(|o| o.rotation);
         let task_dimension = if start_rotation.is_some() { 6 } else { 3 };
         Self {
@@ -136,9 +109,15 @@ pub struct Controller<T: Real, M, const N: usize> {
     task: Option<TaskSetup<T, N>>,
 }
 
-impl<R: RobotModel<N>, const N: usize> Controller<f64, R, N> {
-    /// The controller for the plant's arm `robot`, whose task is `task`.
-    pub fn new(params: &ControllerParams, robot: &R, period: f64, task: &TaskAtStart<N>) -> Self {
+impl<M: ArmModel<f64, N>, const N: usize> Controller<f64, M, N> {
+    /// The controller for the plant's arm `robot` (computed torque's model: `robot`'s
+    /// with the controller's model error), whose task is `task`.
+    pub fn new<R: RobotModel<N, Model = M>>(
+        params: &ControllerParams,
+        robot: &R,
+        period: f64,
+        task: &TaskAtStart<N>,
+    ) -> Self {
         let (gains, inertia, joint_inertia, torque_constant) = match params {
             ControllerParams::ComputedTorque(p) => (p.gains, 1.0, None, 0.0),
             ControllerParams::ModelFree(p) => {
@@ -156,7 +135,7 @@ impl<R: RobotModel<N>, const N: usize> Controller<f64, R, N> {
             ControllerParams::ModelFree(_) => Law::ModelFree,
             ControllerParams::TimeDelay(p) => {
                 let model = p.model.arm(robot);
-                let q0 = model.initial_position();
+                let q0 = robot.initial_position();
                 let g0 = model
                     .dynamics(&model.configure(&q0), &JointVector::zeros())
                     .gravity;
@@ -271,11 +250,11 @@ impl<T: Real, M, const N: usize> Controller<T, M, N> {
     pub fn command(
         &self,
         m: &Measured<T, N>,
-        at: &M::At,
+        at: &M::Config,
         desired: &Desired<T>,
     ) -> (SVector<T, N>, T::SimdBool)
     where
-        M: ControllerModel<T, N>,
+        M: ArmModel<T, N>,
     {
         let k = m.kinematics;
         let velocity = k.jacobian * m.qd;
@@ -311,7 +290,7 @@ impl<T: Real, M, const N: usize> Controller<T, M, N> {
                 compensation,
                 model,
             } => terms.computed_torque(
-                model.terms(at, m.q, m.qd),
+                (model.dynamics(at, m.qd), model.friction(m.qd)),
                 &k.jacobian,
                 compensation.then_some((m.normal, m.force)),
             ),
@@ -331,9 +310,14 @@ impl<T: Real, M, const N: usize> Controller<T, M, N> {
 
     /// The square path (three joints, position task, D̄ = α I): J⁻¹ as the paper writes it.
     #[inline(always)]
-    fn square(&self, m: &Measured<T, N>, at: &M::At, v: &Vector3<T>) -> (SVector<T, N>, T::SimdBool)
+    fn square(
+        &self,
+        m: &Measured<T, N>,
+        at: &M::Config,
+        v: &Vector3<T>,
+    ) -> (SVector<T, N>, T::SimdBool)
     where
-        M: ControllerModel<T, N>,
+        M: ArmModel<T, N>,
     {
         let k = m.kinematics;
         match &self.law {
@@ -343,7 +327,7 @@ impl<T: Real, M, const N: usize> Controller<T, M, N> {
             } => computed_torque(
                 k,
                 v,
-                || model.terms(at, m.q, m.qd),
+                || (model.dynamics(at, m.qd), model.friction(m.qd)),
                 compensation.then_some((m.normal, m.force)),
             ),
             Law::ModelFree => (
@@ -534,14 +518,16 @@ mod tests {
     use crate::robot::{RobotParams, TaskVector, ThreeLinkArm};
     use crate::scalar::{lane_of, pack_vector};
 
-    type Ctl = Controller<f64, ThreeLinkArm, 3>;
+    type Ctl = Controller<f64, ClosedForm, 3>;
     const X: TaskVector = TaskVector::new(1.0, 0.0, 0.0);
     const REST: Vec3 = Vec3::new(0.0, 0.0, 0.0);
 
     fn at_q0() -> (ThreeLinkArm, Vec3, Kinematics) {
         let arm = ThreeLinkArm::new(&RobotParams::default());
         let q = arm.initial_position();
-        let k = arm.kinematics(&arm.configure(&q), &Vec3::zeros());
+        let k = arm
+            .model()
+            .kinematics(&arm.model().configure(&q), &Vec3::zeros());
         (arm, q, k)
     }
 
@@ -574,7 +560,7 @@ mod tests {
 
     /// One period: the command, then (nothing limiting it) the memory moves on.
     fn step(c: &mut Ctl, m: &Measured<f64, 3>, d: &Desired) -> Option<Vec3> {
-        let (tau, singular) = c.command(m, &(), d);
+        let (tau, singular) = c.command(m, &Trig::new(m.q), d);
         if singular {
             return None;
         }
@@ -583,7 +569,9 @@ mod tests {
     }
 
     fn gravity(arm: &ThreeLinkArm, q: &Vec3) -> Vec3 {
-        arm.dynamics(&arm.configure(q), &Vec3::zeros()).gravity
+        arm.model()
+            .dynamics(&arm.model().configure(q), &Vec3::zeros())
+            .gravity
     }
 
     #[test]
@@ -627,7 +615,9 @@ mod tests {
     fn singular_jacobian_is_reported() {
         let r = ThreeLinkArm::new(&RobotParams::default());
         let q = Vec3::new(0.0, 0.3, 0.0);
-        let k = r.kinematics(&r.configure(&q), &Vec3::zeros());
+        let k = r
+            .model()
+            .kinematics(&r.model().configure(&q), &Vec3::zeros());
         let mut c = controller(
             ControllerParams::ComputedTorque(ComputedTorqueParams::default()),
             &r,
@@ -641,14 +631,14 @@ mod tests {
     fn tdc_remembers_the_applied_torque() {
         let (r, q, k, mut c, d) = tdc_pulled_along_x();
         let m = measured(&q, &REST, &k);
-        let (tau0, _) = c.command(&m, &(), &d);
+        let (tau0, _) = c.command(&m, &Trig::new(m.q), &d);
         let applied = tau0.map(|t| t.clamp(-20.0, 20.0));
         c.applied(&applied, &REST);
         let mut state = Vec::new();
         c.state(&mut state);
         assert_eq!(&state[..3], applied.as_slice());
         // Same measurement again: u is unchanged, ĥ = τ_{k−1} − 0 is the applied torque.
-        let (tau1, _) = c.command(&m, &(), &d);
+        let (tau1, _) = c.command(&m, &Trig::new(m.q), &d);
         assert!((tau1 - (tau0 - gravity(&r, &q) + applied)).abs().max() < 1e-12);
     }
 
@@ -668,7 +658,7 @@ mod tests {
             })
         };
         let mut scalar: Vec<Ctl> = (0..5).map(|i| controller(tdc(i), &r)).collect();
-        let models = |arms: [&ThreeLinkArm; 4]| ClosedForm::pack(arms.map(|a| a.closed_form()));
+        let models = |arms: [&ClosedForm; 4]| ClosedForm::pack(arms);
         let mut lanes = Controller::<F64x4, ClosedForm<F64x4>, 3>::pack(
             std::array::from_fn(|i| &scalar[i]),
             models,
@@ -694,7 +684,7 @@ mod tests {
             let qd: [Vec3; 4] =
                 std::array::from_fn(|i| Vec3::new(0.01 * (period + i) as f64, -0.02, 0.0));
             let kins: [Kinematics; 4] =
-                std::array::from_fn(|i| r.kinematics(&r.configure(&qs[i]), &qd[i]));
+                std::array::from_fn(|i| r.model().kinematics(&r.model().configure(&qs[i]), &qd[i]));
             let expected: [Vec3; 4] = std::array::from_fn(|i| {
                 step(&mut scalar[i], &measured(&qs[i], &qd[i], &kins[i]), &d).unwrap()
             });
@@ -717,8 +707,8 @@ mod tests {
                 position: pack_vector([&d.position; 4]),
                 ..Desired::default()
             };
-            let (tau, singular) =
-                lanes.command(&m, &Trig::<F64x4>::pack([&r.configure(&qs[0]); 4]), &d4);
+            let trig = qs.map(|q| Trig::new(&q));
+            let (tau, singular) = lanes.command(&m, &Trig::<F64x4>::pack(trig.each_ref()), &d4);
             assert!(!simba::simd::SimdBool::any(singular));
             lanes.applied(&tau, &qd4);
             for (i, e) in expected.iter().enumerate() {

@@ -359,7 +359,7 @@ pub(crate) fn time_delay<T: Real, const N: usize>(
 mod tests {
     use super::*;
     use crate::robot::three_link::{Kinematics, Vec3};
-    use crate::robot::{Jacobian, JointMatrix, RobotModel, RobotParams, ThreeLinkArm};
+    use crate::robot::{ArmModel, Jacobian, JointMatrix, RobotModel, RobotParams, ThreeLinkArm};
     use crate::scalar::{lane_of, F64x4};
     use simba::simd::SimdValue;
 
@@ -368,7 +368,9 @@ mod tests {
     fn at_q0() -> (ThreeLinkArm, Vec3, Kinematics) {
         let arm = ThreeLinkArm::new(&RobotParams::default());
         let q = arm.initial_position();
-        let k = arm.kinematics(&arm.configure(&q), &Vec3::zeros());
+        let k = arm
+            .model()
+            .kinematics(&arm.model().configure(&q), &Vec3::zeros());
         (arm, q, k)
     }
 
@@ -411,7 +413,9 @@ mod tests {
                 0.3 + 0.02 * i as f64,
                 -0.7 + 0.05 * i as f64,
             );
-            let k = r.kinematics(&r.configure(&q), &Vec3::zeros());
+            let k = r
+                .model()
+                .kinematics(&r.model().configure(&q), &Vec3::zeros());
             let rhs = Vec3::new(1.0, -2.0 + i as f64, 0.5);
             let (x, singular) = solve_square(&k.jacobian, &rhs);
             if singular {
@@ -440,7 +444,7 @@ mod tests {
         let prev: [Vec3; 4] =
             std::array::from_fn(|i| Vec3::new(0.0, -0.21, 0.3 + 0.001 * i as f64));
         let kins: [Kinematics; 4] =
-            std::array::from_fn(|i| r.kinematics(&r.configure(&qs[i]), &qds[i]));
+            std::array::from_fn(|i| r.model().kinematics(&r.model().configure(&qs[i]), &qds[i]));
         let vs: [Vec3; 4] = std::array::from_fn(|i| Vec3::new(1.0 + i as f64, -0.5, 0.25));
         let kin = crate::robot::Kinematics::<3, F64x4> {
             position: pack_vector(kins.each_ref().map(|k| &k.position)),
@@ -499,7 +503,7 @@ mod tests {
         }
         // Computed torque with each lane's model terms (fixed here: no exp), compensated.
         let dyns: [crate::robot::Dynamics<3>; 4] =
-            std::array::from_fn(|i| r.dynamics(&r.configure(&qs[i]), &qds[i]));
+            std::array::from_fn(|i| r.model().dynamics(&r.model().configure(&qs[i]), &qds[i]));
         let fr: [Vec3; 4] = std::array::from_fn(|i| Vec3::new(1.0, 2.0, 3.0 + i as f64));
         let n = pack_vector([&X; 4]);
         let force = lanes4(|i| 5.0 * i as f64);
@@ -621,10 +625,15 @@ mod tests {
         let taus: [SVector<f64, 7>; 4] =
             std::array::from_fn(|_| SVector::<f64, 7>::from_fn(|_, _| 10.0 * next()));
         let r0 = nalgebra::Rotation3::from_scaled_axis(Vector3::new(0.1, -0.2, 0.3)).into_inner();
-        let kins: [crate::robot::Kinematics<7>; 4] =
-            std::array::from_fn(|l| arm.kinematics(&arm.configure(&qs[l]), &qds[l]));
+        let kins: [crate::robot::Kinematics<7>; 4] = std::array::from_fn(|l| {
+            arm.model()
+                .kinematics(&arm.model().configure(&qs[l]), &qds[l])
+        });
         let orientations: [OrientationTask<7>; 4] = std::array::from_fn(|l| {
-            let o = arm.orientation(&arm.configure(&qs[l]), &qds[l]).unwrap();
+            let o = arm
+                .model()
+                .orientation(&arm.model().configure(&qs[l]), &qds[l])
+                .unwrap();
             let jacobian = if l == 2 {
                 Jacobian::zeros()
             } else {
@@ -644,8 +653,10 @@ mod tests {
             let a = JointMatrix::<7>::from_fn(|_, _| 0.1 * next());
             a * a.transpose() + JointMatrix::<7>::identity() * (0.05 * (1 + l) as f64)
         });
-        let dyns: [Dynamics<7>; 4] =
-            std::array::from_fn(|l| arm.dynamics(&arm.configure(&qs[l]), &qds[l]));
+        let dyns: [Dynamics<7>; 4] = std::array::from_fn(|l| {
+            arm.model()
+                .dynamics(&arm.model().configure(&qs[l]), &qds[l])
+        });
         let frictions: [SVector<f64, 7>; 4] = std::array::from_fn(|l| taus[l] * 0.01);
         let normal = Vector3::new(1.0, 0.0, 0.0);
         let force = F64x4::from_lanes(|l| 3.0 * l as f64);

@@ -107,9 +107,12 @@ impl ModelError {
         check::non_negative("friction_scale", self.friction_scale)
     }
 
-    /// The controller's copy of the plant's arm.
-    pub(crate) fn arm<R: RobotModel<N>, const N: usize>(&self, robot: &R) -> R {
-        robot.with_model_error(self.mass_scale, self.friction_scale)
+    /// The model a controller believes in: the plant's arm with this error.
+    pub(crate) fn arm<R: RobotModel<N>, const N: usize>(&self, robot: &R) -> R::Model {
+        robot
+            .with_model_error(self.mass_scale, self.friction_scale)
+            .model()
+            .clone()
     }
 }
 

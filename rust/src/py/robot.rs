@@ -11,7 +11,7 @@ use super::params::{robot_params, urdf_params};
 use crate::robot::chain::arm::{chain_info, chain_terms};
 use crate::robot::chain::TaskKind;
 use crate::robot::three_link::{Mat3, Vec3};
-use crate::robot::{RobotModel, ThreeLinkArm};
+use crate::robot::{ArmModel, RobotModel, ThreeLinkArm};
 
 fn matrix<'py>(py: Python<'py>, m: &Mat3) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let rows: Vec<Vec<f64>> = (0..3)
@@ -57,7 +57,7 @@ pub(super) fn robot_terms<'py>(
     out.set_item("inertia", matrix(py, &d.inertia)?)?;
     out.set_item("coriolis", vector(py, &d.coriolis))?;
     out.set_item("gravity", vector(py, &d.gravity))?;
-    out.set_item("friction", vector(py, &arm.friction(&qd)))?;
+    out.set_item("friction", vector(py, &arm.model().friction(&qd)))?;
     Ok(out)
 }
 

@@ -1,15 +1,16 @@
 //! Robot models behind one interface, generic in the joint count.
 //!
 //! Joint space has `N` dimensions (`JointVector<N>`); the task space is the tip position in
-//! the world frame (`TaskVector`, 3-D), so the Jacobian is 3×N. Controllers, the plant and
-//! the simulation are written against [`RobotModel`], never against a concrete arm: the
-//! closed-form three-link arm of SPEC §1 is one implementation, and a general serial chain
-//! plugs in beside it.
+//! the world frame (`TaskVector`, 3-D), so the Jacobian is 3×N. Controllers, the plant,
+//! the stages and the lanes are written against [`ArmModel`] (an arm's equations over any
+//! scalar) and [`RobotModel`] (an arm as a scenario builds it), never against a concrete
+//! arm: the closed-form three-link arm of SPEC §1 is one implementation, and a general
+//! serial chain plugs in beside it.
 
-use nalgebra::{DMatrix, DVector, SMatrix, SVector, Vector3};
+use nalgebra::{SMatrix, SVector, Vector3};
 
-use crate::contact::{Contact, KnownTip, Surface};
-use crate::scalar::Real;
+use crate::contact::{Contact, Surface};
+use crate::scalar::{F64x4, Real, LANES};
 
 pub mod chain;
 pub mod three_link;
@@ -79,15 +80,19 @@ pub struct Dynamics<const N: usize, T: Real = f64> {
     pub gravity: SVector<T, N>,
 }
 
-/// What controllers and the plant need from an arm.
+/// An arm's equations over a scalar `T`: `f64` for one arm, [`F64x4`] for four arms of
+/// one structure advancing in SIMD lanes (SPEC §13, §14). The three-link closed form
+/// (`three_link::ClosedForm`) and a URDF chain (`chain::Chain`) implement it once; the
+/// plant, the controllers, the stages and the lanes are written against it.
 ///
 /// `Config` holds whatever the arm computes once per configuration and shares between
-/// terms (the three-link arm's sines and cosines); the plant keeps one per RK4 stage.
-pub trait RobotModel<const N: usize>: Clone + Send + Sync {
+/// terms (the three-link arm's sines and cosines, a chain's frames); the plant keeps one
+/// per RK4 stage.
+pub trait ArmModel<T: Real, const N: usize>: Clone + Send + Sync + std::fmt::Debug {
     type Config: Copy + Send + Sync + std::fmt::Debug;
 
     /// Per-configuration values of `q`.
-    fn configure(&self, q: &JointVector<N>) -> Self::Config;
+    fn configure(&self, q: &SVector<T, N>) -> Self::Config;
 
     /// The values at `shifted` = q + `delta`, given those at q, written into `out` (RK4's
     /// stages reuse one buffer: a chain's frames are kilobytes). Arms that can update
@@ -96,66 +101,106 @@ pub trait RobotModel<const N: usize>: Clone + Send + Sync {
     fn configure_shifted(
         &self,
         _at_q: &Self::Config,
-        _delta: &JointVector<N>,
-        shifted: &JointVector<N>,
+        _delta: &SVector<T, N>,
+        shifted: &SVector<T, N>,
         out: &mut Self::Config,
     ) {
         *out = self.configure(shifted);
     }
 
     /// Tip position (forward kinematics).
-    fn tip_position(&self, c: &Self::Config) -> TaskVector;
+    fn tip_position(&self, c: &Self::Config) -> Vector3<T>;
 
     /// Tip position, Jacobian and J̇q̇.
-    fn kinematics(&self, c: &Self::Config, qd: &JointVector<N>) -> Kinematics<N>;
+    fn kinematics(&self, c: &Self::Config, qd: &SVector<T, N>) -> Kinematics<N, T>;
+
+    /// The tip's orientation terms when the arm's task includes the tip orientation (SPEC
+    /// §11 `task = "pose"`); `None` for a position task (the three-link arm).
+    #[inline(always)]
+    fn orientation(&self, _c: &Self::Config, _qd: &SVector<T, N>) -> Option<Orientation<N, T>> {
+        None
+    }
+
+    /// Stage 1 of a period (what the encoders give the controller): the kinematics and,
+    /// when `pose`, the orientation terms. Arms whose two share a Jacobian override this.
+    #[inline(always)]
+    fn measure(
+        &self,
+        c: &Self::Config,
+        qd: &SVector<T, N>,
+        pose: bool,
+    ) -> (Kinematics<N, T>, Option<Orientation<N, T>>) {
+        let orientation = if pose { self.orientation(c, qd) } else { None };
+        (self.kinematics(c, qd), orientation)
+    }
 
     /// D, C q̇ and G.
-    fn dynamics(&self, c: &Self::Config, qd: &JointVector<N>) -> Dynamics<N>;
+    fn dynamics(&self, c: &Self::Config, qd: &SVector<T, N>) -> Dynamics<N, T>;
 
     /// Joint friction τ_f(q̇).
-    fn friction(&self, qd: &JointVector<N>) -> JointVector<N>;
+    fn friction(&self, qd: &SVector<T, N>) -> SVector<T, N>;
 
     /// q̈ of eq. (1) with a Cartesian force on the tip:
     /// D q̈ = τ + Jᵀ F_tip − C q̇ − G − τ_f.
     fn forward_dynamics(
         &self,
         c: &Self::Config,
-        qd: &JointVector<N>,
-        tau: &JointVector<N>,
-        tip_force: &TaskVector,
-    ) -> JointVector<N> {
-        let k = self.kinematics(c, qd);
-        let d = self.dynamics(c, qd);
-        let rhs =
-            tau + k.jacobian.transpose() * tip_force - d.coriolis - d.gravity - self.friction(qd);
-        // Arms with a structured D override this; the general path solves by LU.
-        let lu = DMatrix::from_column_slice(N, N, d.inertia.as_slice()).lu();
-        match lu.solve(&DVector::from_column_slice(rhs.as_slice())) {
-            Some(qdd) => JointVector::<N>::from_column_slice(qdd.as_slice()),
-            // A singular inertia has no acceleration; NaN makes the plant report divergence.
-            None => JointVector::<N>::repeat(f64::NAN),
-        }
-    }
+        qd: &SVector<T, N>,
+        tau: &SVector<T, N>,
+        tip_force: &Vector3<T>,
+    ) -> SVector<T, N>;
 
     /// q̈ with the surface's contact evaluated at this same state: one RK4 stage of the
     /// plant. The surface reads the tip's motion; the arm feels its force F through Jᵀ.
-    /// Returns (q̈, the contact). Arms with a faster form of the tip's motion override this.
-    #[inline(always)]
+    /// Returns (q̈, the contact).
     fn accelerate(
         &self,
         c: &Self::Config,
-        qd: &JointVector<N>,
-        tau: &JointVector<N>,
-        surface: &impl Surface<f64>,
-    ) -> (JointVector<N>, Contact<f64>) {
-        let k = self.kinematics(c, qd);
-        let contact = surface.contact(&KnownTip {
-            position: &k.position,
-            jacobian: &k.jacobian,
-            qd,
-        });
-        (self.forward_dynamics(c, qd, tau, &contact.force()), contact)
-    }
+        qd: &SVector<T, N>,
+        tau: &SVector<T, N>,
+        surface: &impl Surface<T>,
+    ) -> (SVector<T, N>, Contact<T>);
+}
+
+/// The configuration values of robot `R`'s model.
+pub type ConfigOf<R, const N: usize> = <<R as RobotModel<N>>::Model as ArmModel<f64, N>>::Config;
+/// The configuration values of four of robot `R`'s models in lanes.
+pub type LaneConfigOf<R, const N: usize> =
+    <<R as RobotModel<N>>::Lanes as ArmModel<F64x4, N>>::Config;
+
+/// An arm as a scenario builds it: its [`ArmModel`] in `f64` (what the plant integrates
+/// and a controller believes in), its start, limits and task options, the model a
+/// controller with a model error believes in, and how four of its models pack into lanes.
+pub trait RobotModel<const N: usize>: Clone + Send + Sync + std::fmt::Debug + 'static {
+    /// The arm's equations for one run.
+    type Model: ArmModel<f64, N> + 'static;
+    /// Four runs' equations in lanes.
+    type Lanes: ArmModel<F64x4, N>;
+
+    /// Whether the lanes' configuration values are packed from each run's own (its
+    /// plant's `config`, kept fresh at every write-back; the three-link arm's libm sincos)
+    /// rather than evaluated afresh from the lanes' q (a chain's frames), which lets the
+    /// lanes defer each run's own until it is done.
+    const READS_EACH_CONFIG: bool;
+
+    /// The arm's equations.
+    fn model(&self) -> &Self::Model;
+
+    /// Whether `other` can share lanes with this arm (same joint structure).
+    fn same_structure(&self, other: &Self) -> bool;
+
+    /// Four models of one structure in lanes.
+    fn pack(models: [&Self::Model; LANES]) -> Self::Lanes;
+
+    /// Lane `l` takes the model `model` (a new run's).
+    fn put_lane(lanes: &mut Self::Lanes, l: usize, model: &Self::Model);
+
+    /// The lanes' configuration values at `q`, given each lane's own (`configs`, at q).
+    fn pack_config(
+        lanes: &Self::Lanes,
+        q: &SVector<F64x4, N>,
+        configs: [&ConfigOf<Self, N>; LANES],
+    ) -> LaneConfigOf<Self, N>;
 
     /// The model a controller believes in: masses (and inertias) scaled by `mass_scale`,
     /// friction by `friction_scale`; geometry shared with the plant.
@@ -163,13 +208,6 @@ pub trait RobotModel<const N: usize>: Clone + Send + Sync {
 
     /// The initial joint positions q0.
     fn initial_position(&self) -> JointVector<N>;
-
-    /// The orientation terms when the arm's task includes the tip orientation (SPEC §11
-    /// `task = "pose"`); `None` for a position task (the three-link arm).
-    #[inline(always)]
-    fn orientation(&self, _c: &Self::Config, _qd: &JointVector<N>) -> Option<Orientation<N>> {
-        None
-    }
 
     /// J⁺'s damping and the orientation gains.
     fn task_options(&self) -> TaskOptions {

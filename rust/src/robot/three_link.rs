@@ -6,7 +6,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::{JointVector, RobotModel};
+use super::{ArmModel, RobotModel};
 use crate::contact::{Contact, Surface, TipMotion};
 use crate::error::{check, Error, Result};
 use crate::scalar::{F64x4, Real, LANES};
@@ -429,8 +429,67 @@ impl<T: Real> ClosedForm<T> {
         (r * t.s3).simd_abs() / (self.l2 + self.l3)
     }
 
+    /// sgn(v) as friction uses it: tanh(v/ε), or the exact sign where ε ≤ 0.
+    #[inline(always)]
+    fn sign(&self, v: T) -> T {
+        friction_sign(v, v * self.inv_eps, self.eps)
+    }
+
+    /// Coulomb friction of joint `j`: f_c tanh(q̇/ε) as f_c (1 − e)/(1 + e) with
+    /// e = e^(−2|q̇|/ε) and the sign of q̇ (as `smooth_sign`, with f_c multiplied in before the
+    /// division to shorten the chain), or f_c sgn q̇ for ε ≤ 0.
+    #[inline(always)]
+    fn coulomb(&self, j: usize, v: T) -> T {
+        let zero = T::zero();
+        let sharp = self.eps.simd_le(zero);
+        if T::all(sharp) {
+            return self.fc[j] * self.sign(v);
+        }
+        // A joint at rest (the yaw joint in every planar task) skips the call.
+        let rest = v.simd_eq(zero);
+        if T::all(rest) {
+            return zero;
+        }
+        // |v|·(−2/ε) is −2|v/ε| exactly: scaling by 2 commutes with rounding.
+        let e = (v.simd_abs() * self.neg_two_inv_eps).exp_fast();
+        let one = T::one();
+        let smooth = ((self.fc[j] * (one - e)) / (one + e)).simd_copysign(v);
+        let smooth = if T::none(rest) {
+            smooth
+        } else {
+            zero.select(rest, smooth)
+        };
+        if T::none(sharp) {
+            smooth
+        } else {
+            (self.fc[j] * self.sign(v)).select(sharp, smooth)
+        }
+    }
+}
+
+/// The closed form as the arm interface, over any scalar: one arm in `f64`, four in lanes.
+impl<T: Real> ArmModel<T, 3> for ClosedForm<T> {
+    type Config = Trig<T>;
+
+    #[inline(always)]
+    fn configure(&self, q: &Vector3<T>) -> Trig<T> {
+        Trig::new(q)
+    }
+
+    /// Angle addition from the stage's start (`Trig::shifted`).
+    #[inline(always)]
+    fn configure_shifted(
+        &self,
+        at_q: &Trig<T>,
+        delta: &Vector3<T>,
+        shifted: &Vector3<T>,
+        out: &mut Trig<T>,
+    ) {
+        *out = at_q.shifted(delta, shifted);
+    }
+
     #[inline]
-    pub fn tip_position(&self, t: &Trig<T>) -> Vector3<T> {
+    fn tip_position(&self, t: &Trig<T>) -> Vector3<T> {
         let r = self.l2 * t.c2 + self.l3 * t.c23;
         Vector3::new(
             t.c1 * r,
@@ -440,7 +499,7 @@ impl<T: Real> ClosedForm<T> {
     }
 
     #[inline]
-    pub fn kinematics(&self, t: &Trig<T>, qd: &Vector3<T>) -> super::Kinematics<3, T> {
+    fn kinematics(&self, t: &Trig<T>, qd: &Vector3<T>) -> super::Kinematics<3, T> {
         let (l2, l3) = (self.l2, self.l3);
         let two = T::splat(2.0);
         let r = l2 * t.c2 + l3 * t.c23; // distance from the yaw axis
@@ -476,7 +535,7 @@ impl<T: Real> ClosedForm<T> {
     }
 
     #[inline(always)]
-    pub fn dynamics(&self, t: &Trig<T>, qd: &Vector3<T>) -> super::Dynamics<3, T> {
+    fn dynamics(&self, t: &Trig<T>, qd: &Vector3<T>) -> super::Dynamics<3, T> {
         let k = &self.k;
         let (zero, two) = (T::zero(), T::splat(2.0));
         // m3 times the distance of link 3's centre of mass from the yaw axis.
@@ -509,17 +568,11 @@ impl<T: Real> ClosedForm<T> {
         }
     }
 
-    /// sgn(v) as friction uses it: tanh(v/ε), or the exact sign where ε ≤ 0.
-    #[inline(always)]
-    fn sign(&self, v: T) -> T {
-        friction_sign(v, v * self.inv_eps, self.eps)
-    }
-
     /// Viscous plus Coulomb friction at q̇. Always inlined: it runs at every RK4 stage, and
     /// left out of line from the lanes' AVX2 loop (as LTO once chose) it ran as baseline
     /// two-wide code.
     #[inline(always)]
-    pub fn friction(&self, qd: &Vector3<T>) -> Vector3<T> {
+    fn friction(&self, qd: &Vector3<T>) -> Vector3<T> {
         Vector3::new(
             self.fv[0] * qd[0] + self.fc[0] * self.sign(qd[0]),
             self.fv[1] * qd[1] + self.fc[1] * self.sign(qd[1]),
@@ -531,7 +584,7 @@ impl<T: Real> ClosedForm<T> {
     /// with τ_ext = Jᵀ F, F = −f n. The tip's motion along n and Jᵀn come from the closed
     /// form ([`ClosedTip`]). Returns (q̈, the contact).
     #[inline(always)]
-    pub fn accelerate(
+    fn accelerate(
         &self,
         t: &Trig<T>,
         qd: &Vector3<T>,
@@ -570,35 +623,18 @@ impl<T: Real> ClosedForm<T> {
         (qdd, contact)
     }
 
-    /// Coulomb friction of joint `j`: f_c tanh(q̇/ε) as f_c (1 − e)/(1 + e) with
-    /// e = e^(−2|q̇|/ε) and the sign of q̇ (as `smooth_sign`, with f_c multiplied in before the
-    /// division to shorten the chain), or f_c sgn q̇ for ε ≤ 0.
-    #[inline(always)]
-    fn coulomb(&self, j: usize, v: T) -> T {
-        let zero = T::zero();
-        let sharp = self.eps.simd_le(zero);
-        if T::all(sharp) {
-            return self.fc[j] * self.sign(v);
-        }
-        // A joint at rest (the yaw joint in every planar task) skips the call.
-        let rest = v.simd_eq(zero);
-        if T::all(rest) {
-            return zero;
-        }
-        // |v|·(−2/ε) is −2|v/ε| exactly: scaling by 2 commutes with rounding.
-        let e = (v.simd_abs() * self.neg_two_inv_eps).exp_fast();
-        let one = T::one();
-        let smooth = ((self.fc[j] * (one - e)) / (one + e)).simd_copysign(v);
-        let smooth = if T::none(rest) {
-            smooth
-        } else {
-            zero.select(rest, smooth)
-        };
-        if T::none(sharp) {
-            smooth
-        } else {
-            (self.fc[j] * self.sign(v)).select(sharp, smooth)
-        }
+    /// Eq. (1) with a given tip force, solved with D's block structure.
+    fn forward_dynamics(
+        &self,
+        t: &Trig<T>,
+        qd: &Vector3<T>,
+        tau: &Vector3<T>,
+        tip_force: &Vector3<T>,
+    ) -> Vector3<T> {
+        let (k, d) = (self.kinematics(t, qd), self.dynamics(t, qd));
+        let rhs =
+            tau + k.jacobian.transpose() * tip_force - d.coriolis - d.gravity - self.friction(qd);
+        solve_block_inertia(&d.inertia, &rhs)
     }
 }
 
@@ -644,10 +680,10 @@ pub(crate) fn smooth_sign<T: Real>(x: T) -> T {
 /// A singular D (arm straight up: no yaw inertia) gives non-finite q̈, which the
 /// simulation reports as divergence.
 #[inline]
-fn solve_block_inertia(d: &Mat3, rhs: &Vec3) -> Vec3 {
+fn solve_block_inertia<T: Real>(d: &Matrix3<T>, rhs: &Vector3<T>) -> Vector3<T> {
     let (a, b, c) = (d[(1, 1)], d[(1, 2)], d[(2, 2)]);
-    let inv_det = 1.0 / (a * c - b * b);
-    Vec3::new(
+    let inv_det = T::one() / (a * c - b * b);
+    Vector3::new(
         rhs[0] / d[(0, 0)],
         (c * rhs[1] - b * rhs[2]) * inv_det,
         (a * rhs[2] - b * rhs[1]) * inv_det,
@@ -682,53 +718,35 @@ impl ThreeLinkArm {
 }
 
 impl RobotModel<3> for ThreeLinkArm {
-    type Config = Trig;
+    type Model = ClosedForm;
+    type Lanes = ClosedForm<F64x4>;
+    const READS_EACH_CONFIG: bool = true;
 
     #[inline(always)]
-    fn configure(&self, q: &Vec3) -> Trig {
-        Trig::new(q)
+    fn model(&self) -> &ClosedForm {
+        &self.form
     }
 
-    #[inline(always)]
-    fn configure_shifted(&self, at_q: &Trig, delta: &Vec3, shifted: &Vec3, out: &mut Trig) {
-        *out = at_q.shifted(delta, shifted);
+    fn same_structure(&self, _: &Self) -> bool {
+        true
     }
 
-    #[inline]
-    fn tip_position(&self, t: &Trig) -> Vec3 {
-        self.form.tip_position(t)
+    fn pack(models: [&ClosedForm; LANES]) -> ClosedForm<F64x4> {
+        ClosedForm::pack(models)
     }
 
-    #[inline]
-    fn kinematics(&self, t: &Trig, qd: &Vec3) -> Kinematics {
-        self.form.kinematics(t, qd)
-    }
-
-    #[inline]
-    fn dynamics(&self, t: &Trig, qd: &Vec3) -> Dynamics {
-        self.form.dynamics(t, qd)
-    }
-
-    fn friction(&self, qd: &Vec3) -> Vec3 {
-        self.form.friction(qd)
-    }
-
-    fn forward_dynamics(&self, t: &Trig, qd: &Vec3, tau: &Vec3, tip_force: &Vec3) -> Vec3 {
-        let (k, d) = (self.form.kinematics(t, qd), self.form.dynamics(t, qd));
-        let rhs =
-            tau + k.jacobian.transpose() * tip_force - d.coriolis - d.gravity - self.friction(qd);
-        solve_block_inertia(&d.inertia, &rhs)
+    fn put_lane(lanes: &mut ClosedForm<F64x4>, l: usize, model: &ClosedForm) {
+        lanes.put_lane(l, model);
     }
 
     #[inline(always)]
-    fn accelerate(
-        &self,
-        t: &Trig,
-        qd: &JointVector<3>,
-        tau: &JointVector<3>,
-        surface: &impl Surface<f64>,
-    ) -> (JointVector<3>, Contact<f64>) {
-        self.form.accelerate(t, qd, tau, surface)
+    fn pack_config(
+        _: &ClosedForm<F64x4>,
+        _: &Vector3<F64x4>,
+        configs: [&Trig; LANES],
+    ) -> Trig<F64x4> {
+        // Each lane's own fresh evaluation (libm's sincos), as the scalar plant starts from.
+        Trig::pack(configs)
     }
 
     fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {
@@ -754,12 +772,13 @@ impl ThreeLinkArm {
 
     /// Tip position at q.
     pub fn forward_kinematics(&self, q: &Vec3) -> Vec3 {
-        self.tip_position(&Trig::new(q))
+        self.form.tip_position(&Trig::new(q))
     }
 
     /// q̈ of eq. (1) at (q, q̇) with a Cartesian tip force.
     pub fn forward_dynamics_at(&self, q: &Vec3, qd: &Vec3, tau: &Vec3, tip_force: &Vec3) -> Vec3 {
-        self.forward_dynamics(&Trig::new(q), qd, tau, tip_force)
+        self.form
+            .forward_dynamics(&Trig::new(q), qd, tau, tip_force)
     }
 }
 
@@ -780,14 +799,14 @@ mod tests {
     #[test]
     fn spec_check_values_at_q0() {
         let (_, arm) = arm();
-        let k = arm.kinematics(&Trig::new(&q0()), &Vec3::zeros());
+        let k = arm.model().kinematics(&Trig::new(&q0()), &Vec3::zeros());
         assert!(
             (k.position - Vec3::new(0.734056, 0.0, 0.964056))
                 .abs()
                 .max()
                 < 5e-7
         );
-        let d = arm.dynamics(&Trig::new(&q0()), &Vec3::zeros());
+        let d = arm.model().dynamics(&Trig::new(&q0()), &Vec3::zeros());
         let expected = Mat3::new(1.903, 0.0, 0.0, 0.0, 2.883, 0.610, 0.0, 0.610, 0.296);
         assert!((d.inertia - expected).abs().max() < 5e-4, "{}", d.inertia);
         assert!((d.gravity - Vec3::new(0.0, 50.39, 10.12)).abs().max() < 5e-3);
@@ -798,7 +817,7 @@ mod tests {
         let (_, arm) = arm();
         let q = Vec3::new(0.3, 0.7, -1.1);
         let qd = Vec3::new(0.4, -0.9, 1.3);
-        let k = arm.kinematics(&Trig::new(&q), &qd);
+        let k = arm.model().kinematics(&Trig::new(&q), &qd);
         let h = 1e-6;
         for j in 0..3 {
             let mut dq = Vec3::zeros();
@@ -808,7 +827,12 @@ mod tests {
             assert!((col - k.jacobian.column(j)).abs().max() < 1e-8);
         }
         // J̇q̇ = d/dt (J q̇) along q(t) = q + q̇ t with q̇ constant.
-        let jqd = |t: f64| arm.kinematics(&Trig::new(&(q + qd * t)), &qd).jacobian * qd;
+        let jqd = |t: f64| {
+            arm.model()
+                .kinematics(&Trig::new(&(q + qd * t)), &qd)
+                .jacobian
+                * qd
+        };
         let fd = (jqd(h) - jqd(-h)) / (2.0 * h);
         assert!((fd - k.jdot_qd).abs().max() < 1e-7);
     }
@@ -817,7 +841,7 @@ mod tests {
     fn jacobian_determinant_closed_form() {
         let (p, arm) = arm();
         let q = Vec3::new(0.2, 0.5, -0.8);
-        let k = arm.kinematics(&Trig::new(&q), &Vec3::zeros());
+        let k = arm.model().kinematics(&Trig::new(&q), &Vec3::zeros());
         let r = p.lengths[1] * q[1].cos() + p.lengths[2] * (q[1] + q[2]).cos();
         let det = -r * p.lengths[1] * p.lengths[2] * q[2].sin();
         assert!((k.jacobian.determinant() - det).abs() < 1e-12);
@@ -839,7 +863,7 @@ mod tests {
             let qd = Vec3::new(1.1, -0.7, 0.5);
             let qdd = arm.forward_dynamics_at(&q, &qd, &Vec3::zeros(), &Vec3::zeros());
             let energy = |q: &Vec3, qd: &Vec3| {
-                let d = arm.dynamics(&Trig::new(q), qd);
+                let d = arm.model().dynamics(&Trig::new(q), qd);
                 let (a2, a3) = match model {
                     MassModel::Rod => (p.lengths[1] / 2.0, p.lengths[2] / 2.0),
                     MassModel::Point => (p.lengths[1], p.lengths[2]),
@@ -875,8 +899,10 @@ mod tests {
                 }
             }
         }
-        let (qdd, c) = arm.accelerate(&Trig::new(&q), &qd, &tau, &Linear(n, true));
-        let k = arm.kinematics(&Trig::new(&q), &qd);
+        let (qdd, c) = arm
+            .model()
+            .accelerate(&Trig::new(&q), &qd, &tau, &Linear(n, true));
+        let k = arm.model().kinematics(&Trig::new(&q), &qd);
         let expected = 1000.0 * n.dot(&k.position) + 20.0 * n.dot(&(k.jacobian * qd));
         let f = c.normal_force;
         assert!((f - expected).abs() < 1e-12, "{f} vs {expected}");
@@ -884,7 +910,9 @@ mod tests {
         let reference = arm.forward_dynamics_at(&q, &qd, &tau, &(n * -f));
         assert!((qdd - reference).abs().max() < 1e-12);
         // Without the rate the contact sees ṡ = 0.
-        let (_, c0) = arm.accelerate(&Trig::new(&q), &qd, &tau, &Linear(n, false));
+        let (_, c0) = arm
+            .model()
+            .accelerate(&Trig::new(&q), &qd, &tau, &Linear(n, false));
         assert!((c0.normal_force - 1000.0 * n.dot(&k.position)).abs() < 1e-12);
     }
 
@@ -935,12 +963,14 @@ mod tests {
     #[test]
     fn friction_smoothed_and_exact() {
         let (mut p, arm) = arm();
-        let f = arm.friction(&Vec3::new(0.01, 0.0, -1.0));
+        let f = arm.model().friction(&Vec3::new(0.01, 0.0, -1.0));
         assert!((f[0] - (0.03 + 5.0 * 1f64.tanh())).abs() < 1e-12);
         assert_eq!(f[1], 0.0);
         assert!((f[2] - (-3.0 - 5.0 * 100f64.tanh())).abs() < 1e-12);
         p.friction_smoothing = 0.0;
-        let exact = ThreeLinkArm::new(&p).friction(&Vec3::new(0.01, 0.0, -1.0));
+        let exact = ThreeLinkArm::new(&p)
+            .model()
+            .friction(&Vec3::new(0.01, 0.0, -1.0));
         assert_eq!(exact, Vec3::new(5.03, 0.0, -8.0));
     }
 
@@ -969,11 +999,16 @@ mod tests {
         let wrong = arm.with_model_error(1.2, 0.5);
         assert_eq!(wrong, ThreeLinkArm::new(&p.with_model_error(1.2, 0.5)));
         let (d, dw) = (
-            arm.dynamics(&Trig::new(&q0()), &Vec3::zeros()),
-            wrong.dynamics(&Trig::new(&q0()), &Vec3::zeros()),
+            arm.model().dynamics(&Trig::new(&q0()), &Vec3::zeros()),
+            wrong.model().dynamics(&Trig::new(&q0()), &Vec3::zeros()),
         );
         assert!((dw.inertia - d.inertia * 1.2).abs().max() < 1e-12);
         let qd = Vec3::new(1.0, -1.0, 0.5);
-        assert!((wrong.friction(&qd) - arm.friction(&qd) * 0.5).abs().max() < 1e-12);
+        assert!(
+            (wrong.model().friction(&qd) - arm.model().friction(&qd) * 0.5)
+                .abs()
+                .max()
+                < 1e-12
+        );
     }
 }

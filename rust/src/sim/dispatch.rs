@@ -1,12 +1,15 @@
 //! One simulation type for every arm: the three-link arm (closed form) or a URDF chain of 1
 //! to 8 joints, each a `Simulation<R, N>` compiled for its joint count (const generics:
-//! fixed-size workspaces, no allocation per step). The match on the joint count happens
-//! once, when the simulation is built; every call after that goes straight to the typed one.
+//! fixed-size workspaces, no allocation per step). The joint count is matched once, in
+//! [`visit_arm`], when a simulation is built; every call after that goes through one small
+//! object interface to the typed simulation, whose step loop is monomorphised.
+
+use std::any::Any;
 
 use crate::error::{Error, Result};
-use crate::robot::chain::{UrdfArm, UrdfArmParams};
-use crate::robot::{RobotModel, ThreeLinkArm};
-use crate::sim::lanes::{ArmKey, LaneKey};
+use crate::robot::chain::UrdfArm;
+use crate::robot::RobotModel;
+use crate::sim::lanes::{run_lanes, ArmKey, LaneKey};
 use crate::sim::metrics::Metrics;
 use crate::sim::outcome::Outcome;
 use crate::sim::scenario::{RobotConfig, ScenarioConfig};
@@ -18,141 +21,95 @@ pub fn simulate(config: &ScenarioConfig) -> Result<RunResult> {
     Ok(AnySimulation::new(config)?.run())
 }
 
-/// A simulation of any supported arm.
-#[derive(Debug, Clone)]
-pub enum AnySimulation {
-    ThreeLink(Box<Simulation<ThreeLinkArm, 3>>),
-    Chain1(Box<Simulation<UrdfArm<1>, 1>>),
-    Chain2(Box<Simulation<UrdfArm<2>, 2>>),
-    Chain3(Box<Simulation<UrdfArm<3>, 3>>),
-    Chain4(Box<Simulation<UrdfArm<4>, 4>>),
-    Chain5(Box<Simulation<UrdfArm<5>, 5>>),
-    Chain6(Box<Simulation<UrdfArm<6>, 6>>),
-    Chain7(Box<Simulation<UrdfArm<7>, 7>>),
-    Chain8(Box<Simulation<UrdfArm<8>, 8>>),
+/// A simulation of any supported arm: the typed `Simulation<R, N>` behind one small
+/// object interface ([`TypedRun`]). Calls go through it once per call, never per step.
+#[derive(Debug)]
+pub struct AnySimulation(Box<dyn TypedRun>);
+
+impl Clone for AnySimulation {
+    fn clone(&self) -> Self {
+        Self(self.0.clone_box())
+    }
 }
 
-/// Runs `$body` with `$s` bound to the typed simulation inside `$sim`.
-macro_rules! dispatch {
-    ($sim:expr, $s:ident => $body:expr) => {
-        match $sim {
-            AnySimulation::ThreeLink($s) => $body,
-            AnySimulation::Chain1($s) => $body,
-            AnySimulation::Chain2($s) => $body,
-            AnySimulation::Chain3($s) => $body,
-            AnySimulation::Chain4($s) => $body,
-            AnySimulation::Chain5($s) => $body,
-            AnySimulation::Chain6($s) => $body,
-            AnySimulation::Chain7($s) => $body,
-            AnySimulation::Chain8($s) => $body,
-        }
-    };
+/// What the typed simulation of any arm answers (object safe: [`AnySimulation`] holds one).
+trait TypedRun: Send + Sync + std::fmt::Debug {
+    fn run(&mut self) -> RunResult;
+    fn reset(&mut self);
+    fn step(&mut self, n: usize) -> Option<Outcome>;
+    fn sample(&self) -> usize;
+    fn samples(&self) -> usize;
+    fn outcome(&self) -> Option<Outcome>;
+    fn trace(&self) -> &Trace;
+    fn config(&self) -> &ScenarioConfig;
+    fn metrics(&self, outcome: &Outcome) -> Metrics;
+    fn stop_recording(&mut self);
+    fn state(&self) -> Vec<f64>;
+    fn state_labels(&self) -> Vec<String>;
+    fn set_state(&mut self, values: &[f64]) -> Result<()>;
+    fn lane_key(&self) -> LaneKey;
+    fn clone_box(&self) -> Box<dyn TypedRun>;
+    fn as_any(&self) -> &dyn Any;
+    fn into_any(self: Box<Self>) -> Box<dyn Any>;
+    /// Runs this run and `rest` (of its lane key, so of its arm type) in lanes; results in
+    /// order, this run's first.
+    fn run_lanes_with(self: Box<Self>, rest: Vec<AnySimulation>) -> Vec<RunResult>;
 }
 
-/// A chain's simulation, boxed (as the three-link one): the variants differ in size by
-/// kilobytes, and a simulation is built once per run, so the indirection costs nothing.
-fn chain<const N: usize>(
-    config: &ScenarioConfig,
-    p: &UrdfArmParams,
-) -> Result<Box<Simulation<UrdfArm<N>, N>>> {
-    let arm = UrdfArm::<N>::new(p).map_err(|e| e.within("robot"))?;
-    Simulation::with_robot(config, arm).map(Box::new)
-}
-
-impl AnySimulation {
-    /// Validates `config` and builds the simulation of its arm.
-    pub fn new(config: &ScenarioConfig) -> Result<Self> {
-        config.validate()?;
-        Ok(match &config.robot {
-            RobotConfig::ThreeLink(_) => {
-                AnySimulation::ThreeLink(Box::new(Simulation::new(config)?))
-            }
-            RobotConfig::Urdf(p) => {
-                let n = p.dof().map_err(|e| e.within("robot"))?;
-                match n {
-                    1 => AnySimulation::Chain1(chain(config, p)?),
-                    2 => AnySimulation::Chain2(chain(config, p)?),
-                    3 => AnySimulation::Chain3(chain(config, p)?),
-                    4 => AnySimulation::Chain4(chain(config, p)?),
-                    5 => AnySimulation::Chain5(chain(config, p)?),
-                    6 => AnySimulation::Chain6(chain(config, p)?),
-                    7 => AnySimulation::Chain7(chain(config, p)?),
-                    8 => AnySimulation::Chain8(chain(config, p)?),
-                    _ => {
-                        return Err(Error::parameter(
-                            "robot.tip_link",
-                            format!("a chain of {n} joints"),
-                            "a chain of 1 to 8 joints",
-                        ))
-                    }
-                }
-            }
-        })
+impl<R: RobotModel<N>, const N: usize> TypedRun for Simulation<R, N> {
+    fn run(&mut self) -> RunResult {
+        Simulation::run(self)
     }
 
-    /// The joint count.
-    pub fn joints(&self) -> usize {
-        dispatch!(self, s => s.trace().joints())
+    fn reset(&mut self) {
+        Simulation::reset(self)
     }
 
-    pub fn run(&mut self) -> RunResult {
-        dispatch!(self, s => s.run())
+    fn step(&mut self, n: usize) -> Option<Outcome> {
+        Simulation::step(self, n)
     }
 
-    pub fn reset(&mut self) {
-        dispatch!(self, s => s.reset())
+    fn sample(&self) -> usize {
+        Simulation::sample(self)
     }
 
-    pub fn step(&mut self, n: usize) -> Option<Outcome> {
-        dispatch!(self, s => s.step(n))
+    fn samples(&self) -> usize {
+        Simulation::samples(self)
     }
 
-    pub fn sample(&self) -> usize {
-        dispatch!(self, s => s.sample())
+    fn outcome(&self) -> Option<Outcome> {
+        Simulation::outcome(self)
     }
 
-    pub fn samples(&self) -> usize {
-        dispatch!(self, s => s.samples())
+    fn trace(&self) -> &Trace {
+        Simulation::trace(self)
     }
 
-    pub fn outcome(&self) -> Option<Outcome> {
-        dispatch!(self, s => s.outcome())
+    fn config(&self) -> &ScenarioConfig {
+        Simulation::config(self)
     }
 
-    pub fn trace(&self) -> &Trace {
-        dispatch!(self, s => s.trace())
+    fn metrics(&self, outcome: &Outcome) -> Metrics {
+        Simulation::metrics(self, outcome)
     }
 
-    pub fn config(&self) -> &ScenarioConfig {
-        dispatch!(self, s => s.config())
+    fn stop_recording(&mut self) {
+        Simulation::stop_recording(self)
     }
 
-    /// The metrics of the samples taken so far, for a run that ended with `outcome`.
-    pub fn metrics(&self, outcome: &Outcome) -> Metrics {
-        dispatch!(self, s => s.metrics(outcome))
+    fn state(&self) -> Vec<f64> {
+        Simulation::state(self)
     }
 
-    /// Keeps no trace: the run is judged by its online metrics alone.
-    pub fn without_trace(mut self) -> Self {
-        dispatch!(&mut self, s => s.stop_recording());
-        self
+    fn state_labels(&self) -> Vec<String> {
+        Simulation::state_labels(self)
     }
 
-    pub fn state(&self) -> Vec<f64> {
-        dispatch!(self, s => s.state())
+    fn set_state(&mut self, values: &[f64]) -> Result<()> {
+        Simulation::set_state(self, values)
     }
 
-    pub fn state_labels(&self) -> Vec<String> {
-        dispatch!(self, s => s.state_labels())
-    }
-
-    pub fn set_state(&mut self, values: &[f64]) -> Result<()> {
-        dispatch!(self, s => s.set_state(values))
-    }
-
-    /// Which runs this one may share lanes with: the arm's structure from its block, the
-    /// plant's substeps and contact law, and the stages' own [`crate::sim::pipeline::StageKey`].
-    pub fn lane_key(&self) -> LaneKey {
+    fn lane_key(&self) -> LaneKey {
         let arm = match &self.config().robot {
             RobotConfig::ThreeLink(_) => ArmKey::ThreeLink,
             // The task kind decides the orientation rows and the posture term (SPEC §11).
@@ -163,12 +120,138 @@ impl AnySimulation {
                 task: p.task,
             },
         };
-        dispatch!(self, s => LaneKey {
+        LaneKey {
             arm,
-            substeps: s.plant().substeps(),
-            environment: s.plant().environment().lane_key(),
-            stages: s.stages().lane_key(),
-        })
+            substeps: self.plant().substeps(),
+            environment: self.plant().environment().lane_key(),
+            stages: self.stages().lane_key(),
+        }
+    }
+
+    fn clone_box(&self) -> Box<dyn TypedRun> {
+        Box::new(self.clone())
+    }
+
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+
+    fn into_any(self: Box<Self>) -> Box<dyn Any> {
+        self
+    }
+
+    fn run_lanes_with(self: Box<Self>, rest: Vec<AnySimulation>) -> Vec<RunResult> {
+        let mut typed = vec![*self];
+        let mut others = Vec::new();
+        for (k, mut other) in rest.into_iter().enumerate() {
+            if other.0.as_any().is::<Simulation<R, N>>() {
+                if let Ok(s) = other.0.into_any().downcast::<Simulation<R, N>>() {
+                    typed.push(*s);
+                }
+            } else {
+                // Not reached (one key is one arm type); right all the same: it runs alone.
+                others.push((k + 1, other.run()));
+            }
+        }
+        let mut results = run_lanes(&mut typed);
+        for (k, r) in others {
+            results.insert(k, r);
+        }
+        results
+    }
+}
+
+impl AnySimulation {
+    /// Validates `config` and builds the simulation of its arm.
+    pub fn new(config: &ScenarioConfig) -> Result<Self> {
+        config.validate()?;
+        struct Build<'a>(&'a ScenarioConfig);
+        impl ArmVisitor for Build<'_> {
+            type Output = Result<AnySimulation>;
+            fn visit<R: RobotModel<N>, const N: usize>(
+                self,
+                build: &(dyn Fn(&ScenarioConfig) -> Result<Simulation<R, N>> + Sync),
+            ) -> Result<AnySimulation> {
+                Ok(AnySimulation(Box::new(build(self.0)?)))
+            }
+        }
+        visit_arm(&config.robot, Build(config))?
+    }
+
+    /// The joint count.
+    pub fn joints(&self) -> usize {
+        self.0.trace().joints()
+    }
+
+    pub fn run(&mut self) -> RunResult {
+        self.0.run()
+    }
+
+    pub fn reset(&mut self) {
+        self.0.reset()
+    }
+
+    pub fn step(&mut self, n: usize) -> Option<Outcome> {
+        self.0.step(n)
+    }
+
+    pub fn sample(&self) -> usize {
+        self.0.sample()
+    }
+
+    pub fn samples(&self) -> usize {
+        self.0.samples()
+    }
+
+    pub fn outcome(&self) -> Option<Outcome> {
+        self.0.outcome()
+    }
+
+    pub fn trace(&self) -> &Trace {
+        self.0.trace()
+    }
+
+    pub fn config(&self) -> &ScenarioConfig {
+        self.0.config()
+    }
+
+    /// The metrics of the samples taken so far, for a run that ended with `outcome`.
+    pub fn metrics(&self, outcome: &Outcome) -> Metrics {
+        self.0.metrics(outcome)
+    }
+
+    /// Keeps no trace: the run is judged by its online metrics alone.
+    pub fn without_trace(mut self) -> Self {
+        self.0.stop_recording();
+        self
+    }
+
+    pub fn state(&self) -> Vec<f64> {
+        self.0.state()
+    }
+
+    pub fn state_labels(&self) -> Vec<String> {
+        self.0.state_labels()
+    }
+
+    pub fn set_state(&mut self, values: &[f64]) -> Result<()> {
+        self.0.set_state(values)
+    }
+
+    /// Which runs this one may share lanes with: the arm's structure from its block, the
+    /// plant's substeps and contact law, and the stages' own [`crate::sim::pipeline::StageKey`].
+    pub fn lane_key(&self) -> LaneKey {
+        self.0.lane_key()
+    }
+
+    /// Runs `sims`, one lane group (runs of one [`LaneKey`], so of one arm type), in lanes;
+    /// results in the order of `sims`.
+    pub fn run_lanes(sims: Vec<AnySimulation>) -> Vec<RunResult> {
+        let mut sims = sims.into_iter();
+        match sims.next() {
+            Some(first) => first.0.run_lanes_with(sims.collect()),
+            None => Vec::new(),
+        }
     }
 }
 

@@ -9,20 +9,18 @@
 use nalgebra::SVector;
 
 use crate::contact::{KnownTip, Surface};
-use crate::control::controller::{
-    not_finite, Controller, ControllerKey, ControllerModel, Measured,
-};
+use crate::control::controller::{not_finite, Controller, ControllerKey, Measured};
 use crate::control::filter::{ForceControl, ForceControlKey};
 use crate::control::reference::Sample;
 use crate::control::task::{Desired, TaskFrame};
-use crate::robot::{Kinematics, Orientation};
+use crate::robot::{ArmModel, Kinematics, Orientation};
 use crate::scalar::{F64x4, Real, LANES};
 use crate::world::actuator::Actuator;
 use crate::world::sensor::ForceSensor;
 use crate::world::surface::Environment;
 
 /// The state machines of stages 3–7 and the task frame, over `T`; `M`: computed torque's
-/// model (an arm for one run, four models in lanes).
+/// model (an arm's equations over `T`: one run's, or four in lanes).
 #[derive(Debug, Clone)]
 pub struct Pipeline<T: Real, M, const N: usize> {
     pub sensor: ForceSensor<T>,
@@ -81,11 +79,12 @@ pub struct Outputs<T: Real, const N: usize> {
     pub non_finite: T::SimdBool,
 }
 
-impl<T: Real, M: ControllerModel<T, N>, const N: usize> Pipeline<T, M, N> {
-    /// Stages 2–7 at t_k. Where every lane failed (always, for a failed scalar run), the
-    /// actuator and the controller's memory are left as they were.
+impl<T: Real, M: ArmModel<T, N>, const N: usize> Pipeline<T, M, N> {
+    /// Stages 2–7 at t_k, with the arm's configuration values at q (`at`: what computed
+    /// torque's model reads). Where every lane failed (always, for a failed scalar run),
+    /// the actuator and the controller's memory are left as they were.
     #[inline(always)]
-    pub fn step(&mut self, input: &Inputs<T, N>, at: &M::At) -> Outputs<T, N> {
+    pub fn step(&mut self, input: &Inputs<T, N>, at: &M::Config) -> Outputs<T, N> {
         let kin = input.kinematics;
         // 2. environment: the contact at the measured tip
         let tip = KnownTip {

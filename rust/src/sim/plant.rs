@@ -4,7 +4,7 @@
 
 use nalgebra::SVector;
 
-use crate::robot::{JointVector, RobotModel};
+use crate::robot::{ArmModel, ConfigOf, JointVector, RobotModel};
 use crate::scalar::Real;
 use crate::world::surface::Environment;
 
@@ -24,7 +24,7 @@ pub struct PlantState<const N: usize> {
 }
 
 /// The true arm and environment. Owns the state; `advance` moves it one control period.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct Plant<R: RobotModel<N>, const N: usize> {
     arm: R,
     environment: Environment,
@@ -32,9 +32,9 @@ pub struct Plant<R: RobotModel<N>, const N: usize> {
     substep: f64,
     initial: PlantState<N>,
     state: PlantState<N>,
-    /// The arm's per-configuration values at `state.q`, shared by the measurement and the
-    /// next period's first RK4 stage.
-    config: R::Config,
+    /// The arm's per-configuration values at `state.q`, shared by the measurement, a
+    /// controller's model and the next period's first RK4 stage.
+    config: ConfigOf<R, N>,
 }
 
 impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
@@ -45,7 +45,7 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
         period: f64,
         substeps: usize,
     ) -> Self {
-        let config = arm.configure(&initial.q);
+        let config = arm.model().configure(&initial.q);
         Self {
             arm,
             environment,
@@ -77,7 +77,7 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
 
     pub fn set_state(&mut self, state: PlantState<N>) {
         self.state = state;
-        self.config = self.arm.configure(&state.q);
+        self.config = self.arm.model().configure(&state.q);
     }
 
     /// The state only, its configuration values left stale until [`Self::refresh_config`]:
@@ -89,19 +89,20 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
 
     /// The configuration values of the current state, after [`Self::set_state_deferred`].
     pub(crate) fn refresh_config(&mut self) {
-        self.config = self.arm.configure(&self.state.q);
+        self.config = self.arm.model().configure(&self.state.q);
     }
 
-    /// Tip position, Jacobian and J̇q̇ at the current state (what the robot's encoders give).
-    #[inline]
-    pub fn kinematics(&self) -> crate::robot::Kinematics<N> {
-        self.arm.kinematics(&self.config, &self.state.qd)
-    }
-
-    /// The tip's orientation terms, for arms with a pose task.
+    /// Stage 1: the tip kinematics at the current state (what the robot's encoders give)
+    /// and, for a pose task (`pose`), the tip's orientation terms.
     #[inline(always)]
-    pub fn orientation(&self) -> Option<crate::robot::Orientation<N>> {
-        self.arm.orientation(&self.config, &self.state.qd)
+    pub fn measure(
+        &self,
+        pose: bool,
+    ) -> (
+        crate::robot::Kinematics<N>,
+        Option<crate::robot::Orientation<N>>,
+    ) {
+        self.arm.model().measure(&self.config, &self.state.qd, pose)
     }
 
     /// One control period: `substeps` classical RK4 steps with τ held.
@@ -151,7 +152,7 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
     }
 
     /// The arm's per-configuration values at the current state.
-    pub(crate) fn config(&self) -> &R::Config {
+    pub(crate) fn config(&self) -> &ConfigOf<R, N> {
         &self.config
     }
 }
@@ -180,27 +181,27 @@ pub(crate) trait Stages<T: Real, const N: usize> {
 }
 
 impl<R: RobotModel<N>, const N: usize> Stages<f64, N> for Plant<R, N> {
-    type Config = R::Config;
+    type Config = ConfigOf<R, N>;
 
     #[inline(always)]
     fn acceleration(
         &self,
-        c: &R::Config,
+        c: &ConfigOf<R, N>,
         qd: &JointVector<N>,
         tau: &JointVector<N>,
     ) -> JointVector<N> {
-        self.arm.accelerate(c, qd, tau, &self.environment).0
+        self.arm.model().accelerate(c, qd, tau, &self.environment).0
     }
 
     #[inline(always)]
     fn shift(
         &self,
-        c: &R::Config,
+        c: &ConfigOf<R, N>,
         delta: &JointVector<N>,
         shifted: &JointVector<N>,
-        out: &mut R::Config,
+        out: &mut ConfigOf<R, N>,
     ) {
-        self.arm.configure_shifted(c, delta, shifted, out);
+        self.arm.model().configure_shifted(c, delta, shifted, out);
     }
 }
 
@@ -337,7 +338,8 @@ mod tests {
         );
         let (mut q, mut qd) = (start.q, start.qd);
         let mut contact_periods = 0;
-        let f = |q: &Vec3, qd: &Vec3, t: &Vec3| arm.accelerate(&Trig::new(q), qd, t, &wall).0;
+        let f =
+            |q: &Vec3, qd: &Vec3, t: &Vec3| arm.model().accelerate(&Trig::new(q), qd, t, &wall).0;
         for k in 0..1000 {
             let t = tau(k);
             plant.advance(&t);
@@ -382,9 +384,10 @@ mod tests {
         );
         let f = |q: &Vec3, qd: &Vec3, t: &Vec3| {
             let c = Trig::new(q);
-            let k = arm.kinematics(&c, qd);
+            let k = arm.model().kinematics(&c, qd);
             let force = wall.force(&k.position, &(k.jacobian * qd));
-            arm.forward_dynamics(&c, qd, t, &(wall.normal * -force))
+            arm.model()
+                .forward_dynamics(&c, qd, t, &(wall.normal * -force))
         };
         let (mut q, mut qd) = (start.q, start.qd);
         let mut contact_periods = 0;
@@ -426,7 +429,10 @@ mod tests {
     fn gravity_torque_holds_still() {
         let arm = ThreeLinkArm::new(&RobotParams::default());
         let q0 = arm.initial_position();
-        let g = arm.dynamics(&Trig::new(&q0), &Vec3::zeros()).gravity;
+        let g = arm
+            .model()
+            .dynamics(&Trig::new(&q0), &Vec3::zeros())
+            .gravity;
         let start = PlantState {
             q: q0,
             qd: Vec3::zeros(),

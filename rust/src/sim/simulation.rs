@@ -13,7 +13,7 @@ use crate::control::filter::ForceControl;
 use crate::control::params::check_inertia_for;
 use crate::control::task::TaskFrame;
 use crate::error::{Error, Result};
-use crate::robot::{JointVector, RobotModel, TaskVector, ThreeLinkArm};
+use crate::robot::{ArmModel, JointVector, RobotModel, TaskVector, ThreeLinkArm};
 use crate::sim::metrics::{Metrics, OnlineMetrics};
 pub use crate::sim::outcome::{Divergence, Outcome};
 use crate::sim::pipeline::{Inputs, Pipeline};
@@ -41,7 +41,7 @@ pub struct Simulation<R: RobotModel<N>, const N: usize> {
     plant: Plant<R, N>,
     /// Stages 2–7: sensor, force control, task frame, controller (its model: the arm with
     /// the controller's model error), actuator.
-    stages: Pipeline<f64, R, N>,
+    stages: Pipeline<f64, R::Model, N>,
     samples: usize,
     /// The next sample to take.
     k: usize,
@@ -86,7 +86,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
     }
 
     /// Stages 2–7's state machines, for the lanes that pack them (`sim::lanes::stages`).
-    pub(crate) fn stages(&self) -> &Pipeline<f64, R, N> {
+    pub(crate) fn stages(&self) -> &Pipeline<f64, R::Model, N> {
         &self.stages
     }
 
@@ -103,7 +103,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         let task = TaskAtStart::of(&robot);
         let controller = Controller::new(&config.controller, &robot, config.period, &task);
         let q0 = robot.initial_position();
-        let start = robot.tip_position(&robot.configure(&q0));
+        let start = robot.model().tip_position(&robot.model().configure(&q0));
         let environment = match &config.wall {
             Some(w) => Environment::Plane(Wall::new(w, &start).map_err(|e| e.within("wall"))?),
             None => Environment::Free,
@@ -282,12 +282,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         let t = k as f64 * self.config.period;
         // 1. plant state (what the encoders give)
         let PlantState { q, qd } = *self.plant.state();
-        let kin = self.plant.kinematics();
-        let orientation = if self.stages.controller.pose() {
-            self.plant.orientation()
-        } else {
-            None
-        };
+        let (kin, orientation) = self.plant.measure(self.stages.controller.pose());
         // 2.–7., with this run's noise draw and references at t_k
         let f_d = self.config.force_reference.at(t);
         let out = self.stages.step(
@@ -302,7 +297,8 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
                 force_reference: f_d,
                 motion_reference: self.config.z_reference.at(t),
             },
-            &(),
+            // Computed torque's model shares the plant's geometry: the same values at q.
+            self.plant.config(),
         );
         if out.singular {
             self.stop(t, Divergence::SingularJacobian);

@@ -5,7 +5,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::sim::dispatch::AnySimulation;
-use crate::sim::lanes::{run_lanes, LaneKey};
+use crate::sim::lanes::LaneKey;
 use crate::sim::metrics::Metrics;
 use crate::sim::simulation::{Outcome, RunResult, ScenarioConfig};
 use crate::sim::trace::Trace;
@@ -140,42 +140,11 @@ fn run_block(
     }
     for members in groups {
         let group: Vec<AnySimulation> = members.iter().filter_map(|&k| sims[k].take()).collect();
-        for (&k, r) in members.iter().zip(run_group(group)) {
+        for (&k, r) in members.iter().zip(AnySimulation::run_lanes(group)) {
             out[k] = Some(summary(r, keep_traces));
         }
     }
     Ok(out.into_iter().flatten().collect())
-}
-
-/// Runs one lane group (runs of one [`LaneKey`], so of one arm type) in lanes; results in
-/// the order of `sims`.
-fn run_group(sims: Vec<AnySimulation>) -> Vec<RunResult> {
-    macro_rules! typed {
-        ($($variant:ident),*) => {
-            match sims.first() {
-                $(Some(AnySimulation::$variant(_)) => {
-                    let mut results: Vec<Option<RunResult>> = (0..sims.len()).map(|_| None).collect();
-                    let (mut at, mut typed) = (Vec::new(), Vec::new());
-                    for (k, s) in sims.into_iter().enumerate() {
-                        match s {
-                            AnySimulation::$variant(s) => {
-                                at.push(k);
-                                typed.push(*s);
-                            }
-                            // Not reached (one key is one arm type); right all the same.
-                            mut other => results[k] = Some(other.run()),
-                        }
-                    }
-                    for (k, r) in at.into_iter().zip(run_lanes(&mut typed)) {
-                        results[k] = Some(r);
-                    }
-                    results.into_iter().flatten().collect()
-                })*
-                None => Vec::new(),
-            }
-        };
-    }
-    typed!(ThreeLink, Chain1, Chain2, Chain3, Chain4, Chain5, Chain6, Chain7, Chain8)
 }
 
 fn thread_pool(threads: usize) -> Result<rayon::ThreadPool> {

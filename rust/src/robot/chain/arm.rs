@@ -12,8 +12,8 @@ use super::urdf;
 use crate::error::{check, Error, Result};
 use crate::robot::chain::spatial::Real;
 use crate::robot::three_link::friction_sign;
-use crate::robot::{Dynamics, JointVector, Kinematics, Orientation, RobotModel, TaskVector};
-use crate::scalar::{zeros, F64x4, LANES};
+use crate::robot::{ArmModel, Dynamics, JointVector, Kinematics, Orientation, RobotModel};
+use crate::scalar::{put, put_vector, zeros, F64x4, LANES};
 
 /// What the task space holds.
 #[derive(
@@ -178,6 +178,13 @@ impl<T: Real, const N: usize> JointFriction<T, N> {
 }
 
 impl<const N: usize> JointFriction<F64x4, N> {
+    /// Lane `l` takes the friction `f`.
+    pub fn put_lane(&mut self, l: usize, f: &JointFriction<f64, N>) {
+        put_vector(&mut self.fv, l, &f.fv);
+        put_vector(&mut self.fc, l, &f.fc);
+        put(&mut self.eps, l, f.eps);
+    }
+
     /// Four arms' friction in four lanes.
     pub fn pack(f: [&JointFriction<f64, N>; LANES]) -> Self {
         let v = |g: fn(&JointFriction<f64, N>) -> &SVector<f64, N>| {
@@ -191,28 +198,136 @@ impl<const N: usize> JointFriction<F64x4, N> {
     }
 }
 
-/// q̈ of eq. (1) by ABA (Featherstone Table 7.1) with the surface's contact evaluated at
-/// the same state, its force F applied as a wrench on the last body (τ_ext = Jᵀ F). Returns
-/// (q̈, the contact). Over any scalar: one arm, or arms in SIMD lanes.
-#[inline(always)]
-pub fn accelerate<T: Real, const N: usize>(
-    chain: &SerialChain<T, N>,
-    friction: &JointFriction<T, N>,
-    c: &Frames<T, N>,
-    qd: &SVector<T, N>,
-    tau: &SVector<T, N>,
-    surface: &impl Surface<T>,
-) -> (SVector<T, N>, Contact<T>) {
-    let contact = surface.contact(&ChainTip {
-        chain,
-        frames: c,
-        qd,
-    });
-    let wrench = chain.tip_wrench(c, &contact.force());
-    (
-        chain.aba(c, qd, &(tau - friction.torque(qd)), &wrench),
-        contact,
-    )
+/// A URDF chain's equations over any scalar: the bodies, the joint friction, and whether
+/// the task holds the tip's orientation (SPEC §11 `task = "pose"`, which adds the
+/// orientation rows to the measurement). One arm in `f64`, four in lanes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Chain<T: Real, const N: usize> {
+    pub chain: SerialChain<T, N>,
+    pub friction: JointFriction<T, N>,
+    pub pose: bool,
+}
+
+impl<const N: usize> Chain<F64x4, N> {
+    /// Four chains of one structure (joint kinds and task) in four lanes.
+    pub fn pack(c: [&Chain<f64, N>; LANES]) -> Self {
+        Self {
+            chain: SerialChain::pack(c.map(|c| &c.chain)),
+            friction: JointFriction::pack(c.map(|c| &c.friction)),
+            pose: c[0].pose,
+        }
+    }
+
+    /// Lane `l` takes the chain `c` (of this structure).
+    pub fn put_lane(&mut self, l: usize, c: &Chain<f64, N>) {
+        self.chain.put_lane(l, &c.chain);
+        self.friction.put_lane(l, &c.friction);
+    }
+}
+
+impl<T: Real, const N: usize> ArmModel<T, N> for Chain<T, N> {
+    type Config = Frames<T, N>;
+
+    #[inline(always)]
+    fn configure(&self, q: &SVector<T, N>) -> Frames<T, N> {
+        self.chain.frames(q)
+    }
+
+    /// The frames afresh, in place (they are kilobytes).
+    #[inline(always)]
+    fn configure_shifted(
+        &self,
+        _: &Frames<T, N>,
+        _: &SVector<T, N>,
+        shifted: &SVector<T, N>,
+        out: &mut Frames<T, N>,
+    ) {
+        self.chain.frames_into(shifted, out);
+    }
+
+    #[inline(always)]
+    fn tip_position(&self, c: &Frames<T, N>) -> Vector3<T> {
+        c.tip.pos
+    }
+
+    #[inline(always)]
+    fn kinematics(&self, c: &Frames<T, N>, qd: &SVector<T, N>) -> Kinematics<N, T> {
+        self.measure(c, qd, false).0
+    }
+
+    #[inline(always)]
+    fn orientation(&self, c: &Frames<T, N>, qd: &SVector<T, N>) -> Option<Orientation<N, T>> {
+        self.measure(c, qd, true).1
+    }
+
+    /// One 6×N Jacobian for both the position and the orientation rows.
+    #[inline(always)]
+    fn measure(
+        &self,
+        c: &Frames<T, N>,
+        qd: &SVector<T, N>,
+        pose: bool,
+    ) -> (Kinematics<N, T>, Option<Orientation<N, T>>) {
+        let (j, jdq) = self.chain.jacobian(c, qd);
+        let kinematics = Kinematics {
+            position: c.tip.pos,
+            jacobian: j.fixed_rows::<3>(0).into_owned(),
+            jdot_qd: jdq.fixed_rows::<3>(0).into_owned(),
+        };
+        let orientation = (pose && self.pose).then(|| Orientation {
+            rotation: c.tip.rot,
+            jacobian: j.fixed_rows::<3>(3).into_owned(),
+            jdot_qd: jdq.fixed_rows::<3>(3).into_owned(),
+        });
+        (kinematics, orientation)
+    }
+
+    #[inline(always)]
+    fn dynamics(&self, c: &Frames<T, N>, qd: &SVector<T, N>) -> Dynamics<N, T> {
+        let (coriolis, gravity) = self.chain.bias(c, qd);
+        Dynamics {
+            inertia: self.chain.crba(c),
+            coriolis,
+            gravity,
+        }
+    }
+
+    #[inline(always)]
+    fn friction(&self, qd: &SVector<T, N>) -> SVector<T, N> {
+        self.friction.torque(qd)
+    }
+
+    /// ABA (Featherstone Table 7.1) with the tip force as a wrench on the last body.
+    #[inline(always)]
+    fn forward_dynamics(
+        &self,
+        c: &Frames<T, N>,
+        qd: &SVector<T, N>,
+        tau: &SVector<T, N>,
+        tip_force: &Vector3<T>,
+    ) -> SVector<T, N> {
+        let wrench = self.chain.tip_wrench(c, tip_force);
+        self.chain
+            .aba(c, qd, &(tau - self.friction.torque(qd)), &wrench)
+    }
+
+    /// ABA with the surface's contact evaluated at the same state, its force F applied as
+    /// a wrench on the last body (τ_ext = Jᵀ F).
+    #[inline(always)]
+    fn accelerate(
+        &self,
+        c: &Frames<T, N>,
+        qd: &SVector<T, N>,
+        tau: &SVector<T, N>,
+        surface: &impl Surface<T>,
+    ) -> (SVector<T, N>, Contact<T>) {
+        let contact = surface.contact(&ChainTip {
+            chain: &self.chain,
+            frames: c,
+            qd,
+        });
+        (self.forward_dynamics(c, qd, tau, &contact.force()), contact)
+    }
 }
 
 /// A chain's tip motion at one state, from its frames: n·X from the tip's origin, n·Ẋ from
@@ -238,8 +353,8 @@ impl<T: Real, const N: usize> TipMotion<T> for ChainTip<'_, T, N> {
 /// A URDF chain of `N` joints as a [`RobotModel`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct UrdfArm<const N: usize> {
-    pub chain: SerialChain<f64, N>,
-    pub friction: JointFriction<f64, N>,
+    /// Its equations (the chain, its friction, its task's orientation rows).
+    pub model: Chain<f64, N>,
     q0: JointVector<N>,
     pub task: TaskKind,
     pub options: crate::robot::TaskOptions,
@@ -275,19 +390,23 @@ impl<const N: usize> UrdfArm<N> {
         };
         let fv = per_joint("viscous_friction", &params.viscous_friction, N)?;
         let fc = per_joint("coulomb_friction", &params.coulomb_friction, N)?;
+        let task = params.task.unwrap_or(if N >= 6 {
+            TaskKind::Pose
+        } else {
+            TaskKind::Position
+        });
         Ok(Self {
-            chain: SerialChain::from_model(model, params.gravity),
-            friction: JointFriction {
-                fv: JointVector::<N>::from_column_slice(&fv),
-                fc: JointVector::<N>::from_column_slice(&fc),
-                eps: params.friction_smoothing,
+            model: Chain {
+                chain: SerialChain::from_model(model, params.gravity),
+                friction: JointFriction {
+                    fv: JointVector::<N>::from_column_slice(&fv),
+                    fc: JointVector::<N>::from_column_slice(&fc),
+                    eps: params.friction_smoothing,
+                },
+                pose: task == TaskKind::Pose,
             },
             q0,
-            task: params.task.unwrap_or(if N >= 6 {
-                TaskKind::Pose
-            } else {
-                TaskKind::Position
-            }),
+            task,
             options: crate::robot::TaskOptions {
                 orientation_gains: params.orientation_gains,
                 damping: params.damping,
@@ -305,7 +424,7 @@ impl<const N: usize> UrdfArm<N> {
         c: &Frames<f64, N>,
         qd: &JointVector<N>,
     ) -> (nalgebra::SMatrix<f64, 6, N>, SVector<f64, 6>) {
-        self.chain.jacobian(c, qd)
+        self.model.chain.jacobian(c, qd)
     }
 
     /// The largest excursion of `q` beyond the position limits (0 if within).
@@ -318,98 +437,47 @@ impl<const N: usize> UrdfArm<N> {
 }
 
 impl<const N: usize> RobotModel<N> for UrdfArm<N> {
-    type Config = Frames<f64, N>;
+    type Model = Chain<f64, N>;
+    type Lanes = Chain<F64x4, N>;
+    const READS_EACH_CONFIG: bool = false;
 
     #[inline(always)]
-    fn configure(&self, q: &JointVector<N>) -> Frames<f64, N> {
-        self.chain.frames(q)
+    fn model(&self) -> &Chain<f64, N> {
+        &self.model
     }
 
-    #[inline(always)]
-    fn configure_shifted(
-        &self,
-        _: &Frames<f64, N>,
-        _: &JointVector<N>,
-        shifted: &JointVector<N>,
-        out: &mut Frames<f64, N>,
-    ) {
-        self.chain.frames_into(shifted, out);
+    fn same_structure(&self, other: &Self) -> bool {
+        self.model.chain.same_structure(&other.model.chain) && self.task == other.task
     }
 
-    #[inline(always)]
-    fn tip_position(&self, c: &Frames<f64, N>) -> TaskVector {
-        c.tip.pos
+    fn pack(models: [&Chain<f64, N>; LANES]) -> Chain<F64x4, N> {
+        Chain::pack(models)
     }
 
-    fn kinematics(&self, c: &Frames<f64, N>, qd: &JointVector<N>) -> Kinematics<N> {
-        let (j, jdq) = self.chain.jacobian(c, qd);
-        Kinematics {
-            position: c.tip.pos,
-            jacobian: j.fixed_rows::<3>(0).into_owned(),
-            jdot_qd: jdq.fixed_rows::<3>(0).into_owned(),
-        }
-    }
-
-    fn dynamics(&self, c: &Frames<f64, N>, qd: &JointVector<N>) -> Dynamics<N> {
-        let (coriolis, gravity) = self.chain.bias(c, qd);
-        Dynamics {
-            inertia: self.chain.crba(c),
-            coriolis,
-            gravity,
-        }
+    fn put_lane(lanes: &mut Chain<F64x4, N>, l: usize, model: &Chain<f64, N>) {
+        lanes.put_lane(l, model);
     }
 
     #[inline(always)]
-    fn friction(&self, qd: &JointVector<N>) -> JointVector<N> {
-        self.friction.torque(qd)
-    }
-
-    /// ABA (Featherstone Table 7.1) with the tip force as a wrench on the last body.
-    #[inline(always)]
-    fn forward_dynamics(
-        &self,
-        c: &Frames<f64, N>,
-        qd: &JointVector<N>,
-        tau: &JointVector<N>,
-        tip_force: &TaskVector,
-    ) -> JointVector<N> {
-        let wrench = self.chain.tip_wrench(c, tip_force);
-        self.chain.aba(c, qd, &(tau - self.friction(qd)), &wrench)
-    }
-
-    #[inline(always)]
-    fn accelerate(
-        &self,
-        c: &Frames<f64, N>,
-        qd: &JointVector<N>,
-        tau: &JointVector<N>,
-        surface: &impl Surface<f64>,
-    ) -> (JointVector<N>, Contact<f64>) {
-        accelerate(&self.chain, &self.friction, c, qd, tau, surface)
+    fn pack_config(
+        lanes: &Chain<F64x4, N>,
+        q: &SVector<F64x4, N>,
+        _: [&Frames<f64, N>; LANES],
+    ) -> Frames<F64x4, N> {
+        // The chain evaluates its frames afresh at every stage anyway.
+        lanes.chain.frames(q)
     }
 
     fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {
         let mut a = self.clone();
-        a.chain = self.chain.with_mass_scale(mass_scale);
-        a.friction.fv *= friction_scale;
-        a.friction.fc *= friction_scale;
+        a.model.chain = self.model.chain.with_mass_scale(mass_scale);
+        a.model.friction.fv *= friction_scale;
+        a.model.friction.fc *= friction_scale;
         a
     }
 
     fn initial_position(&self) -> JointVector<N> {
         self.q0
-    }
-
-    fn orientation(&self, c: &Frames<f64, N>, qd: &JointVector<N>) -> Option<Orientation<N>> {
-        if self.task != TaskKind::Pose {
-            return None;
-        }
-        let (j, jdq) = self.chain.jacobian(c, qd);
-        Some(Orientation {
-            rotation: c.tip.rot,
-            jacobian: j.fixed_rows::<3>(3).into_owned(),
-            jdot_qd: jdq.fixed_rows::<3>(3).into_owned(),
-        })
     }
 
     fn position_limits(&self) -> Option<(JointVector<N>, JointVector<N>)> {
@@ -501,8 +569,8 @@ fn terms_n<const N: usize>(
     }
     let q = JointVector::<N>::from_column_slice(q);
     let qd = JointVector::<N>::from_column_slice(qd);
-    let c = arm.configure(&q);
-    let d = arm.dynamics(&c, &qd);
+    let c = arm.model.configure(&q);
+    let d = arm.model.dynamics(&c, &qd);
     let (j, jdq) = arm.jacobian6(&c, &qd);
     let acceleration = match forward {
         Some((tau, force)) => {
@@ -515,7 +583,8 @@ fn terms_n<const N: usize>(
             }
             let tau = JointVector::<N>::from_column_slice(tau);
             Some(
-                arm.forward_dynamics(&c, &qd, &tau, &Vector3::from(force))
+                arm.model
+                    .forward_dynamics(&c, &qd, &tau, &Vector3::from(force))
                     .as_slice()
                     .to_vec(),
             )
@@ -531,7 +600,7 @@ fn terms_n<const N: usize>(
         jdot_qd: jdq.as_slice().to_vec(),
         position: c.tip.pos.as_slice().to_vec(),
         rotation: row_major(&c.tip.rot),
-        friction: arm.friction(&qd).as_slice().to_vec(),
+        friction: arm.model.friction(&qd).as_slice().to_vec(),
         acceleration,
     })
 }
@@ -598,7 +667,7 @@ mod tests {
     }
 
     fn kinetic_energy(arm: &UrdfArm<7>, q: &JointVector<7>, qd: &JointVector<7>) -> f64 {
-        let d = arm.dynamics(&arm.configure(q), qd).inertia;
+        let d = arm.model.dynamics(&arm.model.configure(q), qd).inertia;
         0.5 * qd.dot(&(d * qd))
     }
 
@@ -612,7 +681,8 @@ mod tests {
         let e0 = kinetic_energy(&arm, &q, &qd);
         let tau = JointVector::<7>::zeros();
         let f = |q: &JointVector<7>, qd: &JointVector<7>| {
-            arm.forward_dynamics(&arm.configure(q), qd, &tau, &TaskVector::zeros())
+            arm.model
+                .forward_dynamics(&arm.model.configure(q), qd, &tau, &Vector3::zeros())
         };
         let steps = (1.0 / h).round() as usize;
         for _ in 0..steps {

@@ -17,6 +17,6 @@ pub mod rnea;
 pub mod spatial;
 pub mod urdf;
 
-pub use arm::{TaskKind, UrdfArm, UrdfArmParams};
+pub use arm::{Chain, TaskKind, UrdfArm, UrdfArmParams};
 pub use kinematics::Frames;
 pub use model::{ChainModel, JointKind, JointSpec, SerialChain};

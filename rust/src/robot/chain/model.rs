@@ -7,7 +7,7 @@
 use nalgebra::{Matrix3, Vector3};
 
 use super::spatial::{Pose, Real, RigidInertia};
-use crate::scalar::{F64x4, LANES};
+use crate::scalar::{put, put_vector, F64x4, LANES};
 
 /// The joint kinds the algorithms support (fixed joints are merged away by the loader).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -137,5 +137,29 @@ impl<const N: usize> SerialChain<F64x4, N> {
             tip: pose(&|l| chains[l].tip),
             gravity: F64x4::from_lanes(|l| chains[l].gravity),
         }
+    }
+}
+
+impl<const N: usize> SerialChain<F64x4, N> {
+    /// Lane `l` takes the chain `c` (of this structure).
+    pub fn put_lane(&mut self, l: usize, c: &SerialChain<f64, N>) {
+        debug_assert!(self
+            .bodies
+            .iter()
+            .zip(&c.bodies)
+            .all(|(a, b)| a.kind == b.kind));
+        let pose = |p: &mut Pose<F64x4>, v: &Pose<f64>| {
+            put_vector(&mut p.rot, l, &v.rot);
+            put_vector(&mut p.pos, l, &v.pos);
+        };
+        for (b, v) in self.bodies.iter_mut().zip(&c.bodies) {
+            put_vector(&mut b.axis, l, &v.axis);
+            pose(&mut b.tree, &v.tree);
+            put(&mut b.inertia.mass, l, v.inertia.mass);
+            put_vector(&mut b.inertia.h, l, &v.inertia.h);
+            put_vector(&mut b.inertia.ibar, l, &v.inertia.ibar);
+        }
+        pose(&mut self.tip, &c.tip);
+        put(&mut self.gravity, l, c.gravity);
     }
 }

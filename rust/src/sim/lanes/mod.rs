@@ -2,15 +2,15 @@
 //!
 //! Each lane is one ordinary `Simulation`, built by the ordinary constructor; it keeps the
 //! run's trace, online metrics and outcome. Stage 9, the plant's RK4 substeps, runs once
-//! for all four lanes on [`F64x4`]: the same `rk4_period`, `ClosedForm` / chain ABA and
-//! `Wall` code the scalar plant runs, with the four arms' and walls' parameters packed.
-//! Stages 1–8 (environment, sensor, references, filter, controller, actuator, record) run
-//! in lanes too, for every arm ([`Front`]: `stages::LaneStages`, the same
-//! `sim::pipeline::Pipeline` a scalar run steps, over [`F64x4`]). What an arm brings lives
-//! in its own file: `three_link` (the closed form) and `chain` (URDF chains, with the
-//! general task path of SPEC §11). A group whose runs do not
-//! share one stage structure (a caller's mixed group; sweeps group by [`LaneKey`]) runs
-//! its stages lane by lane through `Simulation::step_to_plant`.
+//! for all four lanes on [`F64x4`]: the same `rk4_period` and the same [`ArmModel`] code
+//! (the three-link closed form, a chain's ABA) and `Wall` code the scalar plant runs, with
+//! the four arms' and walls' parameters packed ([`RobotModel::pack`]). Stages 1–8
+//! (environment, sensor, references, filter, controller, actuator, record) run in lanes
+//! too, for every arm (`stages::LaneStages`: the same `sim::pipeline::Pipeline` a scalar
+//! run steps, over [`F64x4`]). An arm brings nothing else: what runs in lanes is its
+//! `ArmModel<F64x4, N>`. A group whose runs do not share one stage structure (a caller's
+//! mixed group; sweeps group by [`LaneKey`]) runs its stages lane by lane through
+//! `Simulation::step_to_plant`.
 //!
 //! A lane whose run ends (completed or diverged) takes the next run at the next period; at
 //! the tail an idle lane repeats an active one and is discarded. No operation mixes lanes,
@@ -18,92 +18,20 @@
 //! on grouping, threads or chunking. They differ from `simulate` of the same run only
 //! through `exp` (a lane polynomial, within 2 ulp of libm's), far below SPEC §13's 1e-9.
 
-use crate::contact::Surface;
 use nalgebra::SVector;
 
 use crate::robot::chain::TaskKind;
-use crate::robot::RobotModel;
+use crate::robot::{ArmModel, RobotModel};
 use crate::scalar::{F64x4, Real, LANES};
 use crate::sim::pipeline::StageKey;
 use crate::sim::plant::{rk4_period, Plant, PlantState, Stages};
 use crate::sim::simulation::{RunResult, Simulation};
 use crate::world::surface::{Environment, EnvironmentKey};
+use stages::LaneStages;
 
-pub mod chain;
+#[cfg(test)]
+mod chain;
 pub mod stages;
-pub mod three_link;
-
-/// An arm whose runs can advance in lanes: four arms of one structure packed into one.
-pub trait LaneArm<const N: usize>: RobotModel<N> {
-    /// The four arms' dynamics in lanes.
-    type Lanes: ArmLanes<N>;
-
-    /// Stages 1–8 of a period in lanes, for the structures that have them.
-    type Front: Front<Self, N>;
-
-    /// Whether the lane stages read each run's own configuration values (its plant's
-    /// `config`, kept fresh at every write-back); if not, they are refreshed once a run's
-    /// lanes are done.
-    const READS_EACH_CONFIG: bool;
-
-    /// Whether `other` can share lanes with this arm (same joint structure).
-    fn same_structure(&self, other: &Self) -> bool;
-
-    fn pack(arms: [&Self; LANES]) -> Self::Lanes;
-
-    /// The lanes' configuration values at `q`, given each lane's own (`configs`, at q).
-    fn pack_config(
-        lanes: &Self::Lanes,
-        q: &SVector<F64x4, N>,
-        configs: [&Self::Config; LANES],
-    ) -> <Self::Lanes as ArmLanes<N>>::Config;
-}
-
-/// The dynamics of four arms in lanes: what RK4 asks of them.
-pub trait ArmLanes<const N: usize> {
-    type Config: Copy;
-
-    /// The values at `shifted` = q + `delta`, given those at q, into `out`.
-    fn shift(
-        &self,
-        c: &Self::Config,
-        delta: &SVector<F64x4, N>,
-        shifted: &SVector<F64x4, N>,
-        out: &mut Self::Config,
-    );
-
-    /// q̈ with the surface's contact evaluated at the same state (`RobotModel::accelerate`).
-    fn accelerate(
-        &self,
-        c: &Self::Config,
-        qd: &SVector<F64x4, N>,
-        tau: &SVector<F64x4, N>,
-        surface: &impl Surface<F64x4>,
-    ) -> SVector<F64x4, N>;
-}
-
-/// Stages 1–8 of a period (environment, sensor, references, filter, controller, actuator,
-/// record) for the runs in four lanes.
-pub trait Front<R: LaneArm<N>, const N: usize>: Sized {
-    /// The four runs' stages packed, from their fresh state; `None` if this group's
-    /// structure has no lane version (its stages then run per lane, `step_to_plant`).
-    fn pack(sims: [&Simulation<R, N>; LANES]) -> Option<Self>;
-
-    /// Lane `l` takes the fresh run `sim`; false if its structure differs from the
-    /// group's (never in `run_lanes`, which packs only groups whose every run fits).
-    fn put_lane(&mut self, l: usize, sim: &Simulation<R, N>) -> bool;
-
-    /// Stages 1–8 for the runs in `slot` (`run`: the run each lane computes; an idle lane
-    /// repeats an active one). Each lane's torque to hold, or `None` where the run ended
-    /// at this sample; samples are recorded in the lanes' own simulations.
-    fn step(
-        &mut self,
-        plant: &PackedPlant<R::Lanes>,
-        sims: &mut [Simulation<R, N>],
-        slot: &[Option<usize>; LANES],
-        run: &[usize; LANES],
-    ) -> [Option<SVector<f64, N>>; LANES];
-}
 
 /// What runs must share to advance in one group of lanes, each part given by its block:
 /// the arm's structure, the RK4 loop count, the contact law's branch structure and the
@@ -151,13 +79,13 @@ pub struct PackedPlant<A> {
 }
 
 impl<A> PackedPlant<A> {
-    fn new<R: LaneArm<N, Lanes = A>, const N: usize>(plants: [&Plant<R, N>; LANES]) -> Self {
+    fn new<R: RobotModel<N, Lanes = A>, const N: usize>(plants: [&Plant<R, N>; LANES]) -> Self {
         let environment = match Environment::pack(plants.map(|p| p.environment())) {
             Some(e) => e,
             None => unreachable!("run_lanes_on checked one environment key"),
         };
         Self {
-            arm: R::pack(plants.map(|p| p.arm())),
+            arm: R::pack(plants.map(|p| p.arm().model())),
             environment,
             substep: F64x4::from_lanes(|i| plants[i].substep()),
             substeps: plants[0].substeps(),
@@ -165,7 +93,7 @@ impl<A> PackedPlant<A> {
     }
 }
 
-impl<A: ArmLanes<N>, const N: usize> Stages<F64x4, N> for PackedPlant<A> {
+impl<A: ArmModel<F64x4, N>, const N: usize> Stages<F64x4, N> for PackedPlant<A> {
     type Config = A::Config;
 
     #[inline(always)]
@@ -175,7 +103,7 @@ impl<A: ArmLanes<N>, const N: usize> Stages<F64x4, N> for PackedPlant<A> {
         qd: &SVector<F64x4, N>,
         tau: &SVector<F64x4, N>,
     ) -> SVector<F64x4, N> {
-        self.arm.accelerate(c, qd, tau, &self.environment)
+        self.arm.accelerate(c, qd, tau, &self.environment).0
     }
 
     #[inline(always)]
@@ -186,18 +114,20 @@ impl<A: ArmLanes<N>, const N: usize> Stages<F64x4, N> for PackedPlant<A> {
         shifted: &SVector<F64x4, N>,
         out: &mut A::Config,
     ) {
-        self.arm.shift(c, delta, shifted, out);
+        self.arm.configure_shifted(c, delta, shifted, out);
     }
 }
 
 /// Runs every simulation of `sims` from its start to its end, four at a time, and returns
 /// their results in order. All must share one [`LaneKey`] (the scheduler's grouping).
-pub fn run_lanes<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> Vec<RunResult> {
+pub fn run_lanes<R: RobotModel<N>, const N: usize>(
+    sims: &mut [Simulation<R, N>],
+) -> Vec<RunResult> {
     run_lanes_on(sims).0
 }
 
 /// `run_lanes`, saying how stages 1–8 advanced ([`StagePath`]).
-pub fn run_lanes_on<R: LaneArm<N>, const N: usize>(
+pub fn run_lanes_on<R: RobotModel<N>, const N: usize>(
     sims: &mut [Simulation<R, N>],
 ) -> (Vec<RunResult>, StagePath) {
     // Plants of different structures cannot share RK4 lanes: a caller's mixed group runs
@@ -229,12 +159,12 @@ pub fn run_lanes_on<R: LaneArm<N>, const N: usize>(
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn lanes_avx2<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> StagePath {
+unsafe fn lanes_avx2<R: RobotModel<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> StagePath {
     lanes_loop(sims)
 }
 
 #[inline(always)]
-fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> StagePath {
+fn lanes_loop<R: RobotModel<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> StagePath {
     // Stages 1–8 in lanes only if every run of the group has one stage structure (sweeps
     // group by it; a caller's mixed group still runs, its stages lane by lane).
     let one_structure = sims
@@ -245,7 +175,7 @@ fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> S
     let mut packed: Option<(PackedPlant<R::Lanes>, [usize; LANES])> = None;
     // The lane stages, once packed; `tried`: whether this group's structure has them (the
     // lane key makes it the same for every run of the group).
-    let (mut front, mut tried): (Option<R::Front>, bool) = (None, false);
+    let (mut front, mut tried): (Option<LaneStages<R, N>>, bool) = (None, false);
     loop {
         // A lane whose run is over takes the next one.
         let mut fresh = [false; LANES];
@@ -266,7 +196,7 @@ fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> S
         let plant = repack(&mut packed, sims, run);
         if !tried {
             front = if one_structure {
-                R::Front::pack(run.map(|i| &sims[i]))
+                LaneStages::pack(run.map(|i| &sims[i]))
             } else {
                 None
             };
@@ -347,7 +277,7 @@ fn lanes_loop<R: LaneArm<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> S
 
 /// The plants of `run` packed, rebuilt only when the lanes' runs changed.
 #[inline(always)]
-fn repack<'a, R: LaneArm<N>, const N: usize>(
+fn repack<'a, R: RobotModel<N>, const N: usize>(
     packed: &'a mut Option<(PackedPlant<R::Lanes>, [usize; LANES])>,
     sims: &[Simulation<R, N>],
     run: [usize; LANES],

@@ -1,73 +1,51 @@
 //! Stages 1–8 of a period in lanes (SPEC §10, §13, §14): four runs' stages 2–7 packed into
-//! one [`Pipeline`] over [`F64x4`], the same code a scalar run steps as `Pipeline<f64>`.
+//! one [`Pipeline`] over [`F64x4`], the same code a scalar run steps as `Pipeline<f64>`,
+//! with computed torque's four models packed as the plant's are ([`RobotModel::pack`]).
 //! What is here is only what is per lane: gathering the four runs' plant states, their
 //! noise draws (each run's own seeded generator at its own sample index) and references
 //! (each a function of that lane's own t), and closing each lane's sample in its own
-//! `Simulation` (`close_sample`: the record and online metrics exist once).
-//!
-//! An arm brings what differs through [`StageArm`]: its kinematics in lanes (the
-//! three-link closed form in `lanes::three_link`; URDF chains' frames, 6×N Jacobian and tip
-//! rotation in `lanes::chain`) and computed torque's model in lanes.
+//! `Simulation` (`close_sample`: the record and online metrics exist once). Stage 1 is the
+//! arm's `ArmModel::measure` over [`F64x4`], at the lanes' configuration values
+//! ([`RobotModel::pack_config`]), as a scalar run's is over `f64`.
 
 use nalgebra::SVector;
 use simba::simd::SimdValue;
 
-use crate::control::controller::ControllerModel;
 use crate::control::reference::Sample;
-use crate::robot::{Kinematics, Orientation};
+use crate::robot::{ArmModel, RobotModel};
 use crate::scalar::{lane, lane_of, mask_from, pack_vector, F64x4, Real, LANES};
-use crate::sim::lanes::{Front, LaneArm, PackedPlant};
+use crate::sim::lanes::PackedPlant;
 use crate::sim::outcome::Divergence;
 use crate::sim::pipeline::{Inputs, Pipeline};
 use crate::sim::simulation::Simulation;
 use crate::sim::trace::Row;
 
-/// What an arm brings to the lane stages besides its plant.
-pub trait StageArm<const N: usize>: LaneArm<N> {
-    /// Four controllers' models (computed torque's D̂, Ĉ, Ĝ, τ̂_f) in lanes.
-    type Model: ControllerModel<F64x4, N, At = Self::At>;
-    /// What the lanes' kinematics leave for the model (the three-link arm's trig).
-    type At;
-
-    fn pack_model(arms: [&Self; LANES]) -> Self::Model;
-
-    /// Lane `l` takes the model `arm`.
-    fn put_model(model: &mut Self::Model, l: usize, arm: &Self);
-
-    /// Tip position, 3×N Jacobian and J̇q̇ at the lanes' state (q, q̇), and, for a pose
-    /// task (`pose`), the tip rotation terms.
-    fn lane_kinematics(
-        plant: &PackedPlant<Self::Lanes>,
-        lanes: [&Simulation<Self, N>; LANES],
-        q: &SVector<F64x4, N>,
-        qd: &SVector<F64x4, N>,
-        pose: bool,
-    ) -> (
-        Kinematics<N, F64x4>,
-        Option<Orientation<N, F64x4>>,
-        Self::At,
-    );
+/// Four runs' stages 1–8 in lanes, for any arm.
+pub struct LaneStages<R: RobotModel<N>, const N: usize> {
+    pub(crate) stages: Pipeline<F64x4, R::Lanes, N>,
 }
 
-/// Four runs' stages 1–8 in lanes, for any arm with a [`StageArm`].
-pub struct LaneStages<R: StageArm<N>, const N: usize> {
-    pub(crate) stages: Pipeline<F64x4, R::Model, N>,
-}
-
-impl<R: StageArm<N>, const N: usize> Front<R, N> for LaneStages<R, N> {
-    fn pack(sims: [&Simulation<R, N>; LANES]) -> Option<Self> {
-        // The lane key (`sweep::lane_key`) groups runs of one structure; checked again
-        // here so that a group that is not uniform still runs, per lane.
-        Pipeline::pack(sims.map(|s| s.stages()), R::pack_model).map(|stages| Self { stages })
+impl<R: RobotModel<N>, const N: usize> LaneStages<R, N> {
+    /// The four runs' stages packed, from their fresh state; `None` if their structures
+    /// differ (their stages then run per lane, `step_to_plant`). The lane key
+    /// (`AnySimulation::lane_key`) groups runs of one structure; checked again here so that
+    /// a caller's group that is not uniform still runs, per lane.
+    pub fn pack(sims: [&Simulation<R, N>; LANES]) -> Option<Self> {
+        Pipeline::pack(sims.map(|s| s.stages()), R::pack).map(|stages| Self { stages })
     }
 
-    fn put_lane(&mut self, l: usize, sim: &Simulation<R, N>) -> bool {
+    /// Lane `l` takes the fresh run `sim`; false if its structure differs from the
+    /// group's (never in `run_lanes`, which packs only groups whose every run fits).
+    pub fn put_lane(&mut self, l: usize, sim: &Simulation<R, N>) -> bool {
         self.stages
-            .put_lane(l, sim.stages(), |model, arm| R::put_model(model, l, arm))
+            .put_lane(l, sim.stages(), |model, arm| R::put_lane(model, l, arm))
     }
 
+    /// Stages 1–8 for the runs in `slot` (`run`: the run each lane computes; an idle lane
+    /// repeats an active one). Each lane's torque to hold, or `None` where the run ended
+    /// at this sample; samples are recorded in the lanes' own simulations.
     #[inline(always)]
-    fn step(
+    pub fn step(
         &mut self,
         plant: &PackedPlant<R::Lanes>,
         sims: &mut [Simulation<R, N>],
@@ -77,12 +55,12 @@ impl<R: StageArm<N>, const N: usize> Front<R, N> for LaneStages<R, N> {
         let lanes = run.map(|i| &sims[i]);
         let k = lanes.map(|s| s.sample());
         let t = F64x4::from_lanes(|l| k[l] as f64 * lanes[l].config().period);
-        // 1. plant state (the encoders)
+        // 1. plant state (the encoders) and the tip's kinematics at it
         let states = lanes.map(|s| *s.plant().state());
         let q = pack_vector(states.each_ref().map(|s| &s.q));
         let qd = pack_vector(states.each_ref().map(|s| &s.qd));
-        let pose = self.stages.controller.pose();
-        let (kin, orientation, at) = R::lane_kinematics(plant, lanes, &q, &qd, pose);
+        let at = R::pack_config(&plant.arm, &q, lanes.map(|s| s.plant().config()));
+        let (kin, orientation) = plant.arm.measure(&at, &qd, self.stages.controller.pose());
         // Each run's noise draw at its own sample, its references at its own t.
         let noise = F64x4::from_lanes(|l| lanes[l].stages().sensor.noise_draw(k[l]));
         let f_d: [Sample; LANES] =
@@ -296,10 +274,10 @@ mod every_kind {
         ComputedTorqueParams, ControllerParams, ModelFreeParams, PerJoint, TdcLaw, TimeDelayParams,
     };
     use crate::robot::chain::{UrdfArm, UrdfArmParams};
-    use crate::robot::{RobotModel, ThreeLinkArm};
+    use crate::robot::{ArmModel, RobotModel, ThreeLinkArm};
     use crate::sim::dispatch::simulate;
     use crate::sim::lanes::tests::with_stack;
-    use crate::sim::lanes::{run_lanes_on, LaneArm, StagePath};
+    use crate::sim::lanes::{run_lanes_on, StagePath};
     use crate::sim::outcome::Outcome;
     use crate::sim::scenario::RobotConfig;
     use crate::sim::simulation::{ScenarioConfig, Simulation};
@@ -349,7 +327,7 @@ mod every_kind {
     /// Four runs of each controller × outer loop on `robot` through `run_lanes_on`: the
     /// stages ran in lanes, and each run ends as `simulate`'s (a completed run within 1e-9
     /// of it). Returns the number of groups.
-    fn check<R: LaneArm<N>, const N: usize>(
+    fn check<R: RobotModel<N>, const N: usize>(
         robot: RobotConfig,
         build: impl Fn(&ScenarioConfig) -> Simulation<R, N>,
     ) -> usize {
@@ -414,8 +392,12 @@ mod every_kind {
             "panda_hand_tcp",
         );
         let arm = UrdfArm::<7>::new(&panda).unwrap();
-        assert!(arm
-            .orientation(&arm.configure(&arm.initial_position()), &Default::default())
+        let model = arm.model();
+        assert!(model
+            .orientation(
+                &model.configure(&arm.initial_position()),
+                &Default::default()
+            )
             .is_some());
         let chain7 = check::<UrdfArm<7>, 7>(RobotConfig::Urdf(panda.clone()), |c| {
             Simulation::with_robot(c, arm.clone()).unwrap()
