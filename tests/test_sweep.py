@@ -362,3 +362,23 @@ def test_damaged_or_foreign_checkpoint_chunk_is_named_and_recomputed(tmp_path):
     assert (ck / "chunk-000000.parquet").read_bytes() == before  # the good chunk was reused
     # The files were replaced: a second resume reads them all without a warning.
     assert run(vary=VARY, samples=9, seed=2, chunk_size=3, checkpoint=ck).equals(clean)
+
+
+@pytest.mark.parametrize("kw", [{"threads": 1}, {"chunk_size": 2}, {"threads": 2, "chunk_size": 1}])
+def test_grid_of_ints_and_floats_is_one_table_whatever_the_threads_or_chunks(kw):
+    # Issue 21 item 11: b given as ints, k_a as a float then ints; a sub-batch starting at
+    # k_a = 1 used to infer an Int64 column and fail on 0.1 (polars TypeError).
+    sc = ar.paper.scenario("fig14").replace(duration=0.5)
+    typed = ar.sweep(sc, grid={"admittance.b": [200, 400, 800], "admittance.ka": [0.1, 1, 2]},
+                     progress=False, **kw)  # fmt: skip
+    floats = ar.sweep(sc, grid={"admittance.b": [200.0, 400.0, 800.0],
+                                "admittance.ka": [0.1, 1.0, 2.0]}, progress=False)  # fmt: skip
+    assert typed.schema["admittance.b"] == pl.Float64
+    assert typed.schema["admittance.ka"] == pl.Float64
+    assert typed["admittance.ka"].to_list() == [0.1, 1.0, 2.0] * 3
+    assert typed.equals(floats)
+    # An int field keeps ints (an integral float is the same run), None stays null.
+    t = ar.sweep(sc, grid={"substeps": [10.0, 20], "sensor.cutoff": [None, 30]}, chunk_size=1,
+                 progress=False)  # fmt: skip
+    assert t.schema["substeps"] == pl.Int64 and t.schema["sensor.cutoff"] == pl.Float64
+    assert t["sensor.cutoff"].to_list() == [None, 30.0, None, 30.0]

@@ -16,12 +16,15 @@ resumed from a checkpoint, or computed on Dask workers.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import hashlib
 import itertools
 import json
 import math
 import os
 import time
+import types
+import typing
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -198,10 +201,59 @@ def _describe(value: Any) -> Any:
     return value
 
 
-def _column_value(value: Any) -> Any:
-    if isinstance(value, _Block):
+def _column_value(value: Any, dtype: Any = None) -> Any:
+    """A varied value as its table column holds it: blocks (and, in a column whose values
+    mix shapes, every value) as their repr."""
+    if isinstance(value, _Block) or (dtype == pl.String and not isinstance(value, str)):
         return repr(value)
     return value
+
+
+def _field_types(scenario: Scenario, path: str) -> tuple[type, ...]:
+    """The types a dotted path's field is declared with (``float | None`` ->
+    ``(float, NoneType)``), from the block's annotations; ``()`` when unknown."""
+    *parents, leaf = path.split(".")
+    owner: Any = scenario
+    for part in parents:
+        owner = getattr(owner, part, None)
+    if not dataclasses.is_dataclass(owner):
+        return ()
+    try:
+        hint = typing.get_type_hints(type(owner)).get(leaf)
+    except (NameError, TypeError):  # an annotation that does not resolve: no coercion
+        return ()
+    if hint is None:
+        return ()
+    args = typing.get_args(hint)
+    members = args if typing.get_origin(hint) in (typing.Union, types.UnionType) else (hint,)
+    return tuple(m for m in members if isinstance(m, type))
+
+
+def _normalise(types_: tuple[type, ...], value: Any) -> Any:
+    """A listed or drawn value in its field's declared type, so that the table does not
+    depend on how it was typed (``200`` and ``200.0`` for a float field are both 200.0;
+    an integral ``10.0`` for an int field is 10). Booleans are left alone (the core
+    rejects a bool where a number belongs)."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return value
+    if float in types_ and int not in types_ and isinstance(value, int):
+        return float(value)
+    if int in types_ and float not in types_ and isinstance(value, float):
+        if math.isfinite(value) and value == int(value):
+            return int(value)
+    return value
+
+
+def _dtype(values: list[Any]) -> Any:
+    """The one polars dtype of a varied column, from all its values (not from the first
+    ones of a chunk): every chunk, thread count and resume builds it alike. Values that
+    no single dtype holds (a number and a tuple for one field) become their repr."""
+    try:
+        return pl.Series(values, strict=True).dtype
+    except (TypeError, ValueError, pl.exceptions.PolarsError):
+        return pl.String
 
 
 @dataclass(frozen=True)
@@ -213,6 +265,8 @@ class _Plan:
     rows: list[dict[str, Any]]
     seed: int
     manifest: dict[str, Any]
+    dtypes: dict[str, Any] = field(default_factory=dict)
+    """The polars dtype of each varied column."""
 
 
 def _plan(
@@ -240,6 +294,8 @@ def _plan(
     for path, values in grid.items():
         if not values:
             raise ValueError(f"grid[{path!r}] is empty")
+    declared = {path: _field_types(scenario, path) for path in [*grid, *vary]}
+    grid = {path: [_normalise(declared[path], v) for v in values] for path, values in grid.items()}
     if samples is None:
         if vary:
             raise ValueError("samples is required with vary (how many draws per grid point)")
@@ -255,7 +311,7 @@ def _plan(
             row: dict[str, Any] = dict(zip(grid, point, strict=True))
             rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, run_id])))
             for path, dist in vary.items():
-                row[path] = dist.draw(rng)
+                row[path] = _normalise(declared[path], dist.draw(rng))
             rows.append(row)
     manifest = {
         "format": 1,
@@ -265,7 +321,9 @@ def _plan(
         "samples": samples,
         "seed": seed,
     }
-    return _Plan(scenario._to_core(), list(grid) + list(vary), rows, seed, manifest)
+    paths = list(grid) + list(vary)
+    dtypes = {p: _dtype([_column_value(r[p]) for r in rows]) for p in paths}
+    return _Plan(scenario._to_core(), paths, rows, seed, manifest, dtypes)
 
 
 def _set_path(config: dict[str, Any], path: str, value: Any) -> None:
@@ -308,8 +366,10 @@ def _run_chunk(
     threads: int | None,
     traces: bool,
     lanes: bool = True,
+    dtypes: Mapping[str, Any] | None = None,
 ) -> tuple[pl.DataFrame, pl.DataFrame | None]:
-    """Runs one chunk in the Rust core and returns its rows (and long traces).
+    """Runs one chunk in the Rust core and returns its rows (and long traces); ``dtypes``
+    gives each varied column's dtype (else inferred from this chunk's values).
 
     Top-level so that Dask workers can import it.
     """
@@ -325,7 +385,9 @@ def _run_chunk(
         "noise_seed": pl.Series("noise_seed", [c["seed"] for c in configs], dtype=pl.Int64),
     }
     for path in rows[0] if rows else []:
-        columns[path] = [_column_value(r[path]) for r in rows]
+        dtype = (dtypes or {}).get(path)
+        columns[path] = pl.Series(path, [_column_value(r[path], dtype) for r in rows],
+                                  dtype=dtype, strict=False)  # fmt: skip
     columns.update(raw["metrics"])
     columns["stable"] = raw["stable"]
     columns["diverged"] = raw["diverged"]
@@ -352,9 +414,10 @@ def _run_chunk_remote(
     seed: int,
     traces: bool,
     lanes: bool = True,
+    dtypes: Mapping[str, Any] | None = None,
 ) -> tuple[pl.DataFrame, pl.DataFrame | None]:
     # One task per worker thread: the worker's own cores run it, one Rust thread each.
-    return _run_chunk(base, rows, run_ids, seed, 1, traces, lanes)
+    return _run_chunk(base, rows, run_ids, seed, 1, traces, lanes, dtypes)
 
 
 class _Checkpoint:
@@ -440,7 +503,8 @@ def _foreign(table: pl.DataFrame, long: pl.DataFrame | None, plan: _Plan, ids: r
         return f"not the {name} of this sweep (another seed)"
     rows = plan.rows[ids.start : ids.stop]
     for path in plan.paths:
-        if not _same(table[path].to_list(), [_column_value(r[path]) for r in rows]):
+        expected = [_column_value(r[path], plan.dtypes.get(path)) for r in rows]
+        if not _same(table[path].to_list(), expected):
             return f"not the {name} of this sweep (other {path} values)"
     if long is not None and set(long["run_id"].unique().to_list()) != set(ids):
         return f"not the {name} of this sweep (its traces hold other run_ids)"
@@ -628,7 +692,8 @@ def _run_local(
             rows = plan.rows[sub.start : sub.stop]
             began = time.perf_counter()
             pieces.append(
-                _run_chunk(plan.base, rows, list(sub), plan.seed, threads, traces, lanes)
+                _run_chunk(plan.base, rows, list(sub), plan.seed, threads, traces, lanes,
+                           plan.dtypes)  # fmt: skip
             )
             spent += time.perf_counter() - began
             done += len(sub)
@@ -662,6 +727,7 @@ def _run_on_dask(
             plan.seed,
             traces,
             lanes,
+            plan.dtypes,
             key=f"admit-rs-chunk-{_key(plan)}-{index}",
             pure=False,
         ): index
