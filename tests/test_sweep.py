@@ -237,7 +237,7 @@ def test_ctrl_c_during_a_checkpoint_write_is_one_interrupt(tmp_path, monkeypatch
     big = pl.DataFrame({f"c{i}": np.arange(2_000_000, dtype=float) for i in range(4)})
     calls = {"n": 0}
 
-    def slow_write(frame, path):
+    def slow_write(frame, path, *args, **kwargs):
         calls["n"] += 1
         if calls["n"] == 2:  # chunk 2's checkpoint
             kick = threading.Timer(0.02, os.kill, (os.getpid(), signal.SIGINT))
@@ -245,7 +245,7 @@ def test_ctrl_c_during_a_checkpoint_write_is_one_interrupt(tmp_path, monkeypatch
             big.write_parquet(tmp_path / "big.parquet")  # ~0.1 s of polars work
             for _ in range(500):  # in case the write beat the signal
                 time.sleep(0.01)
-        real(frame, path)
+        real(frame, path, *args, **kwargs)
 
     monkeypatch.setattr(module, "_atomic_parquet", slow_write)
     try:

@@ -15,6 +15,7 @@ resumed from a checkpoint, or computed on Dask workers.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
 import hashlib
@@ -22,6 +23,7 @@ import itertools
 import json
 import math
 import os
+import tempfile
 import time
 import types
 import typing
@@ -29,7 +31,7 @@ import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 import polars as pl
@@ -421,7 +423,15 @@ def _run_chunk_remote(
 
 
 class _Checkpoint:
-    """Finished chunks as Parquet files plus a manifest of the sweep's definition."""
+    """Finished chunks as Parquet files plus a manifest of the sweep's definition.
+
+    Every file carries, in its Parquet key-value metadata, the sweep's fingerprint (a
+    SHA-256 of the manifest: base scenario, vary, grid, samples, seed, traces,
+    chunk_size), its runs and a SHA-256 of its content (:func:`_checksum`). On resume a
+    file is used only if all three match, so neither a damaged file, nor one copied from
+    another sweep, nor a folder whose manifest was lost can put a wrong row in the table:
+    such a file is named in a :class:`CheckpointWarning` and its runs are computed again.
+    """
 
     def __init__(self, folder: str | os.PathLike[str], manifest: dict[str, Any]) -> None:
         self.folder = Path(folder)
@@ -429,19 +439,58 @@ class _Checkpoint:
         self.folder.mkdir(parents=True, exist_ok=True)
         path = self.folder / "manifest.json"
         text = json.dumps(manifest, sort_keys=True, indent=1)
-        if path.exists():
-            old = json.loads(path.read_text())
-            if old != json.loads(text):
-                keys = sorted(k for k in set(old) | set(manifest) if old.get(k) != manifest.get(k))
-                raise CheckpointMismatchError(
-                    f"checkpoint {self.folder} holds a different sweep (differs in"
-                    f" {', '.join(keys)}); use another folder or delete it"
-                )
-        else:
-            path.write_text(text)
+        self.fingerprint = hashlib.sha256(text.encode()).hexdigest()
+        old = self._read_manifest(path)
+        if old is not None and old != json.loads(text):
+            keys = sorted(k for k in set(old) | set(manifest) if old.get(k) != manifest.get(k))
+            raise CheckpointMismatchError(
+                f"checkpoint {self.folder} holds a different sweep (differs in"
+                f" {', '.join(keys)}); use another folder or delete it"
+            )
+        if old is None:
+            _atomic_write(path, lambda f: f.write(text.encode()))
+
+    @staticmethod
+    def _read_manifest(path: Path) -> dict[str, Any] | None:
+        """The manifest on disk; ``None`` if there is none or it is unusable (then a
+        CheckpointWarning names it and it is written again: every chunk is checked against
+        the sweep's fingerprint anyway)."""
+        if not path.exists():
+            return None
+        try:
+            old = json.loads(path.read_bytes().decode("utf-8"))
+            if not isinstance(old, dict):
+                raise ValueError(f"a JSON {type(old).__name__}, not an object")
+            return old
+        except (OSError, ValueError) as e:  # JSONDecodeError, UnicodeDecodeError are ValueErrors
+            reason = str(e).strip().splitlines()[0] if str(e).strip() else ""
+            warnings.warn(
+                f"checkpoint: {path} is unreadable ({type(e).__name__}: {reason}); writing it"
+                " again for this sweep (every chunk is still checked against this sweep's"
+                " fingerprint before it is used)",
+                CheckpointWarning,
+                stacklevel=4,
+            )
+            return None
 
     def _path(self, kind: str, index: int) -> Path:
         return self.folder / f"{kind}-{index:06d}.parquet"
+
+    def _read(self, path: Path, ids: range) -> tuple[pl.DataFrame | None, str | None]:
+        """A chunk or traces file, or why it cannot be used."""
+        meta = pl.read_parquet_metadata(path)
+        frame = pl.read_parquet(path)
+        if _FINGERPRINT not in meta or _CHECKSUM not in meta:
+            return None, f"{path} has no fingerprint or checksum (an older or foreign file)"
+        if meta[_FINGERPRINT] != self.fingerprint:
+            theirs, ours = meta[_FINGERPRINT][:12], self.fingerprint[:12]
+            return None, f"{path} is from another sweep (fingerprint {theirs}, this one's {ours})"
+        if meta.get(_RUNS) != _runs(ids):
+            runs = meta.get(_RUNS)
+            return None, f"{path} is not the chunk of runs {_runs(ids)} (its runs: {runs})"
+        if meta[_CHECKSUM] != _checksum(frame):
+            return None, f"{path} is damaged (its content does not match its checksum)"
+        return frame, None
 
     def load(
         self, index: int, plan: _Plan, ids: range
@@ -453,19 +502,27 @@ class _Checkpoint:
             return None
         tpath = self._path("traces", index)
         problem = None
+        table = long = None
         try:
+            # The run_ids check first: a chunk copied under another index says so.
             table = pl.read_parquet(path)
-            long = None
-            if self.traces:
-                long = pl.read_parquet(tpath) if tpath.exists() else None
-                if long is None:
+            foreign = _foreign(table, None, plan, ids)
+            if foreign:
+                problem = f"{path} is {foreign}"
+            else:
+                table, problem = self._read(path, ids)
+            if problem is None and self.traces:
+                if not tpath.exists():
                     problem = f"{path} has no {tpath.name} beside it"
-            foreign = _foreign(table, long, plan, ids)
-            problem = problem or (f"{path} is {foreign}" if foreign else None)
+                else:
+                    long, problem = self._read(tpath, ids)
+            if problem is None and table is not None:
+                foreign = _foreign(table, long, plan, ids)
+                problem = f"{path} is {foreign}" if foreign else None
         except (Exception, PanicException) as e:  # a damaged file can fail in any way
             reason = str(e).strip().splitlines()[0] if str(e).strip() else ""
-            problem = f"{path} is unreadable ({type(e).__name__}: {reason})"
-        if problem is not None:
+            problem = f"{path} is unreadable ({type(e).__name__}: {reason[:200]})"
+        if problem is not None or table is None:
             warnings.warn(
                 f"checkpoint: {problem}; recomputing runs {ids.start}..{ids.stop - 1}"
                 " (the file will be replaced)",
@@ -475,11 +532,41 @@ class _Checkpoint:
             return None
         return table, long
 
-    def save(self, index: int, table: pl.DataFrame, traces: pl.DataFrame | None) -> None:
+    def save(
+        self, index: int, ids: range, table: pl.DataFrame, traces: pl.DataFrame | None
+    ) -> None:
         # Traces first, the chunk last and atomically: a chunk file means a finished chunk.
         if traces is not None:
-            _atomic_parquet(traces, self._path("traces", index))
-        _atomic_parquet(table, self._path("chunk", index))
+            _atomic_parquet(traces, self._path("traces", index), self._metadata(ids, traces))
+        _atomic_parquet(table, self._path("chunk", index), self._metadata(ids, table))
+
+    def _metadata(self, ids: range, frame: pl.DataFrame) -> dict[str, str]:
+        return {_FINGERPRINT: self.fingerprint, _RUNS: _runs(ids), _CHECKSUM: _checksum(frame)}
+
+
+_FINGERPRINT = "admit_rs.sweep_fingerprint"
+_RUNS = "admit_rs.runs"
+_CHECKSUM = "admit_rs.content_sha256"
+"""Keys of a checkpoint file's Parquet metadata."""
+
+
+def _runs(ids: range) -> str:
+    return f"{ids.start}..{ids.stop - 1}"
+
+
+def _checksum(frame: pl.DataFrame) -> str:
+    """SHA-256 of a table's content: column names, dtypes, null masks and values (numbers
+    as their bytes, anything else as JSON), independent of how polars chunks it in memory."""
+    h = hashlib.sha256()
+    h.update(json.dumps([frame.height, frame.columns, [str(d) for d in frame.dtypes]]).encode())
+    for s in frame.get_columns():
+        h.update(s.is_null().to_numpy().tobytes())
+        if s.dtype.is_numeric() or s.dtype == pl.Boolean:
+            filled = s.fill_null(False if s.dtype == pl.Boolean else 0)
+            h.update(filled.to_numpy().tobytes())
+        else:
+            h.update(json.dumps(s.to_list(), default=repr).encode())
+    return h.hexdigest()
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -511,10 +598,27 @@ def _foreign(table: pl.DataFrame, long: pl.DataFrame | None, plan: _Plan, ids: r
     return None
 
 
-def _atomic_parquet(frame: pl.DataFrame, path: Path) -> None:
-    tmp = path.with_suffix(".tmp")
-    frame.write_parquet(tmp)
-    os.replace(tmp, path)
+def _atomic_write(path: Path, write: Callable[[IO[bytes]], Any]) -> None:
+    """Writes ``path`` through a new temporary file beside it, then renames it into place.
+
+    The temporary file is created with O_CREAT | O_EXCL (:func:`tempfile.mkstemp`) under a
+    random name, so a file or symlink planted in the folder is never opened or followed;
+    the rename replaces ``path`` itself (a symlink there is replaced, not followed)."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def _atomic_parquet(
+    frame: pl.DataFrame, path: Path, metadata: dict[str, str] | None = None
+) -> None:
+    _atomic_write(path, lambda f: frame.write_parquet(f, metadata=metadata))
 
 
 def _chunks(n: int, size: int) -> Iterator[tuple[int, range]]:
@@ -574,9 +678,11 @@ def sweep(
         CheckpointMismatchError: ``checkpoint`` holds a different sweep.
 
     Warns:
-        CheckpointWarning: a chunk file in ``checkpoint`` is unreadable (truncated, damaged)
-            or not this sweep's; the message names it, its runs are computed again and the
-            file is overwritten, so the table still equals a clean run.
+        CheckpointWarning: a chunk file in ``checkpoint`` is unreadable, damaged (its
+            content does not match its checksum) or not this sweep's (another fingerprint,
+            other runs); the message names it, its runs are computed again and the file is
+            overwritten, so the table still equals a clean run. Also for an unreadable
+            ``manifest.json``, which is written again.
         SweepInterrupted: Ctrl-C; ``.table`` holds the finished runs.
     """
     if not isinstance(chunk_size, int) or chunk_size < 1:
@@ -609,9 +715,11 @@ def sweep(
             long = None  # on disk now; do not hold it in memory
         done[index] = (table, long)
 
+    ranges = dict(_chunks(n, chunk_size))
+
     def finish(index: int, chunk: tuple[pl.DataFrame, pl.DataFrame | None]) -> None:
         if store is not None:
-            store.save(index, *chunk)
+            store.save(index, ranges[index], *chunk)
         spill(index, *chunk)
 
     for index in list(done):  # chunks resumed from a checkpoint
