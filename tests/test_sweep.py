@@ -279,13 +279,22 @@ def test_sweep_plots():
     fig = ar.plot.sweep_heatmap(table, x="wall.stiffness", y="wall.position_error",
                                 metric="force_peak")  # fmt: skip
     assert fig.axes[0].get_xlabel() == "wall.stiffness [N/m]"
-    assert fig.axes[0].get_xscale() == "log"  # 1e4, 3e4, 1e5: log-spaced
+    # A grid is drawn as categories: one cell per listed value, its tick labelled with it.
+    ax = fig.axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == [
+        "$10^{4}$", "$3\\times10^{4}$", "$10^{5}$",
+    ]  # fmt: skip
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["0", "0.01"]
+    assert ax.get_xlim() == (-0.5, 2.5)
     # 3 × 2 grid cells, each holding exactly its run's peak (one run per cell).
     cells = np.ma.filled(fig.axes[0].collections[0].get_array(), np.nan).ravel()
     np.testing.assert_allclose(np.sort(cells), np.sort(table["force_peak"].to_numpy()))
     lin = ar.plot.sweep_heatmap(table, x="wall.stiffness", y="wall.position_error",
                                 metric="force_peak", logx=False)  # fmt: skip
     assert lin.axes[0].get_xscale() == "linear"
+    log = ar.plot.sweep_heatmap(table, x="wall.stiffness", y="wall.position_error",
+                                metric="force_peak", logx=True)  # fmt: skip
+    assert log.axes[0].get_xscale() == "log"
     mixed = ar.sweep(ar.paper.scenario("fig12").replace(duration=0.5),
                      grid={"controller.command_divisor": [5.0, 0.1]}, progress=False)  # fmt: skip
     fig = ar.plot.sweep_scatter(mixed, x="controller.command_divisor", metric="force_peak")
