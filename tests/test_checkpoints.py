@@ -186,3 +186,22 @@ def test_chunk_metadata_names_the_sweep_and_runs(tmp_path):
     assert meta["admit_rs.sweep_fingerprint"] == hashlib.sha256(manifest.encode()).hexdigest()
     assert meta["admit_rs.runs"] == "2..3"
     assert len(meta["admit_rs.content_sha256"]) == 64
+
+
+def test_damaged_traces_file_is_named_and_recomputed(tmp_path):
+    ck = tmp_path / "ck"
+    clean, clean_traces = run(checkpoint=ck, traces=True)
+    traces = ck / "traces-000001.parquet"
+    data = bytearray(traces.read_bytes())
+    data[len(data) // 3] ^= 0x10  # inside the column data
+    traces.write_bytes(bytes(data))
+    with pytest.warns(ar.CheckpointWarning, match=f"checkpoint: {traces} is "):
+        table, long = run(checkpoint=ck, traces=True)
+    assert table.equals(clean) and long.equals(clean_traces)
+    # Traces written by another sweep beside this sweep's chunk are not this chunk's.
+    other = tmp_path / "other"
+    run(BASE.replace(**{"wall.position_error": 0.0}), checkpoint=other, traces=True)
+    traces.write_bytes((other / "traces-000001.parquet").read_bytes())
+    with pytest.warns(ar.CheckpointWarning, match="is from another sweep"):
+        table, long = run(checkpoint=ck, traces=True)
+    assert table.equals(clean) and long.equals(clean_traces)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 import warnings
 
 import admit_rs as ar
@@ -202,3 +203,24 @@ def test_vanishing_stiffness_is_refused_not_an_absurd_damping_ratio():
     assert a["damping_ratio"][0] * 2 * math.sqrt(a["mass"][0] * a["stiffness"][0]) == (
         pytest.approx(800.0, rel=1e-12)
     )
+
+
+@pytest.mark.parametrize(
+    "normal", [(1, 0, -1), (-1, 0, 0), (0, 1, 0), (1, 1, 1), (0, 0, 1), (0.2, -3, 0.5)]
+)
+def test_control_frame_rotation_for_any_normal(normal):
+    from scipy.spatial.transform import Rotation
+
+    sc = ar.paper.scenario("fig8").replace(**{"wall.normal": normal})
+    with pytest.warns(ar.export.ExportWarning):
+        notes = _comments(ar.export.ros2_admittance(sc, None))
+    quat = [float(v) for v in notes.split("[x, y, z, w] = [")[1].split("]")[0].split(",")]
+    rows = re.search(r"in the base frame\): (.*?)\.(?: |$)", notes).group(1)
+    matrix = np.array([[float(v) for v in row.split(",")] for row in rows.split(";")])
+    n, t = sc.wall.directions()
+    rot = Rotation.from_quat(quat).as_matrix()
+    for r in (rot, matrix):
+        np.testing.assert_allclose(r @ [1, 0, 0], n, atol=2e-6)
+        np.testing.assert_allclose(r @ [0, 0, 1], t, atol=2e-6)
+        np.testing.assert_allclose(r.T @ r, np.eye(3), atol=2e-6)
+        assert np.linalg.det(r) == pytest.approx(1.0, abs=1e-5)
