@@ -205,3 +205,12 @@ def test_damaged_traces_file_is_named_and_recomputed(tmp_path):
     with pytest.warns(ar.CheckpointWarning, match="is from another sweep"):
         table, long = run(checkpoint=ck, traces=True)
     assert table.equals(clean) and long.equals(clean_traces)
+
+
+def test_checkpoint_files_get_the_usual_permissions(tmp_path):
+    ck = tmp_path / "ck"
+    run(checkpoint=ck)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    for p in ck.iterdir():
+        assert p.stat().st_mode & 0o777 == 0o666 & ~mask, p

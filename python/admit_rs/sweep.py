@@ -598,6 +598,16 @@ def _foreign(table: pl.DataFrame, long: pl.DataFrame | None, plan: _Plan, ids: r
     return None
 
 
+def _read_umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+_UMASK = _read_umask()
+"""The process umask, read once at import (os.umask can only be read by setting it)."""
+
+
 def _atomic_write(path: Path, write: Callable[[IO[bytes]], Any]) -> None:
     """Writes ``path`` through a new temporary file beside it, then renames it into place.
 
@@ -606,6 +616,8 @@ def _atomic_write(path: Path, write: Callable[[IO[bytes]], Any]) -> None:
     the rename replaces ``path`` itself (a symlink there is replaced, not followed)."""
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
+        # mkstemp makes the file 0600; give it the mode open() would have (0666 & ~umask).
+        os.fchmod(fd, 0o666 & ~_UMASK)
         with os.fdopen(fd, "wb") as f:
             write(f)
         os.replace(tmp, path)
