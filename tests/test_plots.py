@@ -281,3 +281,19 @@ def test_plot_titles_describe_the_scenario_as_it_is():
     labels = [t.get_text() for t in fig.legends[0].get_texts()]
     assert labels[:2] == [ar.describe(c) for c in curves]
     assert "Scheme 2 (b=200, k_a=1)" in labels[0]
+
+
+def test_paper_figure_of_a_tilted_wall_is_along_n_and_t():
+    sc = ar.paper.scenario("fig8").replace(**{"wall.normal": (1.0, 0.0, -1.0)}, duration=0.5)
+    r = ar.simulate(sc)
+    fig = ar.plot.plot_paper_figure([r], "tilted")
+    n, t = sc.wall.directions()
+    xyz = np.column_stack([r.trace[c].to_numpy() for c in ("x", "y", "z")])
+    np.testing.assert_allclose(fig.axes[2].get_lines()[0].get_ydata(), xyz @ n, atol=1e-15)
+    np.testing.assert_allclose(fig.axes[3].get_lines()[0].get_ydata(), xyz @ t, atol=1e-15)
+    assert fig.axes[2].get_title() == "(c) position along the wall normal n·X [m]"
+    # The paper's wall: world x, exactly.
+    p = ar.simulate(ar.paper.scenario("fig14").replace(duration=0.5))
+    fig = ar.plot.plot_paper_figure([p], "paper")
+    np.testing.assert_array_equal(fig.axes[2].get_lines()[0].get_ydata(), p.trace["x"].to_numpy())
+    assert fig.axes[2].get_title() == "(c) x position [m]"

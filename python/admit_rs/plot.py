@@ -177,6 +177,8 @@ def plot_paper_figure(
 
     Force runs: force and f_d, force error, x and x_ref, z and z_ref, x_a, joint torques
     (of the first curve). Position-only runs: x, z, their errors and the joint torques.
+    With a tilted wall, x and z are the positions along n and t̂ (n·X, t̂·X), as the
+    metrics measure them. Curves without a label are named by :func:`admit_rs.describe`.
     """
     from matplotlib.figure import Figure
 
@@ -189,7 +191,9 @@ def plot_paper_figure(
     for i, r in enumerate(results):
         tr = r.trace
         t = tr["t"].to_numpy()
-        label = r.scenario.label or describe(r.scenario)
+        # A curve without a label is named by its scenario (a single one only in the title,
+        # so that long descriptions stay out of the panel legends).
+        label = r.scenario.label or (describe(r.scenario) if many else "run")
         color = f"C{i}"
         ref_style = {"color": color if many else "k", "ls": "--", "lw": 1}
         ref_label = f"reference ({label})" if many else "reference"
@@ -200,27 +204,36 @@ def plot_paper_figure(
                 ax.plot(t, tr["f_d"].to_numpy(), "k--", lw=1, label="f_d")
             axes[1].plot(t, (tr["f_d"] - tr["f"]).to_numpy(), color=color, label=label)
             axes[4].plot(t, 1e3 * tr["x_a"].to_numpy(), color=color, label=label)
-        else:
-            axes[0].plot(t, 1e3 * (tr["x_ref"] - tr["x"]).to_numpy(), color=color, label=label)
-            axes[1].plot(t, 1e3 * (tr["z_ref"] - tr["z"]).to_numpy(), color=color, label=label)
-        axes[2].plot(t, tr["x"].to_numpy(), color=color, label=label)
-        axes[2].plot(t, tr["x_ref"].to_numpy(), label=ref_label, **ref_style)
-        axes[3].plot(t, tr["z"].to_numpy(), color=color, label=label)
+        # Along n and t̂, as the metrics are (world x and z for the paper's wall).
+        n, tangent, _ = _directions(r.scenario)
+        xyz = np.column_stack([tr[c].to_numpy() for c in ("x", "y", "z")])
+        ref = np.column_stack([tr[c].to_numpy() for c in ("x_ref", "y_ref", "z_ref")])
+        pos_n, ref_n, pos_t, ref_t = xyz @ n, ref @ n, xyz @ tangent, ref @ tangent
+        if not force_control:
+            axes[0].plot(t, 1e3 * (ref_n - pos_n), color=color, label=label)
+            axes[1].plot(t, 1e3 * (ref_t - pos_t), color=color, label=label)
+        axes[2].plot(t, pos_n, color=color, label=label)
+        axes[2].plot(t, ref_n, label=ref_label, **ref_style)
+        axes[3].plot(t, pos_t, color=color, label=label)
         if i == 0 or many:
-            axes[3].plot(t, tr["z_ref"].to_numpy(), label=ref_label if i == 0 else None,
-                         **ref_style)  # fmt: skip
+            axes[3].plot(t, ref_t, label=ref_label if i == 0 else None, **ref_style)
         if i == 0:
-            for j in range(1, 4):
-                axes[5].plot(t, tr[f"tau{j}"].to_numpy(), label=f"τ{j}")
+            for c in (c for c in tr.columns if re.fullmatch(r"tau\d+", c)):
+                axes[5].plot(t, tr[c].to_numpy(), label=f"τ{c[3:]}")
         if r.diverged_at is not None:
             for ax in axes:
                 ax.axvline(r.diverged_at, color="r", lw=1)
-    if force_control:
-        names = ["(a) contact force [N]", "(b) force error f_d − f [N]", "(c) x position [m]",
-                 "(d) z position [m]", "(e) admittance output x_a [mm]"]  # fmt: skip
+    if any(_directions(r.scenario)[2] for r in results):  # a tilted wall
+        pos = ["(c) position along the wall normal n·X [m]", "(d) position along t̂, t̂·X [m]"]
+        err = ["(a) error along n, n·(X_d − X) [mm]", "(b) error along t̂, t̂·(X_d − X) [mm]"]
     else:
-        names = ["(a) x error x_d − x [mm]", "(b) z error z_d − z [mm]", "(c) x position [m]",
-                 "(d) z position [m]", ""]  # fmt: skip
+        pos = ["(c) x position [m]", "(d) z position [m]"]
+        err = ["(a) x error x_d − x [mm]", "(b) z error z_d − z [mm]"]
+    if force_control:
+        names = ["(a) contact force [N]", "(b) force error f_d − f [N]", *pos,
+                 "(e) admittance output x_a [mm]"]  # fmt: skip
+    else:
+        names = [*err, *pos, ""]
         axes[4].set_visible(False)
     first = results[0].scenario.label or describe(results[0].scenario)
     tau_title = "joint torques [N·m]" + (f" ({first})" if many else "")
@@ -246,10 +259,14 @@ def plot_paper_figure(
             handles.append(Line2D([], [], color="k", ls="--", lw=1, label="f_d"))
         handles.append(Line2D([], [], color="0.4", ls="--", lw=1,
                               label="reference (dashed, in the curve's colour)"))  # fmt: skip
-        fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 4),
+        longest = max(len(str(h.get_label())) for h in handles)
+        fig.legend(handles=handles, loc="outside lower center",
+                   ncols=min(len(handles), 4 if longest <= 80 else 2 if longest <= 160 else 1),
                    fontsize=8, frameon=False)  # fmt: skip
     for ax in axes[3:]:
         ax.set_xlabel("t [s]")
+    if not many and not results[0].scenario.label:
+        title = f"{title}\n{describe(results[0].scenario)}"
     fig.suptitle(title, fontsize=12)
     return fig
 
