@@ -391,3 +391,8 @@ def test_grid_of_ints_and_floats_is_one_table_whatever_the_threads_or_chunks(kw)
                  progress=False)  # fmt: skip
     assert t.schema["substeps"] == pl.Int64 and t.schema["sensor.cutoff"] == pl.Float64
     assert t["sensor.cutoff"].to_list() == [None, 30.0, None, 30.0]
+    # A vector field: ints or floats, tuple, list or array, one normal and one dtype.
+    t = ar.sweep(sc, grid={"wall.normal": [(1, 0, 0), np.array([1.0, 0.0, -0.1])]},
+                 chunk_size=1, progress=False)  # fmt: skip
+    assert t.schema["wall.normal"] == pl.List(pl.Float64)
+    assert t["wall.normal"].to_list() == [[1.0, 0.0, 0.0], [1.0, 0.0, -0.1]]

@@ -228,7 +228,8 @@ def _field_types(scenario: Scenario, path: str) -> tuple[type, ...]:
         return ()
     args = typing.get_args(hint)
     members = args if typing.get_origin(hint) in (typing.Union, types.UnionType) else (hint,)
-    return tuple(m for m in members if isinstance(m, type))
+    # Plain types, and tuple[float, ...] (a vector field) as itself.
+    return tuple(m for m in members if isinstance(m, type) or typing.get_origin(m) is tuple)
 
 
 def _normalise(types_: tuple[type, ...], value: Any) -> Any:
@@ -238,6 +239,11 @@ def _normalise(types_: tuple[type, ...], value: Any) -> Any:
     rejects a bool where a number belongs)."""
     if isinstance(value, np.generic):
         value = value.item()
+    if isinstance(value, list | tuple | np.ndarray):
+        vector = any(typing.get_origin(t) is tuple and float in typing.get_args(t) for t in types_)
+        if vector:  # (1, 0, -1) and (1.0, 0.0, -1.0) are one normal
+            return tuple(_normalise((float,), v) for v in value)
+        return value
     if isinstance(value, bool) or not isinstance(value, int | float):
         return value
     if float in types_ and int not in types_ and isinstance(value, int):
