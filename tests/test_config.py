@@ -249,3 +249,34 @@ def test_block_docstrings_give_units_and_defaults():
         "    torque_limit (float | tuple[float, ...] | None, default None)\n"
         "        |τ_j| limit [N·m]: one number for every joint or one per joint"
     ) in ar.Actuator.__doc__
+
+
+def test_replace_drops_a_label_it_would_make_false():
+    # Issue 21 item 9: a label describes the scenario it was written for.
+    from pathlib import Path
+
+    urdf = Path(__file__).parent.parent / "examples" / "data" / "panda.urdf"
+    panda = ar.UrdfArm(urdf, "panda_hand_tcp", q0=(0, -0.785, 0, -2.356, 0, 1.571, 0.785))
+    sc = ar.paper.scenario("fig14")
+    assert sc.label == "TDC, Scheme 2, k_a=1"
+    moved = sc.replace(robot=panda, controller=ar.ComputedTorque())
+    assert moved.label == ""
+    assert ar.describe(moved) == (
+        "panda arm (panda_hand_tcp), CT, Scheme 2 (b=800, k_a=1), k_e=30 000, f_d step 10 N"
+    )
+    assert sc.replace(**{"admittance.ka": 2.0}).label == ""
+    assert sc.replace(duration=10.0).label == sc.label  # nothing changed
+    assert sc.replace(duration=2.0, label="short").label == "short"
+    assert sc.replace(label="mine").replace(label="mine", duration=2.0).label == "mine"
+
+
+def test_describe_and_wall_directions():
+    n, t = ar.Wall(normal=(0, 0, 2)).directions()
+    assert n.tolist() == [0.0, 0.0, 1.0] and t.tolist() == [1.0, 0.0, 0.0]  # n ∥ e_z: t = e_x
+    assert not ar.Wall().tilted and ar.Wall(normal=(1, 0, -1)).tilted
+    assert ar.describe(ar.paper.scenario("fig20")) == (
+        "three-link arm, TDC, Scheme 2 (b=800, k_a=1), k_e=10 000, wall error 0.01 m,"
+        " f_d 10 + 5 sin(1 t) N"
+    )
+    with pytest.raises(TypeError, match="describe\\(\\) takes an admit_rs.Scenario"):
+        ar.describe(ar.Wall())

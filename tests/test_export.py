@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import math
+import re
+import warnings
 
 import admit_rs as ar
+import numpy as np
 import pytest
 import yaml
 
@@ -89,3 +92,135 @@ def test_force_loops_without_an_equivalent_are_refused():
         ar.export.ros2_admittance(
             ar.Scenario(admittance=ar.AdmittanceFilter.scheme1(k=1e9, ka=1.0)), None
         )
+
+
+# Issue 21 item 8: what the export used to drop, invent or let through.
+
+
+def test_sensor_low_pass_maps_to_the_controllers_exponential_filter():
+    import scipy.signal
+
+    sc = ar.paper.scenario("fig8").replace(sensor=ar.ForceSensor(cutoff=30.0), duration=1.0)
+    text = ar.export.ros2_admittance(sc, None)
+    alpha = yaml.safe_load(text)["admittance_controller"]["ros__parameters"]["ft_sensor"][
+        "filter_coefficient"
+    ]
+    assert alpha == pytest.approx(1 - math.exp(-2 * math.pi * 30 * 1e-3), rel=1e-15)
+    assert alpha == pytest.approx(0.171796, abs=1e-6)
+    assert "the sensor's 30 Hz low-pass" in _comments(text)
+    # The controller's filters::exponentialSmoothing(x, y_prev, a) = a x + (1 - a) y_prev
+    # with that coefficient is the sensor admit_rs simulated, sample for sample.
+    tr = ar.simulate(sc).trace
+    f, measured = tr["f"].to_numpy(), tr["f_measured"].to_numpy()
+    smoothed, _ = scipy.signal.lfilter([alpha], [1.0, alpha - 1.0], f[1:],
+                                       zi=[(1 - alpha) * measured[0]])  # fmt: skip
+    np.testing.assert_allclose(measured[1:], smoothed, rtol=1e-12, atol=1e-12)
+    # No low-pass: the raw measurement; an explicit number still wins; None leaves it out.
+    raw = _params_text_full(ar.export.ros2_admittance(ar.paper.scenario("fig8"), None))
+    assert raw["ft_sensor"]["filter_coefficient"] == 1.0
+    forced = ar.export.ros2_admittance(sc, None, filter_coefficient=0.5)
+    assert _params_text_full(forced)["ft_sensor"]["filter_coefficient"] == 0.5
+
+
+def _comments(text):
+    """The file's comment lines as one paragraph."""
+    return " ".join(line[2:] for line in text.splitlines() if line.startswith("# "))
+
+
+def _params_text_full(text):
+    return yaml.safe_load(text)["admittance_controller"]["ros__parameters"]
+
+
+def test_tilted_wall_warns_and_gives_the_control_frame_rotation():
+    from scipy.spatial.transform import Rotation
+
+    sc = ar.paper.scenario("fig8").replace(**{"wall.normal": (1.0, 0.0, -1.0)})
+    with pytest.warns(ar.export.ExportWarning, match=r"wall normal n = \(0.707107, 0, -0.707107\)"
+                      r" is not the x axis: set control.frame.id") as record:  # fmt: skip
+        text = ar.export.ros2_admittance(sc, None)
+    assert len(record) == 1 and record[0].filename == __file__
+    notes = _comments(text)
+    assert "REQUIRED: The wall normal n = (0.707107, 0, -0.707107) is not the x axis" in notes
+    quat = [float(v) for v in notes.split("[x, y, z, w] = [")[1].split("]")[0].split(",")]
+    rot = Rotation.from_quat(quat).as_matrix()
+    n, t = sc.wall.directions()
+    np.testing.assert_allclose(rot @ [1, 0, 0], n, atol=1e-6)  # control x along n
+    np.testing.assert_allclose(rot @ [0, 0, 1], t, atol=1e-6)  # control z along t
+    np.testing.assert_allclose(n, [2**-0.5, 0, -(2**-0.5)], atol=1e-15)
+    # The paper's wall needs no rotation: no warning, no REQUIRED line.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert "REQUIRED" not in ar.export.ros2_admittance(ar.paper.scenario("fig8"), None)
+
+
+def test_header_describes_the_scenario_as_it_is():
+    sc = ar.paper.scenario("fig8").replace(**{"admittance.ka": 1.0})  # label said k_a=0.1
+    text = ar.export.ros2_admittance(sc, None)
+    assert "k_a=0.1" not in text and "k_a = 0.1" not in text
+    assert "Scheme 1 (k=400, b=800, k_a=1)" in _comments(text)
+    # A label with a newline cannot break out of the comment.
+    odd = sc.replace(label="mine\nadmittance_controller: {}\nevil: 1")
+    assert list(yaml.safe_load(ar.export.ros2_admittance(odd, None))) == ["admittance_controller"]
+
+
+def test_joint_damping_is_written():
+    sc = ar.paper.scenario("fig8")
+    assert _params_text(ar.export.ros2_admittance(sc, None))["joint_damping"] == 0.0
+    two = ar.export.ros2_admittance(sc, None, joint_damping=2.5)
+    assert _params_text(two)["joint_damping"] == 2.5
+    assert "is 2.5, which eq. (30) does not have" in _comments(two)
+    assert "is 0.0: eq. (30) has none" in _comments(ar.export.ros2_admittance(sc, None))
+    with pytest.raises(ar.ParameterError, match=r"joint_damping = -1.0 is invalid: must be a"
+                       r" finite number >= 0") as info:  # fmt: skip
+        ar.export.ros2_admittance(sc, None, joint_damping=-1.0)
+    assert info.value.field == "joint_damping"
+
+
+@pytest.mark.parametrize(
+    "name", ["evil\nmalicious_key: 1", "a b", "ctl: {x: 1}", "9lives", "", "a/b", "ns.ctl"]
+)
+def test_controller_name_must_be_a_ros_node_name(tmp_path, name):
+    path = tmp_path / "a.yaml"
+    with pytest.raises(ar.ParameterError, match="controller_name = .* is invalid: must be a ROS"
+                       " 2 node name") as info:  # fmt: skip
+        ar.export.ros2_admittance(ar.paper.scenario("fig8"), path, controller_name=name)
+    assert info.value.field == "controller_name" and info.value.value == repr(name)
+    assert not path.exists()
+
+
+def test_vanishing_stiffness_is_refused_not_an_absurd_damping_ratio():
+    sc = ar.Scenario(admittance=ar.AdmittanceFilter.scheme1(m=1.0, b=800.0, k=1e-300, ka=1.0))
+    with pytest.raises(ar.ExportError) as info:
+        ar.export.ros2_admittance(sc, None)
+    msg = str(info.value)
+    assert msg.startswith("admittance.k = 1e-300 N/m gives damping_ratio = b / (2 sqrt(m k)) ="
+                          " 4e+152, above 1e+06")  # fmt: skip
+    assert "admittance.k >= 1.6e-07 N/m" in msg
+    # Just above the limit it exports, and the controller's D = zeta 2 sqrt(M K) is b / k_a.
+    ok = sc.replace(**{"admittance.k": 1.7e-7})
+    a = _params_text(ar.export.ros2_admittance(ok, None))
+    assert a["damping_ratio"][0] <= ar.export.MAX_DAMPING_RATIO
+    assert a["damping_ratio"][0] * 2 * math.sqrt(a["mass"][0] * a["stiffness"][0]) == (
+        pytest.approx(800.0, rel=1e-12)
+    )
+
+
+@pytest.mark.parametrize(
+    "normal", [(1, 0, -1), (-1, 0, 0), (0, 1, 0), (1, 1, 1), (0, 0, 1), (0.2, -3, 0.5)]
+)
+def test_control_frame_rotation_for_any_normal(normal):
+    from scipy.spatial.transform import Rotation
+
+    sc = ar.paper.scenario("fig8").replace(**{"wall.normal": normal})
+    with pytest.warns(ar.export.ExportWarning):
+        notes = _comments(ar.export.ros2_admittance(sc, None))
+    quat = [float(v) for v in notes.split("[x, y, z, w] = [")[1].split("]")[0].split(",")]
+    rows = re.search(r"in the base frame\): (.*?)\.(?: |$)", notes).group(1)
+    matrix = np.array([[float(v) for v in row.split(",")] for row in rows.split(";")])
+    n, t = sc.wall.directions()
+    rot = Rotation.from_quat(quat).as_matrix()
+    for r in (rot, matrix):
+        np.testing.assert_allclose(r @ [1, 0, 0], n, atol=2e-6)
+        np.testing.assert_allclose(r @ [0, 0, 1], t, atol=2e-6)
+        np.testing.assert_allclose(r.T @ r, np.eye(3), atol=2e-6)
+        assert np.linalg.det(r) == pytest.approx(1.0, abs=1e-5)

@@ -126,3 +126,174 @@ def test_stability_map_plot_with_overlay():
     labels = [h.get_label() for h in ax.get_legend().legend_handles]
     assert any("boundary" in s for s in labels) and any("simulated" in s for s in labels)
     assert np.isfinite(t["spectral_radius"].to_numpy()).all()
+
+
+# Issue 21 items 9 and 10: labels derived from the scenario, axes a reader can trust.
+
+
+def _collisions(fig, ax):
+    """Pairs of drawn tick labels (major and minor, inside the limits) less than 2 px apart."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig).draw()
+    renderer = fig.canvas.get_renderer()
+    out = []
+    for axis in (ax.xaxis, ax.yaxis):
+        lo, hi = sorted(axis.get_view_interval())
+        ticks = list(zip(axis.get_majorticklocs(), axis.get_ticklabels(), strict=False))
+        ticks += list(zip(axis.get_minorticklocs(), axis.get_ticklabels(minor=True),
+                          strict=False))  # fmt: skip
+        shown = [t for loc, t in ticks if t.get_visible() and t.get_text() and lo <= loc <= hi]
+        boxes = [t.get_window_extent(renderer).padded(1.0) for t in shown]
+        out += [(shown[i].get_text(), shown[j].get_text()) for i in range(len(boxes))
+                for j in range(i + 1, len(boxes)) if boxes[i].overlaps(boxes[j])]  # fmt: skip
+    return out, shown
+
+
+@pytest.fixture(scope="module")
+def ka_grid() -> pl.DataFrame:
+    sc = ar.paper.scenario("fig14").replace(duration=1.5)
+    return ar.sweep(sc, grid={"admittance.b": [200, 400, 800], "admittance.ka": [0.1, 1, 2]},
+                    progress=False)  # fmt: skip
+
+
+def test_a_grid_is_drawn_as_categories(ka_grid):
+    fig = ar.plot.sweep_heatmap(ka_grid, "admittance.b", "admittance.ka", "force_peak")
+    ax = fig.axes[0]
+    assert ax.get_yscale() == "linear" and ax.get_ylim() == (-0.5, 2.5)  # not from -0.4
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["0.1", "1", "2"]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["200", "400", "800"]
+    np.testing.assert_array_equal(ax.get_yticks(), [0, 1, 2])
+    # Row r, column c holds the run with k_a = [0.1, 1, 2][r] and b = [200, 400, 800][c].
+    grid = cell_values(fig).reshape(3, 3)
+    for row in ka_grid.iter_rows(named=True):
+        r = [0.1, 1.0, 2.0].index(row["admittance.ka"])
+        c = [200.0, 400.0, 800.0].index(row["admittance.b"])
+        if row["stable"]:
+            assert grid[r, c] == row["force_peak"]
+        else:
+            assert np.isnan(grid[r, c])  # drawn as the "unstable" category
+    assert ka_grid["stable"].sum() >= 6
+    # The predicted map of the same grid: a log axis from above 0, a tick at each value.
+    t = ar.analysis.stability_map(ar.paper.scenario("fig14"), x={"admittance.b": [200.0, 800.0]},
+                                  y={"admittance.ka": [0.1, 1.0, 2.0]})  # fmt: skip
+    ax = ar.plot.stability_map(t).axes[0]
+    assert ax.get_yscale() == "log" and ax.get_ylim()[0] > 0
+    np.testing.assert_allclose(ax.get_yticks(), [0.1, 1.0, 2.0])
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["0.1", "1", "2"]
+
+
+def test_tick_labels_never_collide():
+    import matplotlib
+
+    rng = np.random.default_rng(0)
+    k = np.exp(rng.uniform(np.log(1.2e4), np.log(2.4e5), 200))
+    draws = pl.DataFrame({"wall.stiffness": k, "admittance.b": rng.uniform(100, 800, 200),
+                          "force_peak": rng.uniform(10, 20, 200),
+                          "stable": np.ones(200, bool)})  # fmt: skip
+    grid12 = [1e4, 1.5e4, 2e4, 3e4, 4e4, 5e4, 6e4, 8e4, 1e5, 1.2e5, 1.5e5, 2e5]
+    cells = pl.DataFrame({"wall.stiffness": grid12 * 2, "admittance.b": [200.0] * 12 + [800.0] * 12,
+                          "force_peak": rng.uniform(10, 20, 24),
+                          "stable": np.ones(24, bool)})  # fmt: skip
+    # Larger fonts (slides) made "3×10⁴4×10⁴" of the log axis' minor labels.
+    for size in (10, 16):
+        with matplotlib.rc_context({"font.size": size}):
+            fig = ar.plot.sweep_heatmap(draws, "wall.stiffness", "admittance.b", "force_peak")
+            ax = fig.axes[0]
+            assert ax.get_xscale() == "log"
+            collisions, _ = _collisions(fig, ax)
+            assert collisions == []
+            shown = [t for t in ax.get_xticklabels() + ax.get_xticklabels(minor=True)
+                     if t.get_visible() and t.get_text()]  # fmt: skip
+            assert len(shown) >= 2
+            fig = ar.plot.sweep_heatmap(cells, "wall.stiffness", "admittance.b", "force_peak")
+            assert _collisions(fig, fig.axes[0])[0] == []
+            labels = [t.get_text() for t in fig.axes[0].get_xticklabels()]
+            assert labels[0] == "$10^{4}$" and len(labels) >= 4  # thinned, not emptied
+
+
+def test_result_plot_shows_the_true_force_under_the_measured_one():
+    sc = ar.paper.scenario("fig14").replace(duration=1.0, sensor=ar.ForceSensor(
+        noise_std=0.5, cutoff=30.0, latency=2))  # fmt: skip
+    r = ar.simulate(sc)
+    ax = r.plot().axes[0]
+    lines = {line.get_label(): line for line in ax.get_lines()}
+    true, measured = lines["f (true)"], lines["f measured"]
+    np.testing.assert_array_equal(true.get_ydata(), r.trace["f"].to_numpy())
+    np.testing.assert_array_equal(measured.get_ydata(), r.trace["f_measured"].to_numpy())
+    # The measured line is drawn on top, thin; the true force a wide band beneath it.
+    assert measured.get_zorder() > true.get_zorder()
+    assert true.get_linewidth() >= 3 * measured.get_linewidth()
+    assert true.get_alpha() < 1
+
+
+def test_tilted_wall_is_drawn_along_n_and_t_like_the_metrics():
+    sc = ar.paper.scenario("fig8").replace(**{"wall.normal": (1.0, 0.0, -1.0)}, duration=2.0)
+    r = ar.simulate(sc)
+    fig = r.plot()
+    ax_n, ax_t = fig.axes[1], fig.axes[2]
+    n, t = sc.wall.directions()
+    tr = r.trace
+    xyz = np.column_stack([tr[c].to_numpy() for c in ("x", "y", "z")])
+    ref = np.column_stack([tr[c].to_numpy() for c in ("x_ref", "y_ref", "z_ref")])
+    (pos_n, ref_n), (pos_t, ref_t) = ([ln.get_ydata() for ln in a.get_lines()[:2]]
+                                      for a in (ax_n, ax_t))  # fmt: skip
+    np.testing.assert_allclose(pos_n, xyz @ n, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(pos_t, xyz @ t, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(ref_n, ref @ n, rtol=0, atol=1e-15)
+    # What is drawn is what the metrics measure: x_rms_error along n, z_rms_error along t.
+    assert np.sqrt(np.mean((ref_n - pos_n) ** 2)) == pytest.approx(r.metrics["x_rms_error"],
+                                                                    rel=1e-9)  # fmt: skip
+    assert np.sqrt(np.mean((ref_t - pos_t) ** 2)) == pytest.approx(r.metrics["z_rms_error"],
+                                                                    rel=1e-9)  # fmt: skip
+    assert ax_n.get_ylabel() == "n·X [m]" and ax_t.get_ylabel() == "t̂·X [m]"
+    assert ax_n.get_title() == "position along the wall normal n = (0.707, 0, -0.707)"
+    # The wall: a band from its surface x_e = n·X − penetration upwards, in the legend.
+    x_e = (xyz @ n - tr["penetration"].to_numpy())[0]
+    (wall,) = [p for p in ax_n.patches if p.get_label().startswith("wall")]
+    assert wall.get_extents().y0 == pytest.approx(
+        ax_n.transData.transform((0, x_e))[1], abs=0.5
+    )
+    assert "wall (penetration > 0)" in [t.get_text() for t in ax_n.get_legend().get_texts()]
+    # The paper's wall: world x and z, the wall drawn too.
+    fig = ar.simulate(ar.paper.scenario("fig19").replace(duration=1.0)).plot()
+    assert fig.axes[1].get_ylabel() == "x [m]" and fig.axes[2].get_ylabel() == "z [m]"
+    labels = [t.get_text() for t in fig.axes[1].get_legend().get_texts()]
+    assert "wall (penetration > 0)" in labels and "estimated wall x̂_e" in labels
+
+
+def test_plot_titles_describe_the_scenario_as_it_is():
+    from pathlib import Path
+
+    urdf = Path(__file__).parent.parent / "examples" / "data" / "panda.urdf"
+    panda = ar.UrdfArm(urdf, "panda_hand_tcp", q0=(0, -0.785, 0, -2.356, 0, 1.571, 0.785))
+    sc = ar.paper.scenario("fig14").replace(
+        robot=panda, controller=ar.ComputedTorque(kp=600.0, kd=50.0, command_divisor=1.0),
+        duration=0.3,
+    )  # fmt: skip
+    title = ar.simulate(sc).plot()._suptitle.get_text()
+    assert "TDC" not in title and "k_a=1'" not in title
+    assert title.startswith("panda arm (panda_hand_tcp), CT, Scheme 2 (b=800, k_a=1)")
+    # A paper figure of replaced scenarios: each legend entry describes its curve.
+    curves = [ar.paper.scenario("fig14").replace(**{"admittance.b": b}, duration=0.3)
+              for b in (200.0, 800.0)]  # fmt: skip
+    fig = ar.plot.plot_paper_figure([ar.simulate(c) for c in curves], "b")
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert labels[:2] == [ar.describe(c) for c in curves]
+    assert "Scheme 2 (b=200, k_a=1)" in labels[0]
+
+
+def test_paper_figure_of_a_tilted_wall_is_along_n_and_t():
+    sc = ar.paper.scenario("fig8").replace(**{"wall.normal": (1.0, 0.0, -1.0)}, duration=0.5)
+    r = ar.simulate(sc)
+    fig = ar.plot.plot_paper_figure([r], "tilted")
+    n, t = sc.wall.directions()
+    xyz = np.column_stack([r.trace[c].to_numpy() for c in ("x", "y", "z")])
+    np.testing.assert_allclose(fig.axes[2].get_lines()[0].get_ydata(), xyz @ n, atol=1e-15)
+    np.testing.assert_allclose(fig.axes[3].get_lines()[0].get_ydata(), xyz @ t, atol=1e-15)
+    assert fig.axes[2].get_title() == "(c) position along the wall normal n·X [m]"
+    # The paper's wall: world x, exactly.
+    p = ar.simulate(ar.paper.scenario("fig14").replace(duration=0.5))
+    fig = ar.plot.plot_paper_figure([p], "paper")
+    np.testing.assert_array_equal(fig.axes[2].get_lines()[0].get_ydata(), p.trace["x"].to_numpy())
+    assert fig.axes[2].get_title() == "(c) x position [m]"

@@ -237,7 +237,7 @@ def test_ctrl_c_during_a_checkpoint_write_is_one_interrupt(tmp_path, monkeypatch
     big = pl.DataFrame({f"c{i}": np.arange(2_000_000, dtype=float) for i in range(4)})
     calls = {"n": 0}
 
-    def slow_write(frame, path):
+    def slow_write(frame, path, *args, **kwargs):
         calls["n"] += 1
         if calls["n"] == 2:  # chunk 2's checkpoint
             kick = threading.Timer(0.02, os.kill, (os.getpid(), signal.SIGINT))
@@ -245,7 +245,7 @@ def test_ctrl_c_during_a_checkpoint_write_is_one_interrupt(tmp_path, monkeypatch
             big.write_parquet(tmp_path / "big.parquet")  # ~0.1 s of polars work
             for _ in range(500):  # in case the write beat the signal
                 time.sleep(0.01)
-        real(frame, path)
+        real(frame, path, *args, **kwargs)
 
     monkeypatch.setattr(module, "_atomic_parquet", slow_write)
     try:
@@ -279,13 +279,22 @@ def test_sweep_plots():
     fig = ar.plot.sweep_heatmap(table, x="wall.stiffness", y="wall.position_error",
                                 metric="force_peak")  # fmt: skip
     assert fig.axes[0].get_xlabel() == "wall.stiffness [N/m]"
-    assert fig.axes[0].get_xscale() == "log"  # 1e4, 3e4, 1e5: log-spaced
+    # A grid is drawn as categories: one cell per listed value, its tick labelled with it.
+    ax = fig.axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == [
+        "$10^{4}$", "$3\\times10^{4}$", "$10^{5}$",
+    ]  # fmt: skip
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["0", "0.01"]
+    assert ax.get_xlim() == (-0.5, 2.5)
     # 3 × 2 grid cells, each holding exactly its run's peak (one run per cell).
     cells = np.ma.filled(fig.axes[0].collections[0].get_array(), np.nan).ravel()
     np.testing.assert_allclose(np.sort(cells), np.sort(table["force_peak"].to_numpy()))
     lin = ar.plot.sweep_heatmap(table, x="wall.stiffness", y="wall.position_error",
                                 metric="force_peak", logx=False)  # fmt: skip
     assert lin.axes[0].get_xscale() == "linear"
+    log = ar.plot.sweep_heatmap(table, x="wall.stiffness", y="wall.position_error",
+                                metric="force_peak", logx=True)  # fmt: skip
+    assert log.axes[0].get_xscale() == "log"
     mixed = ar.sweep(ar.paper.scenario("fig12").replace(duration=0.5),
                      grid={"controller.command_divisor": [5.0, 0.1]}, progress=False)  # fmt: skip
     fig = ar.plot.sweep_scatter(mixed, x="controller.command_divisor", metric="force_peak")
@@ -362,3 +371,28 @@ def test_damaged_or_foreign_checkpoint_chunk_is_named_and_recomputed(tmp_path):
     assert (ck / "chunk-000000.parquet").read_bytes() == before  # the good chunk was reused
     # The files were replaced: a second resume reads them all without a warning.
     assert run(vary=VARY, samples=9, seed=2, chunk_size=3, checkpoint=ck).equals(clean)
+
+
+@pytest.mark.parametrize("kw", [{"threads": 1}, {"chunk_size": 2}, {"threads": 2, "chunk_size": 1}])
+def test_grid_of_ints_and_floats_is_one_table_whatever_the_threads_or_chunks(kw):
+    # Issue 21 item 11: b given as ints, k_a as a float then ints; a sub-batch starting at
+    # k_a = 1 used to infer an Int64 column and fail on 0.1 (polars TypeError).
+    sc = ar.paper.scenario("fig14").replace(duration=0.5)
+    typed = ar.sweep(sc, grid={"admittance.b": [200, 400, 800], "admittance.ka": [0.1, 1, 2]},
+                     progress=False, **kw)  # fmt: skip
+    floats = ar.sweep(sc, grid={"admittance.b": [200.0, 400.0, 800.0],
+                                "admittance.ka": [0.1, 1.0, 2.0]}, progress=False)  # fmt: skip
+    assert typed.schema["admittance.b"] == pl.Float64
+    assert typed.schema["admittance.ka"] == pl.Float64
+    assert typed["admittance.ka"].to_list() == [0.1, 1.0, 2.0] * 3
+    assert typed.equals(floats)
+    # An int field keeps ints (an integral float is the same run), None stays null.
+    t = ar.sweep(sc, grid={"substeps": [10.0, 20], "sensor.cutoff": [None, 30]}, chunk_size=1,
+                 progress=False)  # fmt: skip
+    assert t.schema["substeps"] == pl.Int64 and t.schema["sensor.cutoff"] == pl.Float64
+    assert t["sensor.cutoff"].to_list() == [None, 30.0, None, 30.0]
+    # A vector field: ints or floats, tuple, list or array, one normal and one dtype.
+    t = ar.sweep(sc, grid={"wall.normal": [(1, 0, 0), np.array([1.0, 0.0, -0.1])]},
+                 chunk_size=1, progress=False)  # fmt: skip
+    assert t.schema["wall.normal"] == pl.List(pl.Float64)
+    assert t["wall.normal"].to_list() == [[1.0, 0.0, 0.0], [1.0, 0.0, -0.1]]

@@ -30,6 +30,7 @@ from admit_rs.config import (
     TimeDelayControl,
     UrdfArm,
     Wall,
+    describe,
     parameter_paths,
 )
 from admit_rs.errors import (
@@ -91,6 +92,7 @@ __all__ = [
     "Wall",
     "__version__",
     "analysis",
+    "describe",
     "export",
     "metrics",
     "paper",

@@ -448,6 +448,30 @@ class Wall(_Block):
         self._set("normal", _vec3("normal", self.normal))
         self._validate()
 
+    def directions(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """The unit normal n̂ and the motion direction t̂ = normalise(e_z − (e_z·n̂) n̂)
+        (e_x if n ∥ e_z), as the core's task frame computes them: force and ``x_*``
+        metrics are along n̂, motion and ``z_*`` metrics along t̂.
+
+        Example:
+            >>> import admit_rs as ar
+            >>> n, t = ar.Wall(normal=(1, 0, -1)).directions()
+            >>> n.round(4).tolist(), t.round(4).tolist()
+            ([0.7071, 0.0, -0.7071], [0.7071, 0.0, 0.7071])
+        """
+        n = np.asarray(self.normal, dtype=float)
+        n = n / np.linalg.norm(n)
+        ez = np.array([0.0, 0.0, 1.0])
+        t = ez - n * (ez @ n)
+        t = np.array([1.0, 0.0, 0.0]) if np.linalg.norm(t) < 1e-9 else t / np.linalg.norm(t)
+        return n, t
+
+    @property
+    def tilted(self) -> bool:
+        """Whether n̂ is not the paper's +x (then n·X and t̂·X are not the world x, z)."""
+        n, _ = self.directions()
+        return bool(np.max(np.abs(n - np.array([1.0, 0.0, 0.0]))) > 1e-12)
+
 
 @dataclass(frozen=True, kw_only=True)
 class ForceSensor(_Block):
@@ -852,7 +876,9 @@ class Scenario(_Block):
     velocity_limit: float = 100.0
     """A run stops as unstable when any |q̇| reaches this [rad/s]."""
     label: str = ""
-    """Free text carried into results and plots."""
+    """Free text carried into results and plots; :meth:`replace` drops it when it changes
+    anything else (pass ``label=`` to keep one). Without a label, plots and exports
+    describe the scenario from its fields (:func:`describe`)."""
 
     def __post_init__(self) -> None:
         for name, allowed in _UNIONS.items():
@@ -873,8 +899,23 @@ class Scenario(_Block):
 
         ``sc.replace(**{"wall.stiffness": 5e4}, duration=2.0)``. Unknown paths raise
         ``TypeError`` naming the closest valid ones.
+
+        A label describes the scenario it was written for, so a copy that changes anything
+        but the label has none (``""``) unless ``label=`` is passed: plots, results and
+        exports then describe it from its fields (:func:`describe`), never by a stale name.
+
+        Example:
+            >>> import admit_rs as ar
+            >>> sc = ar.paper.scenario("fig14")
+            >>> sc.label, sc.replace(**{"admittance.ka": 2.0}).label
+            ('TDC, Scheme 2, k_a=1', '')
+            >>> sc.replace(duration=10.0).label  # nothing changed: the label still holds
+            'TDC, Scheme 2, k_a=1'
         """
-        return _replace_paths(self, changes)
+        new: Scenario = _replace_paths(self, changes)
+        if "label" not in changes and new.label and new != self:
+            new._set("label", "")
+        return new
 
     @property
     def samples(self) -> int:
@@ -886,6 +927,71 @@ class Scenario(_Block):
         """Builds a scenario from the nested dict of :meth:`to_dict` (or a parsed TOML file)."""
         return _from_dict(cls, data, "")
 
+
+
+def _short(x: float) -> str:
+    """A number for a label: 30 000, 0.1, 1.5e+06."""
+    x = float(x)
+    if math.isfinite(x) and x == int(x) and abs(x) < 1e6:
+        return f"{int(x):_}".replace("_", " ")
+    return f"{x:.4g}"
+
+
+def describe(scenario: Scenario) -> str:
+    """A one-line description derived from the scenario's fields (never stored, so never
+    stale): arm, inner loop, force loop, environment and force reference. Plots and
+    exports use it wherever the scenario has no label of its own.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> ar.describe(ar.paper.scenario("fig14"))
+        'three-link arm, TDC, Scheme 2 (b=800, k_a=1), k_e=30 000, f_d step 10 N'
+        >>> ar.describe(ar.paper.scenario("fig5").replace(wall=ar.Wall(normal=(1, 0, -1))))
+        'three-link arm, CT, position only, k_e=30 000, normal (0.7071, 0, -0.7071)'
+    """
+    if not isinstance(scenario, Scenario):
+        raise TypeError(f"describe() takes an admit_rs.Scenario, got {type(scenario).__name__}")
+    robot = scenario.robot
+    if isinstance(robot, UrdfArm):
+        name = Path(robot.path).stem if robot.path else "URDF"
+        parts = [f"{name} arm ({robot.tip_link})"]
+    else:
+        parts = ["three-link arm" if robot == Robot() else "three-link arm (modified)"]
+    short = {ComputedTorque: "CT", ModelFree: "MF", TimeDelayControl: "TDC"}
+    parts.append(short.get(type(scenario.controller), type(scenario.controller).__name__))
+    adm = scenario.admittance
+    if adm is None:
+        parts.append("position only")
+    elif isinstance(adm, AdmittanceFilter):
+        gains = f"b={_short(adm.b)}, k_a={_short(adm.ka)}"
+        if adm.m != 1.0:
+            gains = f"m={_short(adm.m)}, " + gains
+        if adm.k == 0.0:
+            parts.append(f"Scheme 2 ({gains})")
+        else:
+            parts.append(f"Scheme 1 (k={_short(adm.k)}, {gains})")
+    else:
+        parts.append("impedance reference (eq. 20)")
+    wall = scenario.wall
+    if wall is None:
+        parts.append("free space")
+    else:
+        parts.append(f"k_e={_short(wall.stiffness)}")
+        if wall.tilted:
+            n, _ = wall.directions()
+            parts.append("normal (" + ", ".join(_short(round(v, 4)) for v in n) + ")")
+        if wall.position_error:
+            parts.append(f"wall error {_short(wall.position_error)} m")
+    if adm is not None:
+        ref = scenario.force_reference
+        if isinstance(ref, Step):
+            parts.append(f"f_d step {_short(ref.value)} N")
+        elif isinstance(ref, Sine):
+            parts.append(f"f_d {_short(ref.offset)} + {_short(ref.amplitude)} sin"
+                         f"({_short(ref.omega)} t) N")  # fmt: skip
+        else:
+            parts.append("f_d sampled")
+    return ", ".join(parts)
 
 
 def parameter_paths(obj: Any, prefix: str = "") -> list[str]:

@@ -9,7 +9,7 @@ Example:
     >>> sc = ar.paper.scenario("fig8")  # CT + Scheme 1: m = 1, b = 800, k = 400, k_a = 0.1
     >>> # A path instead of None also writes the file.
     >>> print(ar.export.ros2_admittance(sc, None))  # doctest: +ELLIPSIS
-    # admittance_controller parameters for the force axis of admit_rs scenario ...
+    # admittance_controller parameters for the force axis of the admit_rs scenario: ...
     admittance_controller:
       ros__parameters:
         admittance:
@@ -17,6 +17,7 @@ Example:
           mass: [10.0, 10.0, 10.0, 10.0, 10.0, 10.0]
           damping_ratio: [20.0, 20.0, 20.0, 20.0, 20.0, 20.0]
           stiffness: [4000.0, 4000.0, 4000.0, 4000.0, 4000.0, 4000.0]
+          joint_damping: 0.0
         ft_sensor:
           filter_coefficient: 1.0
     <BLANKLINE>
@@ -26,17 +27,39 @@ from __future__ import annotations
 
 import math
 import os
+import re
+import textwrap
+import warnings
+from collections.abc import Iterable
 from pathlib import Path
+from typing import Literal
 
-from admit_rs.config import AdmittanceFilter, Scenario
-from admit_rs.errors import ExportError
+import numpy as np
 
-__all__ = ["ros2_admittance"]
+from admit_rs.config import AdmittanceFilter, Scenario, describe
+from admit_rs.errors import ExportError, ParameterError
+
+__all__ = ["ExportWarning", "ros2_admittance", "sensor_filter_coefficient"]
 
 _MASS_BOUNDS = (1e-4, 1e6)
 _STIFFNESS_BOUNDS = (0.0, 1e8)
 """``element_bounds`` of admittance.mass and admittance.stiffness in
 admittance_controller_parameters.yaml."""
+
+MAX_DAMPING_RATIO = 1e6
+"""The largest damping ratio written. The controller derives its damping from the ratio,
+D = ζ · 2 √(M K); ζ = b / (2 √(m k)) above 1e6 means k is below b² / (4 m · 1e12) (1.6e-7
+N/m for b = 800, m = 1): Scheme 2 in all but name, with a number in the file that no one
+can read as a damping ratio. Such a k is refused (use a Scheme 1 k that means something)."""
+
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+"""A ROS 2 node name (rcl's rule: letters, digits and underscores, not starting with a
+digit): the controller manager loads each controller as a node of that name."""
+
+
+class ExportWarning(UserWarning):
+    """A scenario exported with a requirement the file alone cannot meet (a tilted wall
+    needs a rotated control frame); the message and a comment in the file say what to do."""
 
 
 def _yaml_float(x: float) -> str:
@@ -54,12 +77,65 @@ def _yaml_list(values: list[float] | list[bool]) -> str:
     return "[" + ", ".join(items) + "]"
 
 
+def _comment(text: str) -> str:
+    """Text safe inside a YAML comment: one line (control characters escaped)."""
+    return text.encode("unicode_escape").decode("ascii")
+
+
+def _wrap(text: str) -> list[str]:
+    """A comment paragraph as ``# ``-lines of at most 92 characters."""
+    return ["# " + line for line in textwrap.wrap(_comment(text), 90, break_on_hyphens=False)]
+
+
+def sensor_filter_coefficient(scenario: Scenario) -> float:
+    """``ft_sensor.filter_coefficient`` equivalent to the scenario's force-sensor low-pass:
+    α = 1 − exp(−2π f_c T) (the sensor's y_k = y_{k−1} + α (u_k − y_{k−1}) is the
+    controller's exponential smoothing with that coefficient); 1.0 without a low-pass.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> sc = ar.paper.scenario("fig8").replace(sensor=ar.ForceSensor(cutoff=30.0))
+        >>> round(ar.export.sensor_filter_coefficient(sc), 4)
+        0.1718
+    """
+    cutoff = scenario.sensor.cutoff
+    if cutoff is None:
+        return 1.0
+    return float(-math.expm1(-2.0 * math.pi * cutoff * scenario.period))
+
+
+def _control_frame(scenario: Scenario) -> tuple[np.ndarray, list[float]] | None:
+    """For a wall whose normal is not +x: the rotation R (columns: the control frame's x =
+    n̂, y = t̂ × n̂, z = t̂ in the base frame) and its quaternion [x, y, z, w]."""
+    wall = scenario.wall
+    if wall is None or not wall.tilted:
+        return None
+    n, t = wall.directions()
+    rot = np.column_stack([n, np.cross(t, n), t])
+    # Shepperd's method on a proper rotation (det = +1 by construction).
+    m = rot
+    tr = float(np.trace(m))
+    if tr > 0:
+        s = 2.0 * math.sqrt(tr + 1.0)
+        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, s / 4]
+    else:
+        i = int(np.argmax(np.diag(m)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * math.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
+        q = [0.0, 0.0, 0.0, (m[k, j] - m[j, k]) / s]
+        q[i] = s / 4
+        q[j] = (m[j, i] + m[i, j]) / s
+        q[k] = (m[k, i] + m[i, k]) / s
+    return rot, [float(v) for v in q]
+
+
 def ros2_admittance(
     scenario: Scenario,
     path: str | os.PathLike[str] | None,
     *,
     controller_name: str = "admittance_controller",
-    filter_coefficient: float | None = 1.0,
+    filter_coefficient: float | Literal["sensor"] | None = "sensor",
+    joint_damping: float = 0.0,
 ) -> str:
     """Writes the admittance part of a ros2_controllers ``admittance_controller`` parameter
     file for ``scenario``'s force axis; returns the YAML text (``path=None``: only returns).
@@ -73,20 +149,41 @@ def ros2_admittance(
         scenario: a scenario whose ``admittance`` is an :class:`~admit_rs.AdmittanceFilter`
             with k > 0 (Scheme 1).
         path: the YAML file to write, or ``None``.
-        controller_name: the controller's name in the controller manager (top-level key).
+        controller_name: the controller's name in the controller manager (top-level key):
+            a ROS 2 node name (letters, digits, underscores; not starting with a digit).
         filter_coefficient: ``ft_sensor.filter_coefficient`` of the controller's exponential
-            F/T filter (1.0: the raw measurement, as admit_rs simulates it); ``None`` leaves
-            the key out (releases that replaced it by a ``sensor_filter_chain``).
+            F/T filter. ``"sensor"`` (default): the scenario's sensor low-pass,
+            1 − exp(−2π f_c T) (:func:`sensor_filter_coefficient`; 1.0, the raw
+            measurement, without one); a number in (0, 1]; ``None`` leaves the key out
+            (releases that replaced it by a ``sensor_filter_chain``).
+        joint_damping: ``admittance.joint_damping`` [1/s]. The controller subtracts
+            joint_damping · q̇ from the admittance's joint accelerations (default 5 when the
+            key is absent); eq. (30) has no such term, so 0.0 is written unless you ask.
 
     Raises:
         ExportError: the force loop has no faithful admittance_controller equivalent:
-            Scheme 2 (k = 0: D = ζ · 2 √(M · 0) = 0, no damping whatever ζ), k_a = 0, the
-            eq. (20) impedance baseline, no force loop, or values outside the controller's
-            bounds. The message names the nearest faithful alternative.
+            Scheme 2 (k = 0: D = ζ · 2 √(M · 0) = 0, no damping whatever ζ), k so small
+            that ζ > :data:`MAX_DAMPING_RATIO`, k_a = 0, the eq. (20) impedance baseline,
+            no force loop, or values outside the controller's bounds. The message names
+            the nearest faithful alternative.
+        ParameterError: ``controller_name``, ``filter_coefficient`` or ``joint_damping``
+            out of range (a name that is no ROS 2 node name would also inject YAML).
+
+    Warns:
+        ExportWarning: the wall normal is not +x; the file's comment gives the rotation of
+            the control frame (x along n̂, z along t̂) to set as ``control.frame.id``.
     """
     if not isinstance(scenario, Scenario):
         kind = type(scenario).__name__
         raise TypeError(f"ros2_admittance takes an admit_rs.Scenario, got {kind}")
+    if not isinstance(controller_name, str) or not _NAME.fullmatch(controller_name):
+        raise _bad("controller_name", repr(controller_name),
+                   "a ROS 2 node name: letters, digits and underscores, not starting with a"
+                   " digit (e.g. 'admittance_controller')")  # fmt: skip
+    if isinstance(joint_damping, bool) or not isinstance(joint_damping, int | float) or not (
+        math.isfinite(joint_damping) and joint_damping >= 0.0
+    ):
+        raise _bad("joint_damping", repr(joint_damping), "a finite number >= 0 [1/s]")
     adm = scenario.admittance
     if not isinstance(adm, AdmittanceFilter):
         what = "no force loop" if adm is None else "the eq. (20) impedance reference"
@@ -99,15 +196,15 @@ def ros2_admittance(
             "admittance.ka = 0 disconnects the force feedback; admittance_controller has no"
             " such setting (its mass would be m / k_a = inf)"
         )
+    hint = ""
+    if scenario.wall is not None:
+        k_hint = adm.ka * scenario.wall.stiffness / 99.0
+        hint = (
+            f" For example admittance.k = {k_hint:.4g} N/m keeps the steady-state force"
+            f" error at 1 % of f_d against this wall (k_e = {scenario.wall.stiffness:g} N/m,"
+            " r = k_a k_e / k = 99, with an ideal inner loop)."
+        )
     if adm.k == 0.0:
-        hint = ""
-        if scenario.wall is not None:
-            k_hint = adm.ka * scenario.wall.stiffness / 99.0
-            hint = (
-                f" For example admittance.k = {k_hint:.4g} N/m keeps the steady-state force"
-                f" error at 1 % of f_d against this wall (k_e = {scenario.wall.stiffness:g} N/m,"
-                " r = k_a k_e / k = 99, with an ideal inner loop)."
-            )
         raise ExportError(
             "Scheme 2 (admittance.k = 0) cannot be written for admittance_controller: it"
             " computes its damping as D = damping_ratio * 2 * sqrt(M * K), which is 0 when"
@@ -119,22 +216,72 @@ def ros2_admittance(
     mass = adm.m / adm.ka
     stiffness = adm.k / adm.ka
     zeta = adm.b / (2.0 * math.sqrt(adm.m * adm.k))
+    if not zeta <= MAX_DAMPING_RATIO:
+        k_min = adm.b**2 / (4.0 * adm.m * MAX_DAMPING_RATIO**2)
+        raise ExportError(
+            f"admittance.k = {adm.k:.4g} N/m gives damping_ratio = b / (2 sqrt(m k)) ="
+            f" {zeta:.3g}, above {MAX_DAMPING_RATIO:g}: admittance_controller derives its"
+            " damping from that ratio and K = k / k_a, and a k this small is Scheme 2 in all"
+            f" but name. Nearest faithful alternative: admittance.k >= {k_min:.3g} N/m, or a"
+            " Scheme 1 stiffness chosen for its force offset." + hint
+        )
     if not _MASS_BOUNDS[0] <= mass <= _MASS_BOUNDS[1]:
         raise ExportError(f"mass m / k_a = {mass:g} kg is outside admittance_controller's"
                           f" bounds {list(_MASS_BOUNDS)}")  # fmt: skip
     if not _STIFFNESS_BOUNDS[0] <= stiffness <= _STIFFNESS_BOUNDS[1]:
         raise ExportError(f"stiffness k / k_a = {stiffness:g} N/m is outside"
                           f" admittance_controller's bounds {list(_STIFFNESS_BOUNDS)}")  # fmt: skip
-    if filter_coefficient is not None and not 0.0 < filter_coefficient <= 1.0:
-        raise ExportError(f"filter_coefficient = {filter_coefficient} must be in (0, 1]")
+    if isinstance(filter_coefficient, str):
+        if filter_coefficient != "sensor":
+            raise _bad("filter_coefficient", repr(filter_coefficient),
+                       "'sensor', a number in (0, 1] or None")  # fmt: skip
+        alpha: float | None = sensor_filter_coefficient(scenario)
+    else:
+        alpha = filter_coefficient
+    if alpha is not None and (isinstance(alpha, bool) or not 0.0 < alpha <= 1.0):
+        raise _bad("filter_coefficient", repr(alpha), "a number in (0, 1], 'sensor' or None")
 
-    label = scenario.label or "(no label)"
-    lines = [
-        f"# admittance_controller parameters for the force axis of admit_rs scenario {label!r}.",
-        f"# m = {adm.m:g} kg, b = {adm.b:g} N*s/m, k = {adm.k:g} N/m, k_a = {adm.ka:g}:",
-        "# M = m/k_a, K = k/k_a, damping_ratio = b/(2 sqrt(m k)). Only x (the wall normal of",
-        "# the control frame) is selected. Not exported (see docs/export.md): f_d, the inner",
-        f"# loop, the period T = {scenario.period:g} s (the controller manager's update_rate).",
+    cutoff = scenario.sensor.cutoff
+    notes = [
+        f"admittance_controller parameters for the force axis of the admit_rs scenario:"
+        f" {describe(scenario)}.",
+        f"m = {adm.m:g} kg, b = {adm.b:g} N*s/m, k = {adm.k:g} N/m, k_a = {adm.ka:g}: M = m/k_a,"
+        " K = k/k_a, damping_ratio = b/(2 sqrt(m k)). Only x (the wall normal of the control"
+        " frame) is selected.",
+        "joint_damping (the controller's extra joint-space damping q'' -= joint_damping q',"
+        f" 5 if absent) is {_yaml_float(joint_damping)}"
+        + (": eq. (30) has none." if joint_damping == 0.0 else
+           ", which eq. (30) does not have: the controller is damped more than the"
+           " simulated filter."),
+    ]
+    if filter_coefficient is None:
+        notes.append("ft_sensor.filter_coefficient is left out: configure the sensor filter"
+                     " chain yourself.")  # fmt: skip
+    elif cutoff is not None and filter_coefficient == "sensor":
+        notes.append(f"ft_sensor.filter_coefficient = 1 - exp(-2 pi f_c T): the sensor's"
+                     f" {cutoff:g} Hz low-pass at T = {scenario.period:g} s.")  # fmt: skip
+    frame = _control_frame(scenario)
+    if frame is not None:
+        rot, quat = frame
+
+        def fmt(values: Iterable[float]) -> str:
+            return ", ".join(f"{v + 0.0:.6g}" for v in values)  # + 0.0: no "-0"
+
+        message = (
+            f"the wall normal n = ({fmt(rot[:, 0])}) is not the x axis: set control.frame.id"
+            " to a frame whose x axis is n (its z along the motion direction t); relative to"
+            f" the base frame its rotation is the quaternion [x, y, z, w] = [{fmt(quat)}]"
+        )
+        warnings.warn(f"ros2_admittance: {message}", ExportWarning, stacklevel=2)
+        notes += [
+            "REQUIRED: " + message[0].upper() + message[1:] + ".",
+            "Rotation matrix (rows; columns are the control frame's x, y, z in the base"
+            f" frame): {'; '.join(fmt(row) for row in rot)}.",
+        ]
+    notes.append("Not exported (see docs/export.md): f_d, the inner loop, the period"
+                 f" T = {scenario.period:g} s (the controller manager's update_rate).")  # fmt: skip
+    lines = [line for note in notes for line in _wrap(note)]
+    lines += [
         f"{controller_name}:",
         "  ros__parameters:",
         "    admittance:",
@@ -142,10 +289,17 @@ def ros2_admittance(
         f"      mass: {_yaml_list([mass] * 6)}",
         f"      damping_ratio: {_yaml_list([zeta] * 6)}",
         f"      stiffness: {_yaml_list([stiffness] * 6)}",
+        f"      joint_damping: {_yaml_float(joint_damping)}",
     ]
-    if filter_coefficient is not None:
-        lines += ["    ft_sensor:", f"      filter_coefficient: {_yaml_float(filter_coefficient)}"]
+    if alpha is not None:
+        lines += ["    ft_sensor:", f"      filter_coefficient: {_yaml_float(alpha)}"]
     text = "\n".join(lines) + "\n"
     if path is not None:
         Path(path).write_text(text, encoding="utf-8")
     return text
+
+
+def _bad(name: str, value: str, allowed: str) -> ParameterError:
+    err = ParameterError(f"{name} = {value} is invalid: must be {allowed}")
+    err.field, err.value, err.allowed = name, value, allowed
+    return err

@@ -15,6 +15,7 @@ import numpy as np
 import numpy.typing as npt
 import polars as pl
 from matplotlib.patches import Rectangle
+from matplotlib.ticker import NullLocator
 
 from admit_rs.config import Scenario
 
@@ -48,51 +49,76 @@ class Run(Protocol):
 
 
 def plot_result(result: Run, title: str | None = None) -> Figure:
-    """Four panels: force and f_d; x and its reference; z and its reference; x_a.
+    """Four panels: force and f_d; the position along the wall normal n and along the motion
+    direction t̂ against their references (the directions of the ``x_*`` and ``z_*``
+    metrics: world x and z for the paper's wall, n·X and t̂·X for a tilted one), with the
+    wall drawn; x_a.
 
-    Position-only runs show joint torques in place of the force panels.
+    With a real sensor the true force is a wide band under the thin measured force, so
+    both stay visible. Position-only runs show joint torques in place of the force panels.
+    The title is ``title``, else the scenario's label, else :func:`admit_rs.describe` of
+    the scenario (derived now, so it cannot be stale).
     """
     from matplotlib.figure import Figure
+
+    from admit_rs.config import describe
 
     matplotlib.rcParams.setdefault("figure.dpi", 100)
     tr = result.trace
     t = tr["t"].to_numpy()
-    force_control = result.scenario.admittance is not None
+    sc = result.scenario
+    force_control = sc.admittance is not None
+    n, tangent, tilted = _directions(sc)
+    xyz = np.column_stack([tr[c].to_numpy() for c in ("x", "y", "z")])
+    ref = np.column_stack([tr[c].to_numpy() for c in ("x_ref", "y_ref", "z_ref")])
+    along_n, along_n_ref = xyz @ n, ref @ n
+    along_t, along_t_ref = xyz @ tangent, ref @ tangent
+    n_name, t_name = ("n·X", "t̂·X") if tilted else ("x", "z")
     fig = Figure(figsize=(11, 7.5), layout="constrained")
     axes = fig.subplots(2, 2, sharex=True)
     (ax_f, ax_x), (ax_z, ax_a) = axes
     if force_control:
         f = tr["f"].to_numpy()
         measured = tr["f_measured"].to_numpy() if "f_measured" in tr.columns else f
-        differs = not np.array_equal(measured, f)
-        if differs:
-            # A real sensor: show what the controller saw behind the true force.
-            ax_f.plot(t, measured, color="C1", lw=0.6, alpha=0.7, label="f measured")
-        ax_f.plot(t, f, color="C0", label="f (true)" if differs else "f")
-        ax_f.plot(t, tr["f_d"].to_numpy(), "--", color="k", lw=1, label="f_d")
-        ax_f.set_ylabel("force [N]")
+        if not np.array_equal(measured, f):
+            # A real sensor: the true force as a wide band underneath, what the controller
+            # saw as a thin line on top; where they coincide the band shows on both sides.
+            ax_f.plot(t, f, color="C0", lw=3.0, alpha=0.45, label="f (true)", zorder=2,
+                      solid_capstyle="butt")  # fmt: skip
+            ax_f.plot(t, measured, color="C1", lw=0.8, label="f measured", zorder=3)
+        else:
+            ax_f.plot(t, f, color="C0", label="f", zorder=2)
+        ax_f.plot(t, tr["f_d"].to_numpy(), "--", color="k", lw=1, label="f_d", zorder=4)
+        ax_f.set_ylabel("force along n [N]" if tilted else "force [N]")
         ax_f.set_title("contact force")
         ax_a.plot(t, 1e3 * tr["x_a"].to_numpy(), color="C2")
         ax_a.set_ylabel("x_a [mm]")
         ax_a.set_title("admittance output x_a")
     else:
-        for i in range(1, 4):
-            ax_f.plot(t, tr[f"tau{i}"].to_numpy(), label=f"τ{i}")
+        taus = [c for c in tr.columns if re.fullmatch(r"tau\d+", c)]
+        for c in taus:
+            ax_f.plot(t, tr[c].to_numpy(), label=f"τ{c[3:]}")
         ax_f.set_ylabel("torque [N·m]")
         ax_f.set_title("joint torques")
-        ax_a.plot(t, 1e3 * (tr["z_ref"] - tr["z"]).to_numpy(), color="C3")
-        ax_a.set_ylabel("z_d − z [mm]")
-        ax_a.set_title("z tracking error")
-    ax_x.plot(t, tr["x"].to_numpy(), label="x")
-    ax_x.plot(t, tr["x_ref"].to_numpy(), "--", color="k", lw=1, label="x_ref")
-    ax_x.set_ylabel("x [m]")
-    ax_x.set_title("x position")
-    ax_z.plot(t, tr["z"].to_numpy(), label="z")
-    ax_z.plot(t, tr["z_ref"].to_numpy(), "--", color="k", lw=1, label="z_ref")
-    ax_z.set_ylabel("z [m]")
-    ax_z.set_title("z position")
+        ax_a.plot(t, 1e3 * (along_t_ref - along_t), color="C3")
+        ax_a.set_ylabel(f"{'t̂·(X_d − X)' if tilted else 'z_d − z'} [mm]")
+        ax_a.set_title("motion tracking error along t̂" if tilted else "z tracking error")
+    ax_x.plot(t, along_n, label=n_name, zorder=3)
+    ax_x.plot(t, along_n_ref, "--", color="k", lw=1, label=f"{n_name} reference", zorder=3)
+    ax_x.set_ylabel(f"{n_name} [m]")
+    ax_x.set_title(f"position along the wall normal n = {_vector(n)}" if tilted
+                   else "x position" + (" (along the wall normal)" if sc.wall else ""))  # fmt: skip
+    if sc.wall is not None:
+        _draw_wall(ax_x, sc, along_n, tr["penetration"].to_numpy())
+    ax_z.plot(t, along_t, label=t_name)
+    ax_z.plot(t, along_t_ref, "--", color="k", lw=1, label=f"{t_name} reference")
+    ax_z.set_ylabel(f"{t_name} [m]")
+    ax_z.set_title(f"position along the motion direction t̂ = {_vector(tangent)}" if tilted
+                   else "z position")  # fmt: skip
     for ax in axes.flat:
         ax.grid(True, alpha=0.3)
+        # Plain tick labels: no "1e-5+7.34e-1" offset text on nearly constant positions.
+        ax.ticklabel_format(axis="y", useOffset=False)
         if ax.get_legend_handles_labels()[0]:
             ax.legend(loc="best", fontsize=8)
     for ax in axes[1]:
@@ -100,11 +126,48 @@ def plot_result(result: Run, title: str | None = None) -> Figure:
     if result.diverged_at is not None:
         for ax in axes.flat:
             ax.axvline(result.diverged_at, color="r", lw=1)
-    heading = title or result.scenario.label or "admit_rs run"
+    heading = title or sc.label or describe(sc)
     if result.diverged_at is not None:
         heading += f" — diverged at {result.diverged_at:.3g} s: {result.divergence_cause}"
-    fig.suptitle(heading)
+    fig.suptitle(textwrap.fill(heading, 120))
     return fig
+
+
+def _directions(
+    scenario: Scenario,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], bool]:
+    """n̂, t̂ of the scenario's wall (the paper's +x, +z without one) and whether tilted."""
+    if scenario.wall is None:
+        return np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), False
+    n, t = scenario.wall.directions()
+    return n, t, scenario.wall.tilted
+
+
+def _vector(v: npt.NDArray[np.float64]) -> str:
+    return "(" + ", ".join(f"{x + 0.0:.3g}" for x in v) + ")"
+
+
+def _draw_wall(
+    ax: Axes, scenario: Scenario, along_n: npt.NDArray[np.float64], penetration: Any
+) -> None:
+    """The wall as a shaded band beyond its surface n·X = x_e (from the trace: x_e =
+    n·X − δ), and the controller's estimate x̂_e when it differs."""
+    finite = np.isfinite(penetration) & np.isfinite(along_n)
+    if not finite.any():
+        return
+    k = int(np.argmax(finite))
+    x_e = float(along_n[k] - penetration[k])
+    lo, hi = ax.get_ylim()
+    estimate = x_e + (scenario.wall.position_error if scenario.wall is not None else 0.0)
+    lo, hi = min(lo, x_e, estimate), max(hi, x_e, estimate)
+    pad = 0.08 * (hi - lo if hi > lo else max(abs(x_e), 1e-3))
+    lo, hi = lo - pad, hi + pad
+    ax.axhspan(x_e, hi, facecolor="0.55", alpha=0.25, hatch="///", edgecolor="0.4", lw=0,
+               zorder=1, label="wall (penetration > 0)")  # fmt: skip
+    ax.axhline(x_e, color="0.25", lw=1.2, zorder=2)
+    if estimate != x_e:
+        ax.axhline(estimate, color="0.25", lw=1, ls=":", zorder=2, label="estimated wall x̂_e")
+    ax.set_ylim(lo, hi)
 
 
 def plot_paper_figure(
@@ -114,8 +177,12 @@ def plot_paper_figure(
 
     Force runs: force and f_d, force error, x and x_ref, z and z_ref, x_a, joint torques
     (of the first curve). Position-only runs: x, z, their errors and the joint torques.
+    With a tilted wall, x and z are the positions along n and t̂ (n·X, t̂·X), as the
+    metrics measure them. Curves without a label are named by :func:`admit_rs.describe`.
     """
     from matplotlib.figure import Figure
+
+    from admit_rs.config import describe
 
     fig = Figure(figsize=size, layout="constrained")
     axes = list(fig.subplots(2, 3, sharex=True).flat)
@@ -124,7 +191,9 @@ def plot_paper_figure(
     for i, r in enumerate(results):
         tr = r.trace
         t = tr["t"].to_numpy()
-        label = r.scenario.label or f"curve {i + 1}"
+        # A curve without a label is named by its scenario (a single one only in the title,
+        # so that long descriptions stay out of the panel legends).
+        label = r.scenario.label or (describe(r.scenario) if many else "run")
         color = f"C{i}"
         ref_style = {"color": color if many else "k", "ls": "--", "lw": 1}
         ref_label = f"reference ({label})" if many else "reference"
@@ -135,29 +204,39 @@ def plot_paper_figure(
                 ax.plot(t, tr["f_d"].to_numpy(), "k--", lw=1, label="f_d")
             axes[1].plot(t, (tr["f_d"] - tr["f"]).to_numpy(), color=color, label=label)
             axes[4].plot(t, 1e3 * tr["x_a"].to_numpy(), color=color, label=label)
-        else:
-            axes[0].plot(t, 1e3 * (tr["x_ref"] - tr["x"]).to_numpy(), color=color, label=label)
-            axes[1].plot(t, 1e3 * (tr["z_ref"] - tr["z"]).to_numpy(), color=color, label=label)
-        axes[2].plot(t, tr["x"].to_numpy(), color=color, label=label)
-        axes[2].plot(t, tr["x_ref"].to_numpy(), label=ref_label, **ref_style)
-        axes[3].plot(t, tr["z"].to_numpy(), color=color, label=label)
+        # Along n and t̂, as the metrics are (world x and z for the paper's wall).
+        n, tangent, _ = _directions(r.scenario)
+        xyz = np.column_stack([tr[c].to_numpy() for c in ("x", "y", "z")])
+        ref = np.column_stack([tr[c].to_numpy() for c in ("x_ref", "y_ref", "z_ref")])
+        pos_n, ref_n, pos_t, ref_t = xyz @ n, ref @ n, xyz @ tangent, ref @ tangent
+        if not force_control:
+            axes[0].plot(t, 1e3 * (ref_n - pos_n), color=color, label=label)
+            axes[1].plot(t, 1e3 * (ref_t - pos_t), color=color, label=label)
+        axes[2].plot(t, pos_n, color=color, label=label)
+        axes[2].plot(t, ref_n, label=ref_label, **ref_style)
+        axes[3].plot(t, pos_t, color=color, label=label)
         if i == 0 or many:
-            axes[3].plot(t, tr["z_ref"].to_numpy(), label=ref_label if i == 0 else None,
-                         **ref_style)  # fmt: skip
+            axes[3].plot(t, ref_t, label=ref_label if i == 0 else None, **ref_style)
         if i == 0:
-            for j in range(1, 4):
-                axes[5].plot(t, tr[f"tau{j}"].to_numpy(), label=f"τ{j}")
+            for c in (c for c in tr.columns if re.fullmatch(r"tau\d+", c)):
+                axes[5].plot(t, tr[c].to_numpy(), label=f"τ{c[3:]}")
         if r.diverged_at is not None:
             for ax in axes:
                 ax.axvline(r.diverged_at, color="r", lw=1)
-    if force_control:
-        names = ["(a) contact force [N]", "(b) force error f_d − f [N]", "(c) x position [m]",
-                 "(d) z position [m]", "(e) admittance output x_a [mm]"]  # fmt: skip
+    if any(_directions(r.scenario)[2] for r in results):  # a tilted wall
+        pos = ["(c) position along the wall normal n·X [m]", "(d) position along t̂, t̂·X [m]"]
+        err = ["(a) error along n, n·(X_d − X) [mm]", "(b) error along t̂, t̂·(X_d − X) [mm]"]
     else:
-        names = ["(a) x error x_d − x [mm]", "(b) z error z_d − z [mm]", "(c) x position [m]",
-                 "(d) z position [m]", ""]  # fmt: skip
+        pos = ["(c) x position [m]", "(d) z position [m]"]
+        err = ["(a) x error x_d − x [mm]", "(b) z error z_d − z [mm]"]
+    if force_control:
+        names = ["(a) contact force [N]", "(b) force error f_d − f [N]", *pos,
+                 "(e) admittance output x_a [mm]"]  # fmt: skip
+    else:
+        names = [*err, *pos, ""]
         axes[4].set_visible(False)
-    tau_title = "joint torques [N·m]" + (f" ({results[0].scenario.label})" if many else "")
+    first = results[0].scenario.label or describe(results[0].scenario)
+    tau_title = "joint torques [N·m]" + (f" ({first})" if many else "")
     clip_note = _clip_torques(axes[5], results[0].trace)
     names.append(("(f) " if force_control else "(e) ") + tau_title + clip_note)
     for ax, name in zip(axes, names, strict=True):
@@ -174,16 +253,20 @@ def plot_paper_figure(
         # One legend for every panel, below them: curve colours, f_d, dashed references.
         from matplotlib.lines import Line2D
 
-        handles = [Line2D([], [], color=f"C{i}", label=r.scenario.label or f"curve {i + 1}")
+        handles = [Line2D([], [], color=f"C{i}", label=r.scenario.label or describe(r.scenario))
                    for i, r in enumerate(results)]  # fmt: skip
         if force_control:
             handles.append(Line2D([], [], color="k", ls="--", lw=1, label="f_d"))
         handles.append(Line2D([], [], color="0.4", ls="--", lw=1,
                               label="reference (dashed, in the curve's colour)"))  # fmt: skip
-        fig.legend(handles=handles, loc="outside lower center", ncols=min(len(handles), 4),
+        longest = max(len(str(h.get_label())) for h in handles)
+        fig.legend(handles=handles, loc="outside lower center",
+                   ncols=min(len(handles), 4 if longest <= 80 else 2 if longest <= 160 else 1),
                    fontsize=8, frameon=False)  # fmt: skip
     for ax in axes[3:]:
         ax.set_xlabel("t [s]")
+    if not many and not results[0].scenario.label:
+        title = f"{title}\n{describe(results[0].scenario)}"
     fig.suptitle(title, fontsize=12)
     return fig
 
@@ -306,15 +389,20 @@ def sweep_heatmap(
 ) -> Figure:
     """A metric over two parameters, to answer "which gains are safe".
 
-    The grid values as they are, or ``bins`` bins per axis for random draws. Each cell
+    A grid axis (at most ``bins`` distinct values, each repeated) is drawn as categories:
+    one equal cell per listed value, its tick labelled with the value (a grid over k_a =
+    0.1, 1, 2 is three cells, not a linear axis from −0.4); random draws are binned,
+    ``bins`` bins per axis, on a linear or log axis. Tick labels that would collide are
+    thinned (every 2nd, 3rd, ... kept). Each cell
     aggregates its stable runs with ``agg`` (``max``, ``min``, ``mean``, ``median`` or
     ``absmax``); the default is the worst case for the metric (:data:`WORST_CASE`: ``max``
     of force_peak, overshoot_pct, force_oscillation, contact_loss and the errors, the
     largest-magnitude force_ss_error), the mean for other columns. Cells whose runs are all
     unstable are filled as the "unstable" category, cells with some unstable runs are
     hatched with their count, cells without runs are grey; a legend explains the three.
-    ``logx``/``logy`` default to a log axis (and log bins) when the parameter looks
-    log-uniform or log-spaced; pass ``True``/``False`` to override. Axes and colour bar show
+    For draws, ``logx``/``logy`` default to a log axis (and log bins) when the parameter
+    looks log-uniform; ``True``/``False`` force a continuous log/linear axis (also for a
+    grid, whose cells then span halfway to the next value). Axes and colour bar show
     units (metrics from :data:`admit_rs.METRICS`, parameters from the blocks' docs;
     ``units={"path": "unit"}`` adds or overrides). ``overlay_unstable`` marks every unstable
     run with a red ×. Unknown ``x``/``y``/``metric`` raise :class:`admit_rs.UnknownNameError`.
@@ -339,10 +427,15 @@ def sweep_heatmap(
     if agg not in _REDUCERS:
         raise ValueError(f"agg = {agg!r} is invalid: must be one of {', '.join(_REDUCERS)}")
     xs, ys = table[x].to_numpy().astype(float), table[y].to_numpy().astype(float)
-    logx = _log_axis(xs, bins) if logx is None else logx
-    logy = _log_axis(ys, bins) if logy is None else logy
-    xe, xi = _axis(xs, bins, logx)
-    ye, yi = _axis(ys, bins, logy)
+    # A grid is drawn as categories: one equal cell per listed value, labelled with it
+    # (k_a = 0.1, 1, 2 are three cells, not a linear axis from -0.4); random draws are
+    # binned on a linear or log axis. logx/logy force a continuous axis.
+    xcat = _categories(xs, bins) if logx is None else None
+    ycat = _categories(ys, bins) if logy is None else None
+    logx = False if xcat is not None else _log_axis(xs, bins) if logx is None else logx
+    logy = False if ycat is not None else _log_axis(ys, bins) if logy is None else logy
+    xe, xi, xp = _cell_axis(xs, bins, logx, xcat)
+    ye, yi, yp = _cell_axis(ys, bins, logy, ycat)
     values = table[metric].to_numpy().astype(float)
     stable = _stable_mask(table)
     grid = np.full((len(ye) - 1, len(xe) - 1), np.nan)
@@ -387,11 +480,16 @@ def sweep_heatmap(
         handles.append(Patch(fill=False, hatch="xx", edgecolor="r",
                              label="some runs unstable (count ✗)"))  # fmt: skip
     if overlay_unstable and (~stable).any():
-        handles.append(ax.scatter(xs[~stable], ys[~stable], marker="x", color="r", s=12,
+        handles.append(ax.scatter(xp[~stable], yp[~stable], marker="x", color="r", s=12,
                                   lw=0.8, label=f"unstable run ({(~stable).sum()})"))  # fmt: skip
     _finish_grid_axes(ax, xe, ye, logx, logy, _with_unit(x, units), _with_unit(y, units), handles)
-    ax.set_title(f"{agg} {metric} over {x} × {y} ({table.height} runs,"
-                 f" {int((~stable).sum())} unstable)")  # fmt: skip
+    for axis, cats in ((ax.xaxis, xcat), (ax.yaxis, ycat)):
+        if cats is not None:
+            axis.set_ticks(np.arange(cats.size), labels=_tick_texts(cats))
+            axis.set_minor_locator(NullLocator())
+    _declutter(fig, ax)
+    ax.set_title(textwrap.fill(f"{agg} {metric} over {x} × {y} ({table.height} runs,"
+                               f" {int((~stable).sum())} unstable)", 70))  # fmt: skip
     return fig
 
 
@@ -522,6 +620,99 @@ def _axis(
     return edges, np.clip(np.searchsorted(edges, values, side="right") - 1, 0, bins - 1)
 
 
+def _crosses_zero(distinct: npt.NDArray[np.float64]) -> bool:
+    """Positive values whose cells on a linear axis (edges halfway between values) would
+    start below zero."""
+    if distinct.size < 2 or distinct.min() <= 0:
+        return False
+    return bool(distinct[0] - (distinct[1] - distinct[0]) / 2 < 0)
+
+
+def _categories(values: npt.NDArray[np.float64], bins: int) -> npt.NDArray[np.float64] | None:
+    """The distinct values of a grid axis (at most ``bins`` of them, each repeated: a
+    factorial grid lists every value once per value of the other axis), else ``None``."""
+    v = values[np.isfinite(values)]
+    distinct = np.unique(v)
+    if 0 < distinct.size <= bins and (distinct.size < v.size or distinct.size == 1):
+        return distinct
+    return None
+
+
+def _cell_axis(
+    values: npt.NDArray[np.float64],
+    bins: int,
+    log: bool,
+    categories: npt.NDArray[np.float64] | None,
+) -> tuple[npt.NDArray[np.float64], Any, npt.NDArray[np.float64]]:
+    """Cell edges, each value's cell and each value's plot coordinate: category index
+    ``i`` spans [i - 0.5, i + 0.5]; otherwise the values themselves (see :func:`_axis`)."""
+    if categories is not None:
+        index = np.searchsorted(categories, values)
+        edges = np.asarray(np.arange(categories.size + 1) - 0.5, dtype=np.float64)
+        return edges, index, np.asarray(index, dtype=np.float64)
+    edges, index = _axis(values, bins, log)
+    return edges, index, values
+
+
+def _tick_texts(values: npt.NDArray[np.float64]) -> list[str]:
+    """Labels for category ticks, one style for the axis: plain (0.1, 800, 30000) or, when
+    any value needs it, powers of ten ($3\\times10^{4}$)."""
+    finite = np.abs(values[np.isfinite(values) & (values != 0)])
+    if finite.size == 0 or (finite.min() >= 1e-3 and finite.max() < 1e5):
+        return [f"{v:g}" for v in values]
+    out = []
+    for v in values:
+        if v == 0 or not np.isfinite(v):
+            out.append(f"{v:g}")
+            continue
+        mantissa, exponent = f"{v:.3e}".split("e")
+        m = mantissa.rstrip("0").rstrip(".")
+        power = f"10^{{{int(exponent)}}}"
+        out.append(f"${power}$" if m == "1" else f"${m}\\times{power}$")
+    return out
+
+
+def _declutter(fig: Figure, ax: Axes) -> None:
+    """Tick labels that do not overlap (nor touch: "3×10⁴4×10⁴" reads as one number).
+
+    Measured on a drawn canvas. When the labels on an axis collide, its ticks are frozen
+    (major and minor labels together, in order) and every 2nd, 3rd, ... label is kept
+    until none collides."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)
+
+    def colliding(axis: Any) -> bool:
+        canvas.draw()
+        renderer = canvas.get_renderer()
+        # Padded by 1 px: labels less than 2 px apart collide.
+        boxes = [label.get_window_extent(renderer).padded(1.0) for _, label in _shown(axis)]
+        return any(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1 :])
+
+    for axis in (ax.xaxis, ax.yaxis):
+        if not colliding(axis):
+            continue
+        ticks = sorted((float(loc), label.get_text()) for loc, label in _shown(axis))
+        axis.set_minor_locator(NullLocator())
+        for step in range(2, len(ticks) + 1):
+            kept = ticks[::step]
+            axis.set_ticks([loc for loc, _ in kept], labels=[text for _, text in kept])
+            if not colliding(axis):
+                break
+
+
+def _shown(axis: Any) -> list[tuple[float, Any]]:
+    """(location, label) of the tick labels that are drawn: visible, non-empty and inside
+    the axis limits."""
+    lo, hi = sorted(axis.get_view_interval())
+    ticks = list(zip(axis.get_majorticklocs(), axis.get_ticklabels(), strict=False))
+    ticks += list(zip(axis.get_minorticklocs(), axis.get_ticklabels(minor=True), strict=False))
+    span = hi - lo
+    return [(loc, label) for loc, label in ticks
+            if label.get_visible() and label.get_text()
+            and lo - 1e-9 * span <= loc <= hi + 1e-9 * span]  # fmt: skip
+
+
 def stability_map(
     table: pl.DataFrame,
     overlay: pl.DataFrame | None = None,
@@ -534,7 +725,9 @@ def stability_map(
     radius ρ per cell (blue below 1, red above), the predicted boundary ρ = 1 as a black
     line, cells without an equilibrium in grey; with ``overlay`` (a sweep table with the
     same two parameter columns) each simulated run as a green ○ (stable per SPEC §7) or a
-    red × (not), and the share of cells where prediction and simulation agree.
+    red × (not), and the share of cells where prediction and simulation agree. An axis
+    is logarithmic when its values are log-spaced, or positive with linear cells that
+    would start below zero; tick labels that would collide are thinned.
 
     Example:
         >>> import admit_rs as ar
@@ -550,8 +743,10 @@ def stability_map(
     x, y = table.columns[0], table.columns[1]
     xv = np.unique(table[x].to_numpy().astype(float))
     yv = np.unique(table[y].to_numpy().astype(float))
-    logx = _log_axis(xv) if logx is None else logx
-    logy = _log_axis(yv) if logy is None else logy
+    # A positive grid whose linear cells would reach below zero (k_a = 0.1, 1, 2: from
+    # -0.35) is drawn on a log axis instead.
+    logx = _log_axis(xv) or _crosses_zero(xv) if logx is None else logx
+    logy = _log_axis(yv) or _crosses_zero(yv) if logy is None else logy
     rho = np.full((yv.size, xv.size), np.nan)
     xi = np.searchsorted(xv, table[x].to_numpy().astype(float))
     yi = np.searchsorted(yv, table[y].to_numpy().astype(float))
@@ -598,5 +793,10 @@ def stability_map(
                         f"{joined.height} cells")  # fmt: skip
     xlabel, ylabel = _with_unit(x, {x: parameter_unit(x)}), _with_unit(y, {y: parameter_unit(y)})
     _finish_grid_axes(ax, xe, ye, logx, logy, xlabel, ylabel, handles)
+    for axis, values in ((ax.xaxis, xv), (ax.yaxis, yv)):
+        if values.size <= 12:  # a short grid: a tick at each value, labelled with it
+            axis.set_ticks(values, labels=_tick_texts(values))
+            axis.set_minor_locator(NullLocator())
+    _declutter(fig, ax)
     ax.set_title(title or f"predicted stability over {x} × {y}{subtitle}", fontsize=11)
     return fig

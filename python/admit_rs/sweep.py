@@ -15,18 +15,23 @@ resumed from a checkpoint, or computed on Dask workers.
 
 from __future__ import annotations
 
+import contextlib
 import copy
+import dataclasses
 import hashlib
 import itertools
 import json
 import math
 import os
+import tempfile
 import time
+import types
+import typing
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 import polars as pl
@@ -198,10 +203,65 @@ def _describe(value: Any) -> Any:
     return value
 
 
-def _column_value(value: Any) -> Any:
-    if isinstance(value, _Block):
+def _column_value(value: Any, dtype: Any = None) -> Any:
+    """A varied value as its table column holds it: blocks (and, in a column whose values
+    mix shapes, every value) as their repr."""
+    if isinstance(value, _Block) or (dtype == pl.String and not isinstance(value, str)):
         return repr(value)
     return value
+
+
+def _field_types(scenario: Scenario, path: str) -> tuple[type, ...]:
+    """The types a dotted path's field is declared with (``float | None`` ->
+    ``(float, NoneType)``), from the block's annotations; ``()`` when unknown."""
+    *parents, leaf = path.split(".")
+    owner: Any = scenario
+    for part in parents:
+        owner = getattr(owner, part, None)
+    if not dataclasses.is_dataclass(owner):
+        return ()
+    try:
+        hint = typing.get_type_hints(type(owner)).get(leaf)
+    except (NameError, TypeError):  # an annotation that does not resolve: no coercion
+        return ()
+    if hint is None:
+        return ()
+    args = typing.get_args(hint)
+    members = args if typing.get_origin(hint) in (typing.Union, types.UnionType) else (hint,)
+    # Plain types, and tuple[float, ...] (a vector field) as itself.
+    return tuple(m for m in members if isinstance(m, type) or typing.get_origin(m) is tuple)
+
+
+def _normalise(types_: tuple[type, ...], value: Any) -> Any:
+    """A listed or drawn value in its field's declared type, so that the table does not
+    depend on how it was typed (``200`` and ``200.0`` for a float field are both 200.0;
+    an integral ``10.0`` for an int field is 10). Booleans are left alone (the core
+    rejects a bool where a number belongs)."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, list | tuple | np.ndarray):
+        vector = any(typing.get_origin(t) is tuple and float in typing.get_args(t) for t in types_)
+        if vector:  # (1, 0, -1) and (1.0, 0.0, -1.0) are one normal
+            return tuple(_normalise((float,), v) for v in value)
+        return value
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return value
+    if float in types_ and int not in types_ and isinstance(value, int):
+        return float(value)
+    if int in types_ and float not in types_ and isinstance(value, float):
+        if math.isfinite(value) and value == int(value):
+            return int(value)
+    return value
+
+
+def _dtype(values: list[Any]) -> Any:
+    """The one polars dtype of a varied column, from all its values (not from the first
+    ones of a chunk): every chunk, thread count and resume builds it alike. Values that
+    no single dtype holds (a number and a tuple for one field) become their repr."""
+    try:
+        return pl.Series(values, strict=True).dtype
+    except (TypeError, ValueError, pl.exceptions.PolarsError):
+        return pl.String
 
 
 @dataclass(frozen=True)
@@ -213,6 +273,8 @@ class _Plan:
     rows: list[dict[str, Any]]
     seed: int
     manifest: dict[str, Any]
+    dtypes: dict[str, Any] = field(default_factory=dict)
+    """The polars dtype of each varied column."""
 
 
 def _plan(
@@ -240,6 +302,8 @@ def _plan(
     for path, values in grid.items():
         if not values:
             raise ValueError(f"grid[{path!r}] is empty")
+    declared = {path: _field_types(scenario, path) for path in [*grid, *vary]}
+    grid = {path: [_normalise(declared[path], v) for v in values] for path, values in grid.items()}
     if samples is None:
         if vary:
             raise ValueError("samples is required with vary (how many draws per grid point)")
@@ -255,7 +319,7 @@ def _plan(
             row: dict[str, Any] = dict(zip(grid, point, strict=True))
             rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, run_id])))
             for path, dist in vary.items():
-                row[path] = dist.draw(rng)
+                row[path] = _normalise(declared[path], dist.draw(rng))
             rows.append(row)
     manifest = {
         "format": 1,
@@ -265,7 +329,9 @@ def _plan(
         "samples": samples,
         "seed": seed,
     }
-    return _Plan(scenario._to_core(), list(grid) + list(vary), rows, seed, manifest)
+    paths = list(grid) + list(vary)
+    dtypes = {p: _dtype([_column_value(r[p]) for r in rows]) for p in paths}
+    return _Plan(scenario._to_core(), paths, rows, seed, manifest, dtypes)
 
 
 def _set_path(config: dict[str, Any], path: str, value: Any) -> None:
@@ -308,8 +374,10 @@ def _run_chunk(
     threads: int | None,
     traces: bool,
     lanes: bool = True,
+    dtypes: Mapping[str, Any] | None = None,
 ) -> tuple[pl.DataFrame, pl.DataFrame | None]:
-    """Runs one chunk in the Rust core and returns its rows (and long traces).
+    """Runs one chunk in the Rust core and returns its rows (and long traces); ``dtypes``
+    gives each varied column's dtype (else inferred from this chunk's values).
 
     Top-level so that Dask workers can import it.
     """
@@ -325,7 +393,9 @@ def _run_chunk(
         "noise_seed": pl.Series("noise_seed", [c["seed"] for c in configs], dtype=pl.Int64),
     }
     for path in rows[0] if rows else []:
-        columns[path] = [_column_value(r[path]) for r in rows]
+        dtype = (dtypes or {}).get(path)
+        columns[path] = pl.Series(path, [_column_value(r[path], dtype) for r in rows],
+                                  dtype=dtype, strict=False)  # fmt: skip
     columns.update(raw["metrics"])
     columns["stable"] = raw["stable"]
     columns["diverged"] = raw["diverged"]
@@ -352,13 +422,22 @@ def _run_chunk_remote(
     seed: int,
     traces: bool,
     lanes: bool = True,
+    dtypes: Mapping[str, Any] | None = None,
 ) -> tuple[pl.DataFrame, pl.DataFrame | None]:
     # One task per worker thread: the worker's own cores run it, one Rust thread each.
-    return _run_chunk(base, rows, run_ids, seed, 1, traces, lanes)
+    return _run_chunk(base, rows, run_ids, seed, 1, traces, lanes, dtypes)
 
 
 class _Checkpoint:
-    """Finished chunks as Parquet files plus a manifest of the sweep's definition."""
+    """Finished chunks as Parquet files plus a manifest of the sweep's definition.
+
+    Every file carries, in its Parquet key-value metadata, the sweep's fingerprint (a
+    SHA-256 of the manifest: base scenario, vary, grid, samples, seed, traces,
+    chunk_size), its runs and a SHA-256 of its content (:func:`_checksum`). On resume a
+    file is used only if all three match, so neither a damaged file, nor one copied from
+    another sweep, nor a folder whose manifest was lost can put a wrong row in the table:
+    such a file is named in a :class:`CheckpointWarning` and its runs are computed again.
+    """
 
     def __init__(self, folder: str | os.PathLike[str], manifest: dict[str, Any]) -> None:
         self.folder = Path(folder)
@@ -366,19 +445,58 @@ class _Checkpoint:
         self.folder.mkdir(parents=True, exist_ok=True)
         path = self.folder / "manifest.json"
         text = json.dumps(manifest, sort_keys=True, indent=1)
-        if path.exists():
-            old = json.loads(path.read_text())
-            if old != json.loads(text):
-                keys = sorted(k for k in set(old) | set(manifest) if old.get(k) != manifest.get(k))
-                raise CheckpointMismatchError(
-                    f"checkpoint {self.folder} holds a different sweep (differs in"
-                    f" {', '.join(keys)}); use another folder or delete it"
-                )
-        else:
-            path.write_text(text)
+        self.fingerprint = hashlib.sha256(text.encode()).hexdigest()
+        old = self._read_manifest(path)
+        if old is not None and old != json.loads(text):
+            keys = sorted(k for k in set(old) | set(manifest) if old.get(k) != manifest.get(k))
+            raise CheckpointMismatchError(
+                f"checkpoint {self.folder} holds a different sweep (differs in"
+                f" {', '.join(keys)}); use another folder or delete it"
+            )
+        if old is None:
+            _atomic_write(path, lambda f: f.write(text.encode()))
+
+    @staticmethod
+    def _read_manifest(path: Path) -> dict[str, Any] | None:
+        """The manifest on disk; ``None`` if there is none or it is unusable (then a
+        CheckpointWarning names it and it is written again: every chunk is checked against
+        the sweep's fingerprint anyway)."""
+        if not path.exists():
+            return None
+        try:
+            old = json.loads(path.read_bytes().decode("utf-8"))
+            if not isinstance(old, dict):
+                raise ValueError(f"a JSON {type(old).__name__}, not an object")
+            return old
+        except (OSError, ValueError) as e:  # JSONDecodeError, UnicodeDecodeError are ValueErrors
+            reason = str(e).strip().splitlines()[0] if str(e).strip() else ""
+            warnings.warn(
+                f"checkpoint: {path} is unreadable ({type(e).__name__}: {reason}); writing it"
+                " again for this sweep (every chunk is still checked against this sweep's"
+                " fingerprint before it is used)",
+                CheckpointWarning,
+                stacklevel=4,
+            )
+            return None
 
     def _path(self, kind: str, index: int) -> Path:
         return self.folder / f"{kind}-{index:06d}.parquet"
+
+    def _read(self, path: Path, ids: range) -> tuple[pl.DataFrame | None, str | None]:
+        """A chunk or traces file, or why it cannot be used."""
+        meta = pl.read_parquet_metadata(path)
+        frame = pl.read_parquet(path)
+        if _FINGERPRINT not in meta or _CHECKSUM not in meta:
+            return None, f"{path} has no fingerprint or checksum (an older or foreign file)"
+        if meta[_FINGERPRINT] != self.fingerprint:
+            theirs, ours = meta[_FINGERPRINT][:12], self.fingerprint[:12]
+            return None, f"{path} is from another sweep (fingerprint {theirs}, this one's {ours})"
+        if meta.get(_RUNS) != _runs(ids):
+            runs = meta.get(_RUNS)
+            return None, f"{path} is not the chunk of runs {_runs(ids)} (its runs: {runs})"
+        if meta[_CHECKSUM] != _checksum(frame):
+            return None, f"{path} is damaged (its content does not match its checksum)"
+        return frame, None
 
     def load(
         self, index: int, plan: _Plan, ids: range
@@ -390,19 +508,27 @@ class _Checkpoint:
             return None
         tpath = self._path("traces", index)
         problem = None
+        table = long = None
         try:
+            # The run_ids check first: a chunk copied under another index says so.
             table = pl.read_parquet(path)
-            long = None
-            if self.traces:
-                long = pl.read_parquet(tpath) if tpath.exists() else None
-                if long is None:
+            foreign = _foreign(table, None, plan, ids)
+            if foreign:
+                problem = f"{path} is {foreign}"
+            else:
+                table, problem = self._read(path, ids)
+            if problem is None and self.traces:
+                if not tpath.exists():
                     problem = f"{path} has no {tpath.name} beside it"
-            foreign = _foreign(table, long, plan, ids)
-            problem = problem or (f"{path} is {foreign}" if foreign else None)
+                else:
+                    long, problem = self._read(tpath, ids)
+            if problem is None and table is not None:
+                foreign = _foreign(table, long, plan, ids)
+                problem = f"{path} is {foreign}" if foreign else None
         except (Exception, PanicException) as e:  # a damaged file can fail in any way
             reason = str(e).strip().splitlines()[0] if str(e).strip() else ""
-            problem = f"{path} is unreadable ({type(e).__name__}: {reason})"
-        if problem is not None:
+            problem = f"{path} is unreadable ({type(e).__name__}: {reason[:200]})"
+        if problem is not None or table is None:
             warnings.warn(
                 f"checkpoint: {problem}; recomputing runs {ids.start}..{ids.stop - 1}"
                 " (the file will be replaced)",
@@ -412,11 +538,41 @@ class _Checkpoint:
             return None
         return table, long
 
-    def save(self, index: int, table: pl.DataFrame, traces: pl.DataFrame | None) -> None:
+    def save(
+        self, index: int, ids: range, table: pl.DataFrame, traces: pl.DataFrame | None
+    ) -> None:
         # Traces first, the chunk last and atomically: a chunk file means a finished chunk.
         if traces is not None:
-            _atomic_parquet(traces, self._path("traces", index))
-        _atomic_parquet(table, self._path("chunk", index))
+            _atomic_parquet(traces, self._path("traces", index), self._metadata(ids, traces))
+        _atomic_parquet(table, self._path("chunk", index), self._metadata(ids, table))
+
+    def _metadata(self, ids: range, frame: pl.DataFrame) -> dict[str, str]:
+        return {_FINGERPRINT: self.fingerprint, _RUNS: _runs(ids), _CHECKSUM: _checksum(frame)}
+
+
+_FINGERPRINT = "admit_rs.sweep_fingerprint"
+_RUNS = "admit_rs.runs"
+_CHECKSUM = "admit_rs.content_sha256"
+"""Keys of a checkpoint file's Parquet metadata."""
+
+
+def _runs(ids: range) -> str:
+    return f"{ids.start}..{ids.stop - 1}"
+
+
+def _checksum(frame: pl.DataFrame) -> str:
+    """SHA-256 of a table's content: column names, dtypes, null masks and values (numbers
+    as their bytes, anything else as JSON), independent of how polars chunks it in memory."""
+    h = hashlib.sha256()
+    h.update(json.dumps([frame.height, frame.columns, [str(d) for d in frame.dtypes]]).encode())
+    for s in frame.get_columns():
+        h.update(s.is_null().to_numpy().tobytes())
+        if s.dtype.is_numeric() or s.dtype == pl.Boolean:
+            filled = s.fill_null(False if s.dtype == pl.Boolean else 0)
+            h.update(filled.to_numpy().tobytes())
+        else:
+            h.update(json.dumps(s.to_list(), default=repr).encode())
+    return h.hexdigest()
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -440,17 +596,47 @@ def _foreign(table: pl.DataFrame, long: pl.DataFrame | None, plan: _Plan, ids: r
         return f"not the {name} of this sweep (another seed)"
     rows = plan.rows[ids.start : ids.stop]
     for path in plan.paths:
-        if not _same(table[path].to_list(), [_column_value(r[path]) for r in rows]):
+        expected = [_column_value(r[path], plan.dtypes.get(path)) for r in rows]
+        if not _same(table[path].to_list(), expected):
             return f"not the {name} of this sweep (other {path} values)"
     if long is not None and set(long["run_id"].unique().to_list()) != set(ids):
         return f"not the {name} of this sweep (its traces hold other run_ids)"
     return None
 
 
-def _atomic_parquet(frame: pl.DataFrame, path: Path) -> None:
-    tmp = path.with_suffix(".tmp")
-    frame.write_parquet(tmp)
-    os.replace(tmp, path)
+def _read_umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+_UMASK = _read_umask()
+"""The process umask, read once at import (os.umask can only be read by setting it)."""
+
+
+def _atomic_write(path: Path, write: Callable[[IO[bytes]], Any]) -> None:
+    """Writes ``path`` through a new temporary file beside it, then renames it into place.
+
+    The temporary file is created with O_CREAT | O_EXCL (:func:`tempfile.mkstemp`) under a
+    random name, so a file or symlink planted in the folder is never opened or followed;
+    the rename replaces ``path`` itself (a symlink there is replaced, not followed)."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        # mkstemp makes the file 0600; give it the mode open() would have (0666 & ~umask).
+        os.fchmod(fd, 0o666 & ~_UMASK)
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def _atomic_parquet(
+    frame: pl.DataFrame, path: Path, metadata: dict[str, str] | None = None
+) -> None:
+    _atomic_write(path, lambda f: frame.write_parquet(f, metadata=metadata))
 
 
 def _chunks(n: int, size: int) -> Iterator[tuple[int, range]]:
@@ -510,9 +696,11 @@ def sweep(
         CheckpointMismatchError: ``checkpoint`` holds a different sweep.
 
     Warns:
-        CheckpointWarning: a chunk file in ``checkpoint`` is unreadable (truncated, damaged)
-            or not this sweep's; the message names it, its runs are computed again and the
-            file is overwritten, so the table still equals a clean run.
+        CheckpointWarning: a chunk file in ``checkpoint`` is unreadable, damaged (its
+            content does not match its checksum) or not this sweep's (another fingerprint,
+            other runs); the message names it, its runs are computed again and the file is
+            overwritten, so the table still equals a clean run. Also for an unreadable
+            ``manifest.json``, which is written again.
         SweepInterrupted: Ctrl-C; ``.table`` holds the finished runs.
     """
     if not isinstance(chunk_size, int) or chunk_size < 1:
@@ -545,9 +733,11 @@ def sweep(
             long = None  # on disk now; do not hold it in memory
         done[index] = (table, long)
 
+    ranges = dict(_chunks(n, chunk_size))
+
     def finish(index: int, chunk: tuple[pl.DataFrame, pl.DataFrame | None]) -> None:
         if store is not None:
-            store.save(index, *chunk)
+            store.save(index, ranges[index], *chunk)
         spill(index, *chunk)
 
     for index in list(done):  # chunks resumed from a checkpoint
@@ -628,7 +818,8 @@ def _run_local(
             rows = plan.rows[sub.start : sub.stop]
             began = time.perf_counter()
             pieces.append(
-                _run_chunk(plan.base, rows, list(sub), plan.seed, threads, traces, lanes)
+                _run_chunk(plan.base, rows, list(sub), plan.seed, threads, traces, lanes,
+                           plan.dtypes)  # fmt: skip
             )
             spent += time.perf_counter() - began
             done += len(sub)
@@ -662,6 +853,7 @@ def _run_on_dask(
             plan.seed,
             traces,
             lanes,
+            plan.dtypes,
             key=f"admit-rs-chunk-{_key(plan)}-{index}",
             pure=False,
         ): index
