@@ -7,7 +7,7 @@
 use std::any::Any;
 
 use crate::error::{Error, Result};
-use crate::robot::chain::UrdfArm;
+use crate::robot::chain::{unsupported_joints, with_joints, JointCount, UrdfArm};
 use crate::robot::RobotModel;
 use crate::sim::lanes::{run_lanes, ArmKey, LaneKey};
 use crate::sim::metrics::Metrics;
@@ -281,26 +281,21 @@ fn build_chain<const N: usize>(config: &ScenarioConfig) -> Result<Simulation<Urd
     }
 }
 
-/// Calls `visitor` with the builder of `robot`'s simulation type.
+/// Calls `visitor` with the builder of `robot`'s simulation type: the one match on the arm
+/// (and, through `with_joints`, on a chain's joint count).
 pub fn visit_arm<V: ArmVisitor>(robot: &RobotConfig, visitor: V) -> Result<V::Output> {
-    Ok(match robot {
-        RobotConfig::ThreeLink(_) => visitor.visit(&Simulation::new),
-        RobotConfig::Urdf(p) => match p.dof().map_err(|e| e.within("robot"))? {
-            1 => visitor.visit(&build_chain::<1>),
-            2 => visitor.visit(&build_chain::<2>),
-            3 => visitor.visit(&build_chain::<3>),
-            4 => visitor.visit(&build_chain::<4>),
-            5 => visitor.visit(&build_chain::<5>),
-            6 => visitor.visit(&build_chain::<6>),
-            7 => visitor.visit(&build_chain::<7>),
-            8 => visitor.visit(&build_chain::<8>),
-            n => {
-                return Err(Error::parameter(
-                    "robot.tip_link",
-                    format!("a chain of {n} joints"),
-                    "a chain of 1 to 8 joints",
-                ))
-            }
-        },
-    })
+    struct Chain<V>(V);
+    impl<V: ArmVisitor> JointCount for Chain<V> {
+        type Output = V::Output;
+        fn visit<const N: usize>(self) -> V::Output {
+            self.0.visit(&build_chain::<N>)
+        }
+    }
+    match robot {
+        RobotConfig::ThreeLink(_) => Ok(visitor.visit(&Simulation::new)),
+        RobotConfig::Urdf(p) => {
+            let n = p.dof().map_err(|e| e.within("robot"))?;
+            with_joints(n, Chain(visitor)).ok_or_else(|| unsupported_joints(n))
+        }
+    }
 }

@@ -7,7 +7,7 @@ use nalgebra::{Matrix3, SVector, Vector3};
 
 use super::kinematics::Frames;
 use super::model::{ChainModel, SerialChain};
-use super::urdf;
+use super::{unsupported_joints, urdf, with_joints, JointCount};
 
 use crate::error::{check, Error, Result};
 use crate::robot::chain::spatial::Real;
@@ -617,22 +617,6 @@ fn info_n<const N: usize>(p: &UrdfArmParams, model: &ChainModel) -> Result<Chain
     })
 }
 
-/// Calls `$f::<N>($args)` for the chain's joint count N (1 to 8).
-macro_rules! by_joints {
-    ($n:expr, $f:ident($($arg:expr),*)) => {
-        match $n {
-            1 => $f::<1>($($arg),*),
-            2 => $f::<2>($($arg),*),
-            3 => $f::<3>($($arg),*),
-            4 => $f::<4>($($arg),*),
-            5 => $f::<5>($($arg),*),
-            6 => $f::<6>($($arg),*),
-            7 => $f::<7>($($arg),*),
-            _ => $f::<8>($($arg),*),
-        }
-    };
-}
-
 /// D, C q̇, G, J, J̇q̇, tip pose, friction (and q̈ with `forward` = (τ, tip force)) at (q, q̇).
 pub fn chain_terms(
     p: &UrdfArmParams,
@@ -641,13 +625,34 @@ pub fn chain_terms(
     forward: Option<(&[f64], [f64; 3])>,
 ) -> Result<ChainTerms> {
     let model = p.load()?;
-    by_joints!(model.dof(), terms_n(p, &model, q, qd, forward))
+    struct Terms<'a>(
+        &'a UrdfArmParams,
+        &'a ChainModel,
+        (&'a [f64], &'a [f64]),
+        Option<(&'a [f64], [f64; 3])>,
+    );
+    impl JointCount for Terms<'_> {
+        type Output = Result<ChainTerms>;
+        fn visit<const N: usize>(self) -> Result<ChainTerms> {
+            terms_n::<N>(self.0, self.1, self.2 .0, self.2 .1, self.3)
+        }
+    }
+    with_joints(model.dof(), Terms(p, &model, (q, qd), forward))
+        .unwrap_or_else(|| Err(unsupported_joints(model.dof())))
 }
 
 /// Joint names, limits, q0 and task of the chain of `p`.
 pub fn chain_info(p: &UrdfArmParams) -> Result<ChainInfo> {
     let model = p.load()?;
-    by_joints!(model.dof(), info_n(p, &model))
+    struct Info<'a>(&'a UrdfArmParams, &'a ChainModel);
+    impl JointCount for Info<'_> {
+        type Output = Result<ChainInfo>;
+        fn visit<const N: usize>(self) -> Result<ChainInfo> {
+            info_n::<N>(self.0, self.1)
+        }
+    }
+    with_joints(model.dof(), Info(p, &model))
+        .unwrap_or_else(|| Err(unsupported_joints(model.dof())))
 }
 
 #[cfg(test)]
