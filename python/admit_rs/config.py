@@ -30,6 +30,7 @@ from admit_rs.errors import (
     UnknownParameterError,
     _copy,
     closest,
+    shown,
     unknown,
     within,
 )
@@ -53,9 +54,13 @@ def _check_integer(name: str, value: Any, high: int) -> None:
     ParameterError naming the field."""
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise TypeError(f"{name} must be an int, got {type(value).__name__}")
-    if not (math.isfinite(value) and value == int(value) and 0 <= value <= high):
-        err = ParameterError(f"{name} = {value} is invalid: must be an integer from 0 to {high}")
-        err.field, err.value, err.allowed = name, str(value), f"an integer from 0 to {high}"
+    if not (isinstance(value, int) or math.isfinite(value)) or not (
+        value == int(value) and 0 <= value <= high
+    ):
+        err = ParameterError(
+            f"{name} = {shown(value)} is invalid: must be an integer from 0 to {high}"
+        )
+        err.field, err.value, err.allowed = name, shown(value), f"an integer from 0 to {high}"
         raise err
 
 
@@ -321,10 +326,10 @@ class UrdfArm(_Block):
             gains = _numbers("orientation_gains", self.orientation_gains)
             if isinstance(gains, float) or len(gains) != 2:
                 err = ParameterError(
-                    f"orientation_gains = {self.orientation_gains!r} is invalid: must be two "
-                    "numbers (K_P, K_D) or None"
+                    f"orientation_gains = {shown(self.orientation_gains)} is invalid: must be "
+                    "two numbers (K_P, K_D) or None"
                 )
-                err.field, err.value = "orientation_gains", repr(self.orientation_gains)
+                err.field, err.value = "orientation_gains", shown(self.orientation_gains)
                 err.allowed = "two numbers (K_P, K_D) or None"
                 raise err
             self._set("orientation_gains", gains)

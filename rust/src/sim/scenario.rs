@@ -3,7 +3,7 @@
 use crate::control::filter::ForceControlParams;
 use crate::control::params::ControllerParams;
 use crate::control::reference::Signal;
-use crate::error::{check, Error, Result};
+use crate::error::{check, short, Error, Result};
 use crate::robot::chain::UrdfArmParams;
 use crate::robot::RobotParams;
 use crate::world::actuator::ActuatorParams;
@@ -156,14 +156,18 @@ impl ScenarioConfig {
             return Err(Error::parameter(
                 "duration",
                 self.duration,
-                &format!("at most {} periods of {} s", MAX_SAMPLES - 1, self.period),
+                &format!(
+                    "at most {} periods of {} s",
+                    MAX_SAMPLES - 1,
+                    short(self.period)
+                ),
             ));
         }
         if (periods - periods.round()).abs() > 1e-6 * periods.max(1.0) {
             return Err(Error::parameter(
                 "duration",
                 self.duration,
-                &format!("a whole multiple of period = {}", self.period),
+                &format!("a whole multiple of period = {}", short(self.period)),
             ));
         }
         Ok(())
