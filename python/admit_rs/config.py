@@ -307,6 +307,13 @@ class UrdfArm(_Block):
                 raise TypeError("UrdfArm needs a path (or the document as urdf=...)")
             try:
                 text = Path(self.path).read_text(encoding="utf-8")
+            except UnicodeDecodeError as e:
+                err = ParameterError(
+                    f"path = {self.path!r} is invalid: must be a URDF file in UTF-8 (byte "
+                    f"{e.start} is not UTF-8)"
+                )
+                err.field, err.value, err.allowed = "path", repr(self.path), "a UTF-8 URDF file"
+                raise err from None
             except OSError as e:
                 err = ParameterError(
                     f"path = {self.path!r} is invalid: must be a readable URDF file ({e.strerror})"
