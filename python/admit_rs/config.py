@@ -40,10 +40,12 @@ ArrayLike3: TypeAlias = "Iterable[float] | npt.NDArray[np.float64]"
 
 
 def _vec3(name: str, value: Any) -> Vector3:
+    if _holds_bool(value):
+        raise TypeError(f"{name} must be a sequence of 3 numbers, got a bool")
     try:
         items = tuple(float(v) for v in value)
     except TypeError as e:
-        raise TypeError(f"{name} must be a sequence of 3 numbers, got {value!r}") from e
+        raise TypeError(f"{name} must be a sequence of 3 numbers, got {shown(value)}") from e
     if len(items) != 3:
         raise TypeError(f"{name} must have 3 elements, got {len(items)}")
     return items  # type: ignore[return-value]
@@ -133,7 +135,14 @@ class _Block:
             out[f.name] = _core_value(getattr(self, f.name))
         return out
 
+    def _reject_bools(self) -> None:
+        """A bool where the field takes numbers is a TypeError naming the field."""
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            if "bool" not in str(f.type) and _holds_bool(getattr(self, f.name)):
+                raise TypeError(f"{f.name} must be a number, got a bool")
+
     def _validate(self) -> None:
+        self._reject_bools()
         try:
             _core.check_block(self._check, self._to_core())
         except ParameterError as e:
@@ -238,10 +247,24 @@ def _numbers(name: str, value: Any) -> float | tuple[float, ...]:
     """One number, or a sequence of numbers as a tuple."""
     if isinstance(value, int | float) and not isinstance(value, bool):
         return float(value)
+    if _holds_bool(value):
+        raise TypeError(f"{name} must be a number or a sequence of numbers, got a bool")
     try:
         return tuple(float(v) for v in np.ravel(np.asarray(value, dtype=float)))
     except (TypeError, ValueError) as e:
-        raise TypeError(f"{name} must be a number or a sequence of numbers, got {value!r}") from e
+        raise TypeError(
+            f"{name} must be a number or a sequence of numbers, got {shown(value)}"
+        ) from e
+
+
+def _holds_bool(value: Any) -> bool:
+    """A bool, or a sequence with one: Python counts True as 1, so without this check
+    ``admittance.b=True`` would pass as b = 1."""
+    if isinstance(value, bool | np.bool_):
+        return True
+    if isinstance(value, np.ndarray):
+        return value.dtype == np.bool_
+    return isinstance(value, tuple | list) and any(_holds_bool(v) for v in value)
 
 
 @dataclass(frozen=True)
@@ -483,7 +506,8 @@ class ForceSensor(_Block):
     resolution: float = 0.0
     """Quantisation step [N]; 0: none."""
     cutoff: float | None = None
-    """First-order low-pass cut-off f_c [Hz]; ``None``: no filter."""
+    """First-order low-pass cut-off f_c [Hz], at most the Nyquist frequency 1/(2·period)
+    (a scenario with a higher one is rejected); ``None``: no filter."""
     latency: int = 0
     """Delay of the output in whole controller periods (0 to 100 000)."""
 
@@ -771,7 +795,7 @@ class Sine(_Signal):
     amplitude: float = 1.0
     """Amplitude [unit of the signal]."""
     omega: float = 1.0
-    """Angular frequency [rad/s]."""
+    """Angular frequency [rad/s], >= 0 (a negative one is a phase shift: use ``phase``)."""
     phase: float = 0.0
     """Phase at t = 0 [rad]."""
 
@@ -875,6 +899,7 @@ class Scenario(_Block):
         if not isinstance(self.label, str):
             raise TypeError(f"label must be a str, got {type(self.label).__name__}")
         _check_integer("seed", self.seed, 2**53)
+        self._reject_bools()
         try:
             _core.validate(self._to_core())
         except ParameterError as e:

@@ -139,6 +139,19 @@ impl ScenarioConfig {
             .validate()
             .map_err(|e| e.within("z_reference"))?;
         self.sensor.validate().map_err(|e| e.within("sensor"))?;
+        // A sampled low-pass cannot cut above the Nyquist frequency: such a cut-off names
+        // no filter the loop can realise (α = 1 − exp(−2π f_c T) only approaches 1).
+        let nyquist = 0.5 / self.period;
+        if let Some(fc) = self.sensor.cutoff.filter(|&fc| fc > nyquist) {
+            return Err(Error::parameter(
+                "sensor.cutoff",
+                fc,
+                &format!(
+                    "at most the Nyquist frequency 1/(2·period) = {} Hz, or None for no filter",
+                    short(nyquist)
+                ),
+            ));
+        }
         self.actuator
             .validate(joints)
             .map_err(|e| e.within("actuator"))?;
