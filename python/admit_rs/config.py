@@ -257,14 +257,19 @@ def _numbers(name: str, value: Any) -> float | tuple[float, ...]:
         ) from e
 
 
-def _holds_bool(value: Any) -> bool:
-    """A bool, or a sequence with one: Python counts True as 1, so without this check
-    ``admittance.b=True`` would pass as b = 1."""
+def _holds_bool(value: Any, depth: int = 2) -> bool:
+    """A bool, or a sequence (or matrix: ``depth`` levels) holding one: Python counts True
+    as 1, so without this check ``admittance.b=True`` would pass as b = 1. Deeper nesting
+    is not searched (no field nests deeper; the core rejects it without recursing)."""
     if isinstance(value, bool | np.bool_):
         return True
     if isinstance(value, np.ndarray):
-        return value.dtype == np.bool_
-    return isinstance(value, tuple | list) and any(_holds_bool(v) for v in value)
+        return bool(value.dtype == np.bool_)
+    return (
+        depth > 0
+        and isinstance(value, tuple | list)
+        and any(_holds_bool(v, depth - 1) for v in value)
+    )
 
 
 @dataclass(frozen=True)
