@@ -5,6 +5,11 @@ the eq. 20 impedance reference) is set, one at a time, to each hostile value. Ea
 in a worker subprocess under a per-case timeout: a hang or a dead worker fails the case and
 the worker is restarted for the next. A case passes with a ``ParameterError`` or a result
 whose "stable" runs are finite throughout.
+
+Then the reproducers of issue #21 items 12, 14, 15 and 20, each with its exact message: a
+URDF nested 20 000 deep (in a subprocess, so a crash fails the test instead of pytest),
+unreadable TOML files, a checkpoint path that is a file, bools for numbers, a negative sine
+frequency, a cut-off above Nyquist, values printed short, one Simulation on two threads.
 """
 
 import json
