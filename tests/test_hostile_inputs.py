@@ -399,3 +399,22 @@ def test_a_deeply_nested_value_is_a_type_error_not_a_recursion_error():
         deep = [deep]
     with pytest.raises(TypeError, match=r"^stiffness must be a number, got list$"):
         ar.Wall(stiffness=deep)
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: ar.AdmittanceFilter(b="800"), "b must be a number, got str"),
+        (lambda: ar.TimeDelayControl(kp="100"), "kp must be a number, got str"),
+        (lambda: ar.Step(value=None), "value must be a number, got None"),
+        (lambda: ar.paper.scenario("fig14").replace(**{"admittance.b": "800"}),
+         "b must be a number, got str"),
+    ],
+    ids=["filter", "controller", "signal", "replace"],
+)
+def test_a_wrong_type_below_a_tagged_block_names_its_field(make, message):
+    # The core's decoder loses the field below a tagged block: "scenario must be a number".
+    with pytest.raises(TypeError) as e:
+        make()
+    assert str(e.value) == message
+    assert ar.Wall(position=None).position is None  # optional numbers may be None

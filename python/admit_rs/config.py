@@ -13,6 +13,7 @@ import dataclasses
 import functools
 import inspect
 import math
+import numbers
 import sys
 import textwrap
 import warnings
@@ -136,10 +137,18 @@ class _Block:
         return out
 
     def _reject_bools(self) -> None:
-        """A bool where the field takes numbers is a TypeError naming the field."""
+        """A bool where the field takes numbers, or a non-number in a ``float`` field, is a
+        TypeError naming the field. (Below a tagged block the core's decoder loses the
+        field's name and could only say "scenario must be a number".)"""
         for f in dataclasses.fields(self):  # type: ignore[arg-type]
-            if "bool" not in str(f.type) and _holds_bool(getattr(self, f.name)):
+            value, kind = getattr(self, f.name), str(f.type)
+            if "bool" not in kind and _holds_bool(value):
                 raise TypeError(f"{f.name} must be a number, got a bool")
+            if kind in ("float", "float | None") and not (
+                isinstance(value, numbers.Real) or (value is None and kind != "float")
+            ):
+                got = "None" if value is None else type(value).__name__
+                raise TypeError(f"{f.name} must be a number, got {got}")
 
     def _validate(self) -> None:
         self._reject_bools()
