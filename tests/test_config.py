@@ -228,7 +228,9 @@ def test_block_docstrings_give_units_and_defaults():
         "controller." in ar.Wall.__doc__
     )
     assert "    b (float, default 800.0)\n        Damping [N·s/m]." in ar.AdmittanceFilter.__doc__
-    assert "    omega (float, default 1.0)\n        Angular frequency [rad/s]." in ar.Sine.__doc__
+    assert "    omega (float, default 1.0)\n        Angular frequency [rad/s], >= 0" in (
+        ar.Sine.__doc__
+    )
     # Inherited fields take their base class's text.
     assert (
         "    inertia (float | tuple[float, ...] | tuple[tuple[float, ...], ...], default 0.1)\n"

@@ -5,6 +5,8 @@ element."""
 
 import math
 import pickle
+import subprocess
+import sys
 from pathlib import Path
 
 import admit_rs as ar
@@ -261,3 +263,89 @@ def test_orientation_gains_and_damping_are_used():
 def test_a_seven_link_robot_points_to_urdf_arm():
     with pytest.raises(TypeError, match=r"lengths must have 3 elements, got 7 .*ar.UrdfArm"):
         ar.Robot(lengths=[0.4] * 7)
+
+
+TWO_LINKS = urdf(GOOD_LINK.format(n="b"), JOINT.format(n="j1", t="revolute", p="a", c="b"))
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        # A second <link name="b"> with 100 times the mass: urdf-rs keeps both and the last
+        # one used to win silently.
+        (TWO_LINKS.replace("</robot>", GOOD_LINK.format(n="b").replace('"1"', '"100"')
+                           + "</robot>"),
+         "urdf link 'b' = defined twice is invalid: must be one <link> per name"),
+        (TWO_LINKS.replace("</robot>", GOOD_LINK.format(n="c")
+                           + JOINT.format(n="j1", t="revolute", p="b", c="c") + "</robot>"),
+         "urdf joint 'j1' = defined twice is invalid: must be one <joint> per name"),
+    ],
+    ids=["link", "joint"],
+)
+def test_duplicate_names_are_rejected(text, match):
+    assert ar.UrdfArm(urdf=TWO_LINKS, tip_link="b").dof == 1
+    with pytest.raises(ar.ParameterError) as e:
+        ar.UrdfArm(urdf=text, tip_link="b")
+    assert str(e.value) == match
+
+
+@pytest.mark.parametrize("where", ["xyz", "rpy"])
+@pytest.mark.parametrize(
+    ("value", "shown"), [("nan", "NaN"), ("inf", "inf"), ("-1e300", "-1e300")]
+)
+def test_joint_origins_must_be_finite_and_in_range(where, value, shown):
+    unit, bound = {"xyz": ("m", "1000"), "rpy": ("rad", "1000")}[where]
+    good = TWO_LINKS.replace('<axis', '<origin xyz="0 0 0.5" rpy="0 0 0"/><axis')
+    assert ar.UrdfArm(urdf=good, tip_link="b").dof == 1
+    old = {"xyz": 'xyz="0 0 0.5"', "rpy": 'rpy="0 0 0"'}[where]
+    new = old.replace("0 0 ", f"0 {value} ", 1) if where == "xyz" else f'rpy="0 {value} 0"'
+    numbers = {"xyz": f"0, {shown}, 0.5", "rpy": f"0, {shown}, 0"}[where]
+    with pytest.raises(ar.ParameterError) as e:
+        ar.UrdfArm(urdf=good.replace(old, new), tip_link="b")
+    assert str(e.value) == (
+        f"urdf joint 'j1' origin {where} = [{numbers}] is invalid: must be three finite "
+        f"numbers within ±{bound} {unit}"
+    )
+
+
+def test_inertial_origins_masses_and_limits_are_checked():
+    big = TWO_LINKS.replace('<mass value="1"/>', '<mass value="1e300"/>')
+    with pytest.raises(ar.ParameterError, match=r"^urdf link 'b' inertial = mass 1e300, inertia "
+                       r"\[ixx 0.1, .* must be finite, with mass from 0 to 1e9 kg"):  # fmt: skip
+        ar.UrdfArm(urdf=big, tip_link="b")
+    far = TWO_LINKS.replace('<mass value="1"/>', '<mass value="1"/><origin xyz="1e300 0 0"/>')
+    with pytest.raises(ar.ParameterError, match=r"^urdf link 'b' inertial origin xyz = "
+                       r"\[1e300, 0, 0\] is invalid"):  # fmt: skip
+        ar.UrdfArm(urdf=far, tip_link="b")
+    nan = TWO_LINKS.replace('upper="1"', 'upper="nan"')
+    with pytest.raises(ar.ParameterError, match=r"^urdf joint 'j1' limit upper = NaN is invalid"):
+        ar.UrdfArm(urdf=nan, tip_link="b")
+
+
+def test_a_bad_origin_in_a_toml_run_exits_2_naming_the_joint(tmp_path):
+    # It used to load, then end as "inertia = NaN" or a singular Jacobian, exit 3.
+    text = (DATA / "three_link.urdf").read_text()
+    assert text.count('<origin xyz="0 0 0.66"') == 1
+    (tmp_path / "arm.urdf").write_text(text.replace('<origin xyz="0 0 0.66"',
+                                                    '<origin xyz="0 0 1e300"'))
+    (tmp_path / "sc.toml").write_text(
+        'duration = 0.1\n[robot]\nkind = "urdf"\npath = "arm.urdf"\ntip_link = "tip"\n'
+    )
+    done = subprocess.run([sys.executable, "-m", "admit_rs.cli", "run", str(tmp_path / "sc.toml")],
+                          capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    assert "origin xyz = [0, 0, 1e300] is invalid: must be three finite numbers" in done.stderr
+    assert "Traceback" not in done.stderr
+
+
+def test_a_urdf_file_that_is_not_utf8_names_the_file(tmp_path):
+    path = tmp_path / "latin1.urdf"
+    raw = TWO_LINKS.replace('name="r"', 'name="r\xe9"').encode("latin-1")
+    path.write_bytes(raw)
+    at = raw.index(b"\xe9")
+    with pytest.raises(ar.ParameterError) as e:
+        ar.UrdfArm(path, "b")
+    assert str(e.value) == (
+        f"path = {str(path)!r} is invalid: must be a URDF file in UTF-8 (byte {at} is not UTF-8)"
+    )
+    assert e.value.field == "path"

@@ -125,7 +125,8 @@ def predict_batch(scenarios: list[dict[str, Any]], threads: int | None = None) -
     prediction; its fields are then NaN)."""
 
 class Stepper:
-    """The loop of one scenario, stepped (``admit_rs.Simulation`` wraps it)."""
+    """The loop of one scenario, stepped (``admit_rs.Simulation`` wraps it). One thread at
+    a time: a call while another thread is inside ``step`` raises ``AdmitError``."""
 
     def __init__(self, scenario: dict[str, Any]) -> None: ...
     def reset(self) -> None: ...

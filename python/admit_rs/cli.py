@@ -57,6 +57,22 @@ def _paper(args: argparse.Namespace) -> int:
     return 0
 
 
+def _read_toml(path: Path | str) -> dict[str, Any]:
+    """A TOML file's tables; a file that cannot be read as TOML (not UTF-8, invalid, nested
+    deeper than the parser recurses) is a ParameterError naming the file."""
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError) as e:
+        why = {
+            UnicodeDecodeError: "not UTF-8 text",
+            RecursionError: "nested too deeply to read",
+        }.get(type(e), str(e).splitlines()[0] if str(e) else "invalid TOML")
+        err = ParameterError(f"{path} is invalid: must be a TOML file ({why})")
+        err.field, err.value, err.allowed = str(path), str(path), "a TOML file"
+        raise err from None
+
+
 def _resolve_urdf(table: dict[str, Any], toml_path: Path) -> dict[str, Any]:
     """A URDF arm's relative ``path`` is relative to the TOML file that names it."""
     robot = table.get("robot")
@@ -71,8 +87,7 @@ def _run(args: argparse.Namespace) -> int:
     from admit_rs.config import Scenario
     from admit_rs.simulation import simulate
 
-    with open(args.scenario, "rb") as fh:
-        data = tomllib.load(fh)
+    data = _read_toml(args.scenario)
     scenario = Scenario.from_dict(_resolve_urdf(data.get("scenario", data), Path(args.scenario)))
     result = simulate(scenario)
     if args.output:
@@ -121,8 +136,7 @@ def load_sweep(path: Path) -> dict[str, Any]:
     from admit_rs.config import Scenario
     from admit_rs.sweep import Choice, LogUniform, Normal, Uniform
 
-    with open(path, "rb") as fh:
-        data = tomllib.load(fh)
+    data = _read_toml(path)
     known = {"base", "scenario", "overrides", "vary", "grid", "samples", "seed", "chunk_size"}
     unknown = set(data) - known
     if unknown:
@@ -194,8 +208,7 @@ def _tune(args: argparse.Namespace) -> int:
     from admit_rs.config import Scenario
 
     if Path(args.scenario).suffix == ".toml" or Path(args.scenario).exists():
-        with open(args.scenario, "rb") as fh:
-            data = tomllib.load(fh)
+        data = _read_toml(args.scenario)
         scenario = Scenario.from_dict(data.get("scenario", data))
     else:
         scenario = paper.scenario(args.scenario)

@@ -13,6 +13,7 @@ import dataclasses
 import functools
 import inspect
 import math
+import numbers
 import sys
 import textwrap
 import warnings
@@ -30,6 +31,7 @@ from admit_rs.errors import (
     UnknownParameterError,
     _copy,
     closest,
+    shown,
     unknown,
     within,
 )
@@ -39,10 +41,12 @@ ArrayLike3: TypeAlias = "Iterable[float] | npt.NDArray[np.float64]"
 
 
 def _vec3(name: str, value: Any) -> Vector3:
+    if _holds_bool(value):
+        raise TypeError(f"{name} must be a sequence of 3 numbers, got a bool")
     try:
         items = tuple(float(v) for v in value)
     except TypeError as e:
-        raise TypeError(f"{name} must be a sequence of 3 numbers, got {value!r}") from e
+        raise TypeError(f"{name} must be a sequence of 3 numbers, got {shown(value)}") from e
     if len(items) != 3:
         raise TypeError(f"{name} must have 3 elements, got {len(items)}")
     return items  # type: ignore[return-value]
@@ -53,9 +57,13 @@ def _check_integer(name: str, value: Any, high: int) -> None:
     ParameterError naming the field."""
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise TypeError(f"{name} must be an int, got {type(value).__name__}")
-    if not (math.isfinite(value) and value == int(value) and 0 <= value <= high):
-        err = ParameterError(f"{name} = {value} is invalid: must be an integer from 0 to {high}")
-        err.field, err.value, err.allowed = name, str(value), f"an integer from 0 to {high}"
+    if not (isinstance(value, int) or math.isfinite(value)) or not (
+        value == int(value) and 0 <= value <= high
+    ):
+        err = ParameterError(
+            f"{name} = {shown(value)} is invalid: must be an integer from 0 to {high}"
+        )
+        err.field, err.value, err.allowed = name, shown(value), f"an integer from 0 to {high}"
         raise err
 
 
@@ -128,7 +136,22 @@ class _Block:
             out[f.name] = _core_value(getattr(self, f.name))
         return out
 
+    def _reject_bools(self) -> None:
+        """A bool where the field takes numbers, or a non-number in a ``float`` field, is a
+        TypeError naming the field. (Below a tagged block the core's decoder loses the
+        field's name and could only say "scenario must be a number".)"""
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            value, kind = getattr(self, f.name), str(f.type)
+            if "bool" not in kind and _holds_bool(value):
+                raise TypeError(f"{f.name} must be a number, got a bool")
+            if kind in ("float", "float | None") and not (
+                isinstance(value, numbers.Real) or (value is None and kind != "float")
+            ):
+                got = "None" if value is None else type(value).__name__
+                raise TypeError(f"{f.name} must be a number, got {got}")
+
     def _validate(self) -> None:
+        self._reject_bools()
         try:
             _core.check_block(self._check, self._to_core())
         except ParameterError as e:
@@ -233,10 +256,29 @@ def _numbers(name: str, value: Any) -> float | tuple[float, ...]:
     """One number, or a sequence of numbers as a tuple."""
     if isinstance(value, int | float) and not isinstance(value, bool):
         return float(value)
+    if _holds_bool(value):
+        raise TypeError(f"{name} must be a number or a sequence of numbers, got a bool")
     try:
         return tuple(float(v) for v in np.ravel(np.asarray(value, dtype=float)))
     except (TypeError, ValueError) as e:
-        raise TypeError(f"{name} must be a number or a sequence of numbers, got {value!r}") from e
+        raise TypeError(
+            f"{name} must be a number or a sequence of numbers, got {shown(value)}"
+        ) from e
+
+
+def _holds_bool(value: Any, depth: int = 2) -> bool:
+    """A bool, or a sequence (or matrix: ``depth`` levels) holding one: Python counts True
+    as 1, so without this check ``admittance.b=True`` would pass as b = 1. Deeper nesting
+    is not searched (no field nests deeper; the core rejects it without recursing)."""
+    if isinstance(value, bool | np.bool_):
+        return True
+    if isinstance(value, np.ndarray):
+        return bool(value.dtype == np.bool_)
+    return (
+        depth > 0
+        and isinstance(value, tuple | list)
+        and any(_holds_bool(v, depth - 1) for v in value)
+    )
 
 
 @dataclass(frozen=True)
@@ -302,6 +344,13 @@ class UrdfArm(_Block):
                 raise TypeError("UrdfArm needs a path (or the document as urdf=...)")
             try:
                 text = Path(self.path).read_text(encoding="utf-8")
+            except UnicodeDecodeError as e:
+                err = ParameterError(
+                    f"path = {self.path!r} is invalid: must be a URDF file in UTF-8 (byte "
+                    f"{e.start} is not UTF-8)"
+                )
+                err.field, err.value, err.allowed = "path", repr(self.path), "a UTF-8 URDF file"
+                raise err from None
             except OSError as e:
                 err = ParameterError(
                     f"path = {self.path!r} is invalid: must be a readable URDF file ({e.strerror})"
@@ -321,10 +370,10 @@ class UrdfArm(_Block):
             gains = _numbers("orientation_gains", self.orientation_gains)
             if isinstance(gains, float) or len(gains) != 2:
                 err = ParameterError(
-                    f"orientation_gains = {self.orientation_gains!r} is invalid: must be two "
-                    "numbers (K_P, K_D) or None"
+                    f"orientation_gains = {shown(self.orientation_gains)} is invalid: must be "
+                    "two numbers (K_P, K_D) or None"
                 )
-                err.field, err.value = "orientation_gains", repr(self.orientation_gains)
+                err.field, err.value = "orientation_gains", shown(self.orientation_gains)
                 err.allowed = "two numbers (K_P, K_D) or None"
                 raise err
             self._set("orientation_gains", gains)
@@ -495,7 +544,8 @@ class ForceSensor(_Block):
     resolution: float = 0.0
     """Quantisation step [N]; 0: none."""
     cutoff: float | None = None
-    """First-order low-pass cut-off f_c [Hz]; ``None``: no filter."""
+    """First-order low-pass cut-off f_c [Hz], at most the Nyquist frequency 1/(2·period)
+    (a scenario with a higher one is rejected); ``None``: no filter."""
     latency: int = 0
     """Delay of the output in whole controller periods (0 to 100 000)."""
 
@@ -783,7 +833,7 @@ class Sine(_Signal):
     amplitude: float = 1.0
     """Amplitude [unit of the signal]."""
     omega: float = 1.0
-    """Angular frequency [rad/s]."""
+    """Angular frequency [rad/s], >= 0 (a negative one is a phase shift: use ``phase``)."""
     phase: float = 0.0
     """Phase at t = 0 [rad]."""
 
@@ -889,6 +939,7 @@ class Scenario(_Block):
         if not isinstance(self.label, str):
             raise TypeError(f"label must be a str, got {type(self.label).__name__}")
         _check_integer("seed", self.seed, 2**53)
+        self._reject_bools()
         try:
             _core.validate(self._to_core())
         except ParameterError as e:

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import difflib
 from collections.abc import Iterable
+from typing import Any
 
 __all__ = [
     "AdmitError",
@@ -116,6 +117,44 @@ def unknown(message: str, name: str, valid: Iterable[str]) -> UnknownParameterEr
     else:
         hint = ""
     return UnknownParameterError(f"{message}{hint}", name, close)
+
+
+SHOWN_ITEMS = 8
+"""How many elements of a sequence an error message shows (then "… (n in all)")."""
+
+
+def shown(value: Any) -> str:
+    """``value`` in few characters for an error message, exactly where that is short: a
+    float as ``repr`` (the shortest text that reads back, ``1e+300`` rather than 301
+    digits), an int of more than 16 digits in scientific notation, a sequence by its first
+    :data:`SHOWN_ITEMS` elements, a long string cut at 60 characters.
+
+    Example:
+        >>> from admit_rs.errors import shown
+        >>> shown(-1e300), shown(10**400), shown(list(range(20)))
+        ('-1e+300', '≈1.00000e+400', '[0, 1, 2, 3, 4, 5, 6, 7, … (20 in all)]')
+    """
+    if isinstance(value, bool):
+        return repr(value)
+    if isinstance(value, int):
+        digits = str(abs(value))
+        if len(digits) <= 16:
+            return str(value)
+        sign = "-" if value < 0 else ""
+        return f"≈{sign}{digits[0]}.{digits[1:6]}e+{len(digits) - 1}"
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, str):
+        return repr(value) if len(value) <= 60 else repr(value[:60]) + f"… ({len(value)} chars)"
+    if isinstance(value, list | tuple):
+        items = [shown(v) for v in value[:SHOWN_ITEMS]]
+        more = f", … ({len(value)} in all)" if len(value) > SHOWN_ITEMS else ""
+        if isinstance(value, tuple) and len(value) == 1:
+            return f"({items[0]},)"
+        open_, close = ("[", "]") if isinstance(value, list) else ("(", ")")
+        return f"{open_}{', '.join(items)}{more}{close}"
+    text = repr(value)
+    return text if len(text) <= 80 else text[:80] + "…"
 
 
 def _copy(err: ParameterError, message: str, field: str) -> ParameterError:

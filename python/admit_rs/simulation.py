@@ -132,6 +132,10 @@ class Simulation:
         501
         >>> sim.done, sim.trace.height
         (True, 1001)
+
+    One run, one thread at a time: :meth:`step` releases the GIL, and any call from another
+    thread meanwhile raises :class:`~admit_rs.AdmitError` saying so. Give each thread its
+    own ``Simulation``.
     """
 
     def __init__(self, scenario: Scenario) -> None:
@@ -226,7 +230,10 @@ class Simulation:
 
     def __repr__(self) -> str:
         label = f" {self.scenario.label!r}" if self.scenario.label else ""
-        return (
-            f"<Simulation{label}: sample {self.sample} of {self._core.samples()}"
-            f"{', done' if self.done else ''}>"
-        )
+        try:
+            return (
+                f"<Simulation{label}: sample {self.sample} of {self._core.samples()}"
+                f"{', done' if self.done else ''}>"
+            )
+        except AdmitError:  # a repr must not fail while another thread steps the run
+            return f"<Simulation{label}: being stepped by another thread>"

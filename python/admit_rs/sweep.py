@@ -692,7 +692,8 @@ def sweep(
     Raises:
         TypeError: unknown path (with the closest valid ones) or wrong type.
         DistributionError, ValueError: impossible distribution or sweep definition.
-        ParameterError: a drawn or listed value outside its range (names the run_id).
+        ParameterError: a drawn or listed value outside its range (names the run_id), or
+            a ``checkpoint`` path that is a file.
         CheckpointMismatchError: ``checkpoint`` holds a different sweep.
 
     Warns:
@@ -707,6 +708,14 @@ def sweep(
         raise ValueError(f"chunk_size = {chunk_size!r} is invalid: must be an integer >= 1")
     if threads is not None and (not isinstance(threads, int) or threads < 1):
         raise ValueError(f"threads = {threads!r} is invalid: must be an integer >= 1")
+    if checkpoint is not None and Path(checkpoint).exists() and not Path(checkpoint).is_dir():
+        err = ParameterError(
+            f"checkpoint = {str(checkpoint)!r} is invalid: must be a folder or a path that does "
+            "not exist yet (it is a file)"
+        )
+        err.field, err.value = "checkpoint", repr(str(checkpoint))
+        err.allowed = "a folder or a path that does not exist yet"
+        raise err
     plan = _plan(scenario, vary, grid, samples, seed)
     keep_traces = traces is not False
     trace_dir = None if isinstance(traces, bool) else Path(traces)

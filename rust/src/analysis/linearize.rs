@@ -19,7 +19,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::control::filter::ForceControlParams;
 use crate::control::reference::Signal;
-use crate::error::Error;
+use crate::error::{approx, short, Error};
 use crate::robot::RobotModel;
 use crate::sim::simulation::{Divergence, Outcome, ScenarioConfig, Simulation};
 
@@ -320,8 +320,9 @@ fn newton<R: RobotModel<N>, const N: usize>(
         if iterations == NEWTON_MAX {
             return Err(AnalysisError::NoEquilibrium(format!(
                 "Newton did not converge in {NEWTON_MAX} iterations (residual {norm:.3e}, \
-                 force {:.4} N, penetration {:.3e} m)",
-                e.y[0], e.penetration
+                 force {} N, penetration {:.3e} m)",
+                approx(e.y[0]),
+                e.penetration
             )));
         }
         iterations += 1;
@@ -396,9 +397,10 @@ fn newton<R: RobotModel<N>, const N: usize>(
     }
     if !(e.y[0] > 0.0 && e.penetration > 0.0) {
         return Err(AnalysisError::NoEquilibrium(format!(
-            "the fixed point has no contact (force {:.4} N, penetration {:.3e} m): is \
+            "the fixed point has no contact (force {} N, penetration {:.3e} m): is \
              the wall within reach and f_d > 0?",
-            e.y[0], e.penetration
+            approx(e.y[0]),
+            e.penetration
         )));
     }
     Ok((x, iterations))
@@ -423,7 +425,7 @@ where
                 return Err(Error::parameter(
                     "at",
                     t,
-                    &format!("a time from 0 to the duration {} s", config.duration),
+                    &format!("a time from 0 to the duration {} s", short(config.duration)),
                 )
                 .into());
             }

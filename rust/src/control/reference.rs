@@ -47,7 +47,7 @@ pub enum Signal {
         offset: f64,
         /// Amplitude [unit of the signal].
         amplitude: f64,
-        /// Angular frequency [rad/s].
+        /// Angular frequency [rad/s], >= 0 (a negative one is a phase shift: use ``phase``).
         omega: f64,
         /// Phase at t = 0 [rad].
         phase: f64,
@@ -82,7 +82,8 @@ impl Signal {
             } => {
                 check::finite("offset", *offset)?;
                 check::finite("amplitude", *amplitude)?;
-                check::finite("omega", *omega)?;
+                // A negative frequency is a phase shift of a positive one: say it so.
+                check::non_negative("omega", *omega)?;
                 check::finite("phase", *phase)
             }
             Signal::Sampled { times, values } => {

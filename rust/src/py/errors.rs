@@ -7,6 +7,7 @@ use pyo3::prelude::*;
 
 use crate::error::Error;
 
+import_exception!(admit_rs.errors, AdmitError);
 import_exception!(admit_rs.errors, ParameterError);
 import_exception!(admit_rs.errors, AnalysisError);
 

@@ -62,6 +62,17 @@ fn expected(what: &str) -> String {
     }
 }
 
+/// serde's "floating point `1000…0.0`" (every digit of 1e300) as "floating point `1e300`".
+fn short_floats(got: &str) -> String {
+    got.strip_prefix("floating point `")
+        .and_then(|r| r.strip_suffix('`'))
+        .and_then(|v| v.parse::<f64>().ok())
+        .map_or_else(
+            || got.to_owned(),
+            |v| format!("floating point `{}`", crate::error::short(v)),
+        )
+}
+
 /// The Python exception for a block that failed to decode at `path` (dotted, may be empty).
 fn decode_error(
     py: Python<'_>,
@@ -128,9 +139,9 @@ fn decode_error(
     if let Some(rest) = msg.strip_prefix("invalid type: ") {
         if let Some((got, want)) = rest.rsplit_once(", expected ") {
             let got = match got {
-                "unit value" => "None",
-                g if g.starts_with("boolean") => "a bool",
-                g => g,
+                "unit value" => "None".to_owned(),
+                g if g.starts_with("boolean") => "a bool".to_owned(),
+                g => short_floats(g),
             };
             return PyTypeError::new_err(format!("{shown} must be {}, got {got}", expected(want)));
         }

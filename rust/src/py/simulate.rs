@@ -1,12 +1,14 @@
 //! Runs: one scenario, a batch on all cores, and the stepped loop (`Stepper`); each copies
 //! its scenario into Rust first and runs with the GIL released.
 
+use std::sync::{Mutex, MutexGuard, TryLockError};
+
 use numpy::PyArray1;
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use super::errors::{to_py_err, ParameterError};
+use super::errors::{to_py_err, AdmitError, ParameterError};
 use super::params::scenario_from;
 use crate::sim::dispatch::AnySimulation;
 use crate::sim::metrics::{Metrics, METRIC_NAMES};
@@ -51,9 +53,30 @@ fn outcome_into(
 const STEP_CHUNK: usize = 1000;
 
 /// The loop of one scenario, stepped from Python (`admit_rs.Simulation`).
-#[pyclass(module = "admit_rs._core", name = "Stepper")]
+///
+/// `step` releases the GIL, so another Python thread can call in meanwhile. The run sits
+/// behind a mutex that every method only tries: a second caller gets an `AdmitError` saying
+/// what happened (waiting would deadlock: the stepping thread needs the GIL the waiter holds
+/// to return), instead of pyo3's bare "Already borrowed".
+#[pyclass(module = "admit_rs._core", name = "Stepper", frozen)]
 pub(super) struct Stepper {
-    sim: AnySimulation,
+    sim: Mutex<AnySimulation>,
+}
+
+impl Stepper {
+    /// The run, or an `AdmitError` if another thread is using it.
+    fn sim(&self) -> PyResult<MutexGuard<'_, AnySimulation>> {
+        match self.sim.try_lock() {
+            Ok(sim) => Ok(sim),
+            // A panic mid-step already raised in Python; the run is still a run.
+            Err(TryLockError::Poisoned(e)) => Ok(e.into_inner()),
+            Err(TryLockError::WouldBlock) => Err(AdmitError::new_err(
+                "this Simulation is being stepped by another thread: one Simulation is one \
+                 run, used by one thread at a time; give each thread its own \
+                 ar.Simulation(scenario)",
+            )),
+        }
+    }
 }
 
 #[pymethods]
@@ -62,59 +85,64 @@ impl Stepper {
     fn new(scenario: &Bound<'_, PyAny>) -> PyResult<Self> {
         let config = scenario_from(scenario)?;
         let sim = AnySimulation::new(&config).map_err(|e| to_py_err(scenario.py(), e))?;
-        Ok(Self { sim })
+        Ok(Self {
+            sim: Mutex::new(sim),
+        })
     }
 
-    fn reset(&mut self) {
-        self.sim.reset();
+    fn reset(&self) -> PyResult<()> {
+        self.sim()?.reset();
+        Ok(())
     }
 
     /// Takes up to `n` samples with the GIL released, checking for Ctrl-C between chunks.
     /// Returns the number taken.
-    fn step(&mut self, py: Python<'_>, n: usize) -> PyResult<usize> {
-        let start = self.sim.sample();
+    fn step(&self, py: Python<'_>, n: usize) -> PyResult<usize> {
+        let mut guard = self.sim()?;
+        let start = guard.sample();
         let mut left = n;
-        while left > 0 && self.sim.outcome().is_none() {
+        while left > 0 && guard.outcome().is_none() {
             let chunk = left.min(STEP_CHUNK);
-            let sim = &mut self.sim;
+            let sim = &mut *guard;
             py.detach(move || sim.step(chunk));
             left -= chunk;
             py.check_signals()?;
         }
-        Ok(self.sim.sample() - start)
+        Ok(guard.sample() - start)
     }
 
-    fn sample(&self) -> usize {
-        self.sim.sample()
+    fn sample(&self) -> PyResult<usize> {
+        Ok(self.sim()?.sample())
     }
 
-    fn samples(&self) -> usize {
-        self.sim.samples()
+    fn samples(&self) -> PyResult<usize> {
+        Ok(self.sim()?.samples())
     }
 
-    fn state<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_vec(py, self.sim.state())
+    fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        Ok(PyArray1::from_vec(py, self.sim()?.state()))
     }
 
-    fn state_labels(&self) -> Vec<String> {
-        self.sim.state_labels()
+    fn state_labels(&self) -> PyResult<Vec<String>> {
+        Ok(self.sim()?.state_labels())
     }
 
-    fn set_state(&mut self, py: Python<'_>, values: Vec<f64>) -> PyResult<()> {
-        self.sim.set_state(&values).map_err(|e| to_py_err(py, e))
+    fn set_state(&self, py: Python<'_>, values: Vec<f64>) -> PyResult<()> {
+        self.sim()?.set_state(&values).map_err(|e| to_py_err(py, e))
     }
 
     /// The trace so far as a dict of columns (copies).
     fn trace<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        trace_dict(py, self.sim.trace().clone())
+        let trace = self.sim()?.trace().clone();
+        trace_dict(py, trace)
     }
 
     /// `None` while the run goes on; once it is over, the metrics and how it ended.
     fn outcome<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        let Some(outcome) = self.sim.outcome() else {
+        let sim = self.sim()?;
+        let Some(outcome) = sim.outcome() else {
             return Ok(None);
         };
-        let sim = &self.sim;
         let metrics = sim.metrics(&outcome);
         let out = PyDict::new(py);
         outcome_into(py, &out, metrics, outcome)?;

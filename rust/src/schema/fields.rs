@@ -4,7 +4,7 @@
 use schemars::JsonSchema;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-use crate::error::Error;
+use crate::error::{short, Error};
 
 /// One number for every joint, or one per joint.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -78,7 +78,7 @@ where
     let n = match Whole::deserialize(d)? {
         Whole::Int(n) => n,
         Whole::Float(v) if v.fract() == 0.0 && (0.0..=MAX_EXACT).contains(&v) => v as u64,
-        Whole::Float(v) => return Err(bad(v.to_string())),
+        Whole::Float(v) => return Err(bad(short(v))),
     };
     if n < lo || n > hi {
         return Err(bad(n.to_string()));

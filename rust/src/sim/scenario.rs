@@ -3,7 +3,7 @@
 use crate::control::filter::ForceControlParams;
 use crate::control::params::ControllerParams;
 use crate::control::reference::Signal;
-use crate::error::{check, Error, Result};
+use crate::error::{check, short, Error, Result};
 use crate::robot::chain::UrdfArmParams;
 use crate::robot::RobotParams;
 use crate::world::actuator::ActuatorParams;
@@ -139,6 +139,19 @@ impl ScenarioConfig {
             .validate()
             .map_err(|e| e.within("z_reference"))?;
         self.sensor.validate().map_err(|e| e.within("sensor"))?;
+        // A sampled low-pass cannot cut above the Nyquist frequency: such a cut-off names
+        // no filter the loop can realise (α = 1 − exp(−2π f_c T) only approaches 1).
+        let nyquist = 0.5 / self.period;
+        if let Some(fc) = self.sensor.cutoff.filter(|&fc| fc > nyquist) {
+            return Err(Error::parameter(
+                "sensor.cutoff",
+                fc,
+                &format!(
+                    "at most the Nyquist frequency 1/(2·period) = {} Hz, or None for no filter",
+                    short(nyquist)
+                ),
+            ));
+        }
         self.actuator
             .validate(joints)
             .map_err(|e| e.within("actuator"))?;
@@ -156,14 +169,18 @@ impl ScenarioConfig {
             return Err(Error::parameter(
                 "duration",
                 self.duration,
-                &format!("at most {} periods of {} s", MAX_SAMPLES - 1, self.period),
+                &format!(
+                    "at most {} periods of {} s",
+                    MAX_SAMPLES - 1,
+                    short(self.period)
+                ),
             ));
         }
         if (periods - periods.round()).abs() > 1e-6 * periods.max(1.0) {
             return Err(Error::parameter(
                 "duration",
                 self.duration,
-                &format!("a whole multiple of period = {}", self.period),
+                &format!("a whole multiple of period = {}", short(self.period)),
             ));
         }
         Ok(())

@@ -27,7 +27,8 @@ pub struct SensorParams {
     pub noise_std: f64,
     /// Quantisation step [N]; 0: none.
     pub resolution: f64,
-    /// First-order low-pass cut-off f_c [Hz]; ``None``: no filter.
+    /// First-order low-pass cut-off f_c [Hz], at most the Nyquist frequency 1/(2·period)
+    /// (a scenario with a higher one is rejected); ``None``: no filter.
     pub cutoff: Option<f64>,
     /// Delay of the output in whole controller periods (0 to 100 000).
     #[serde(deserialize_with = "latency")]

@@ -5,9 +5,10 @@
 //! that body's: links behind fixed joints (as Pinocchio does), and links behind moving
 //! joints off the path, which are held at q = 0. Links above the base belong to the world.
 //! Errors name the element: an unsupported joint type, a missing link, a tip not below the
-//! base, a closed chain, an inertia that is not positive definite.
+//! base, a closed chain, an inertia that is not positive definite, two links or joints of
+//! one name, an origin that is not finite or out of range, a document nested too deeply.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::sync::Mutex;
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
@@ -15,10 +16,148 @@ use urdf_rs::JointType;
 
 use super::model::{ChainModel, JointKind, JointSpec};
 use super::spatial::{Pose, RigidInertia};
-use crate::error::{Error, Result};
+use crate::error::{short, Error, Result};
 
 /// The most joints a chain may have (the simulation is compiled for 1 to 8).
 pub const MAX_JOINTS: usize = 8;
+
+/// The deepest element nesting a document may have. A URDF nests about five deep
+/// (robot/link/visual/geometry/mesh); the XML reader urdf-rs uses builds and drops its tree
+/// recursively, so 20 000 nested elements overflow the stack and kill the process.
+pub const MAX_NESTING: usize = 100;
+
+/// Largest |xyz| component of an origin [m]: no arm is a kilometre long, and the inertia's
+/// m·c² terms overflow long before 1e300.
+const MAX_OFFSET: f64 = 1e3;
+
+/// Largest link mass [kg] and |inertia| entry [kg·m²]: a million tonnes is no arm, and
+/// 1e300 overflows the dynamics' products into "inertia = NaN" far from its cause.
+const MAX_MASS: f64 = 1e9;
+
+/// Largest |rpy| angle [rad]: a file means an angle within a few turns; beyond 1e3 rad the
+/// angle's own last bit is worth more than the 1e-13 rad the dynamics are checked to.
+const MAX_ANGLE: f64 = 1e3;
+
+/// How deeply `text`'s elements nest, counted without building a tree (comments, CDATA,
+/// processing instructions and declarations skipped, quoted attribute values respected).
+/// Stops counting past `limit`. Malformed text is left to the XML reader to report.
+fn nesting_depth(text: &str, limit: usize) -> usize {
+    let b = text.as_bytes();
+    let (mut i, mut depth, mut deepest) = (0usize, 0usize, 0usize);
+    let skip_to = |from: usize, end: &[u8]| {
+        b[from..]
+            .windows(end.len())
+            .position(|w| w == end)
+            .map_or(b.len(), |p| from + p + end.len())
+    };
+    while i < b.len() {
+        if b[i] != b'<' {
+            i += 1;
+            continue;
+        }
+        let rest = &b[i..];
+        if rest.starts_with(b"<!--") {
+            i = skip_to(i + 4, b"-->");
+        } else if rest.starts_with(b"<![CDATA[") {
+            i = skip_to(i + 9, b"]]>");
+        } else if rest.starts_with(b"<?") {
+            i = skip_to(i + 2, b"?>");
+        } else if rest.starts_with(b"<!") {
+            i = skip_to(i + 2, b">");
+        } else if rest.starts_with(b"</") {
+            depth = depth.saturating_sub(1);
+            i = skip_to(i + 2, b">");
+        } else {
+            // A start tag: to its '>' outside quotes; "/>" closes it at once.
+            let mut j = i + 1;
+            let mut quote = None;
+            while j < b.len() {
+                match (quote, b[j]) {
+                    (None, q @ (b'"' | b'\'')) => quote = Some(q),
+                    (Some(q), c) if c == q => quote = None,
+                    (None, b'>') => break,
+                    _ => {}
+                }
+                j += 1;
+            }
+            let empty = j < b.len() && b[j - 1] == b'/';
+            deepest = deepest.max(depth + 1);
+            if deepest > limit {
+                return deepest;
+            }
+            if !empty {
+                depth += 1;
+            }
+            i = j + 1;
+        }
+    }
+    deepest
+}
+
+/// Checks an `<origin>`: finite, |xyz| ≤ [`MAX_OFFSET`] m, |rpy| ≤ [`MAX_ANGLE`] rad.
+fn check_origin(field: &str, p: &urdf_rs::Pose) -> Result<()> {
+    for (name, v, max, unit) in [
+        ("xyz", p.xyz.0, MAX_OFFSET, "m"),
+        ("rpy", p.rpy.0, MAX_ANGLE, "rad"),
+    ] {
+        if !v.iter().all(|x| (-max..=max).contains(x)) {
+            let shown: Vec<String> = v.iter().map(|x| short(*x)).collect();
+            return Err(Error::parameter(
+                &format!("{field} origin {name}"),
+                format!("[{}]", shown.join(", ")),
+                &format!("three finite numbers within ±{} {unit}", short(max)),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The numbers of the document that nothing else checks: every joint's origin and limits,
+/// every link's inertial origin; and one definition per link and joint name (urdf-rs keeps
+/// them all and the last one would silently win).
+fn check_document(robot: &urdf_rs::Robot) -> Result<()> {
+    let mut seen = HashSet::new();
+    for l in &robot.links {
+        if !seen.insert(l.name.as_str()) {
+            return Err(Error::parameter(
+                &link_field(&l.name),
+                "defined twice",
+                "one <link> per name",
+            ));
+        }
+        check_origin(
+            &format!("{} inertial", link_field(&l.name)),
+            &l.inertial.origin,
+        )?;
+    }
+    let mut seen = HashSet::new();
+    for j in &robot.joints {
+        if !seen.insert(j.name.as_str()) {
+            return Err(Error::parameter(
+                &joint_field(&j.name),
+                "defined twice",
+                "one <joint> per name",
+            ));
+        }
+        check_origin(&joint_field(&j.name), &j.origin)?;
+        let l = &j.limit;
+        for (name, v) in [
+            ("lower", l.lower),
+            ("upper", l.upper),
+            ("effort", l.effort),
+            ("velocity", l.velocity),
+        ] {
+            if v.is_nan() {
+                return Err(Error::parameter(
+                    &format!("{} limit {name}", joint_field(&j.name)),
+                    v,
+                    "a number (not NaN)",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
 
 /// URDF `<origin xyz rpy>`: R = Rz(yaw) Ry(pitch) Rx(roll).
 fn pose_of(p: &urdf_rs::Pose) -> Pose<f64> {
@@ -49,12 +188,23 @@ fn link_inertia(link: &urdf_rs::Link) -> Result<RigidInertia<f64>> {
         t.ixz, t.iyz, t.izz,
     );
     let values = format!(
-        "mass {m}, inertia [ixx {}, ixy {}, ixz {}, iyy {}, iyz {}, izz {}]",
-        t.ixx, t.ixy, t.ixz, t.iyy, t.iyz, t.izz
+        "mass {}, inertia [ixx {}, ixy {}, ixz {}, iyy {}, iyz {}, izz {}]",
+        short(m),
+        short(t.ixx),
+        short(t.ixy),
+        short(t.ixz),
+        short(t.iyy),
+        short(t.iyz),
+        short(t.izz)
     );
     let field = format!("{} inertial", link_field(&link.name));
-    if !(m.is_finite() && m >= 0.0) || tensor.iter().any(|v| !v.is_finite()) {
-        return Err(Error::parameter(&field, values, "finite, with mass >= 0"));
+    if !(0.0..=MAX_MASS).contains(&m) || !tensor.iter().all(|v| (-MAX_MASS..=MAX_MASS).contains(v))
+    {
+        return Err(Error::parameter(
+            &field,
+            values,
+            "finite, with mass from 0 to 1e9 kg and moments within ±1e9 kg·m²",
+        ));
     }
     // Physically valid: positive semi-definite principal moments that satisfy the triangle
     // inequality (a thin rod, axial moment 0, is allowed: SPEC §1's links are rods).
@@ -116,6 +266,14 @@ pub fn parse(text: &str, base_link: Option<&str>, tip_link: &str) -> Result<Chai
 
 /// [`parse`] without the memory.
 fn parse_document(text: &str, base_link: Option<&str>, tip_link: &str) -> Result<ChainModel> {
+    let depth = nesting_depth(text, MAX_NESTING);
+    if depth > MAX_NESTING {
+        return Err(Error::parameter(
+            "urdf",
+            format!("elements nested more than {MAX_NESTING} deep"),
+            &format!("a URDF document nested at most {MAX_NESTING} elements deep"),
+        ));
+    }
     let robot = urdf_rs::read_from_string(text).map_err(|e| {
         let first = e.to_string().lines().next().unwrap_or("").to_owned();
         Error::parameter(
@@ -124,6 +282,7 @@ fn parse_document(text: &str, base_link: Option<&str>, tip_link: &str) -> Result
             &format!("a valid URDF document ({first})"),
         )
     })?;
+    check_document(&robot)?;
     extract(&robot, base_link, tip_link)
 }
 
@@ -377,5 +536,102 @@ mod tests {
         }
         let held = PARSED.lock().unwrap_or_else(|e| e.into_inner()).len();
         assert!(held <= REMEMBERED, "{held}");
+    }
+
+    /// The nesting is counted as XML nests: comments, CDATA, declarations and quoted '>'
+    /// do not count, empty elements close at once.
+    #[test]
+    fn nesting_depth_counts_elements() {
+        assert_eq!(nesting_depth(PANDA, 1000), 4);
+        let doc = r#"<?xml version="1.0"?><!DOCTYPE r><robot name="a>b"><!-- <x><y> -->
+            <link name="l"/><![CDATA[<z><z>]]><link name='m'><inertial/></link></robot>"#;
+        assert_eq!(nesting_depth(doc, 1000), 3);
+        let deep = format!(
+            "<robot>{}{}</robot>",
+            "<x>".repeat(20_000),
+            "</x>".repeat(20_000)
+        );
+        assert_eq!(nesting_depth(&deep, MAX_NESTING), MAX_NESTING + 1);
+        let e = parse(&deep, None, "a").expect_err("too deep");
+        assert_eq!(
+            e.to_string(),
+            "urdf = elements nested more than 100 deep is invalid: must be a URDF document \
+             nested at most 100 elements deep"
+        );
+    }
+
+    const TWO: &str = r#"<robot name="r">
+        <link name="base"/>
+        <link name="a"><inertial><mass value="1"/><origin xyz="0 0 0.5"/>
+            <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+        <joint name="j" type="revolute"><parent link="base"/><child link="a"/>
+            <origin xyz="0 0 1" rpy="0 0 0"/><axis xyz="0 1 0"/>
+            <limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
+        </robot>"#;
+
+    /// Two links or joints of one name are an error naming them, not "the last one wins".
+    #[test]
+    fn duplicate_names_are_rejected() {
+        assert_eq!(parse(TWO, None, "a").expect("valid").dof(), 1);
+        let link = TWO.replace(
+            r#"<link name="base"/>"#,
+            r#"<link name="base"/><link name="a"/>"#,
+        );
+        let e = parse(&link, None, "a").expect_err("two links 'a'");
+        assert_eq!(
+            e.to_string(),
+            "urdf link 'a' = defined twice is invalid: must be one <link> per name"
+        );
+        let joint = TWO.replace(
+            "</robot>",
+            r#"<link name="b"/><joint name="j" type="fixed"><parent link="a"/><child link="b"/></joint></robot>"#,
+        );
+        let e = parse(&joint, None, "a").expect_err("two joints 'j'");
+        assert_eq!(
+            e.to_string(),
+            "urdf joint 'j' = defined twice is invalid: must be one <joint> per name"
+        );
+    }
+
+    /// Origins that are not finite or out of range, and NaN limits, name their element.
+    #[test]
+    fn origins_and_limits_are_checked() {
+        for (from, to, message) in [
+            (
+                r#"xyz="0 0 1" rpy"#,
+                r#"xyz="0 nan 1" rpy"#,
+                "urdf joint 'j' origin xyz = [0, NaN, 1] is invalid: must be three finite \
+                 numbers within ±1000 m",
+            ),
+            (
+                r#"rpy="0 0 0""#,
+                r#"rpy="0 1e300 0""#,
+                "urdf joint 'j' origin rpy = [0, 1e300, 0] is invalid: must be three finite \
+                 numbers within ±1000 rad",
+            ),
+            (
+                r#"xyz="0 0 0.5""#,
+                r#"xyz="-inf 0 0.5""#,
+                "urdf link 'a' inertial origin xyz = [-inf, 0, 0.5] is invalid: must be three \
+                 finite numbers within ±1000 m",
+            ),
+            (
+                r#"upper="1""#,
+                r#"upper="NaN""#,
+                "urdf joint 'j' limit upper = NaN is invalid: must be a number (not NaN)",
+            ),
+            (
+                r#"<mass value="1"/>"#,
+                r#"<mass value="1e300"/>"#,
+                "urdf link 'a' inertial = mass 1e300, inertia [ixx 1, ixy 0, ixz 0, iyy 1, \
+                 iyz 0, izz 1] is invalid: must be finite, with mass from 0 to 1e9 kg and \
+                 moments within ±1e9 kg·m²",
+            ),
+        ] {
+            let text = TWO.replace(from, to);
+            assert_ne!(text, TWO, "{from}");
+            let e = parse(&text, None, "a").expect_err(to);
+            assert_eq!(e.to_string(), message);
+        }
     }
 }
