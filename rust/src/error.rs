@@ -148,6 +148,19 @@ pub(crate) mod check {
         }
     }
 
+    /// 0 < v ≤ `max` [unit]: a physical size whose square or product must stay finite.
+    pub fn positive_up_to(field: &str, v: f64, max: f64, unit: &str) -> Result<()> {
+        if v.is_finite() && v > 0.0 && v <= max {
+            Ok(())
+        } else {
+            Err(Error::parameter(
+                field,
+                v,
+                &format!("> 0 and <= {} {unit}", super::short(max)),
+            ))
+        }
+    }
+
     pub fn non_negative(field: &str, v: f64) -> Result<()> {
         if v.is_finite() && v >= 0.0 {
             Ok(())

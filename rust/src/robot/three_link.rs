@@ -73,8 +73,14 @@ impl Default for RobotParams {
 
 impl RobotParams {
     pub fn validate(&self) -> Result<()> {
-        check::all("lengths", &self.lengths, check::positive)?;
-        check::all("masses", &self.masses, check::positive)?;
+        // An arm, not a planet: lengths beyond 1 km or masses beyond 1e9 kg overflow D's
+        // products (a 1e300-m link ran as "stable" on NaN-free infinities).
+        check::all("lengths", &self.lengths, |f, v| {
+            check::positive_up_to(f, v, 1e3, "m")
+        })?;
+        check::all("masses", &self.masses, |f, v| {
+            check::positive_up_to(f, v, 1e9, "kg")
+        })?;
         check::all(
             "viscous_friction",
             &self.viscous_friction,
@@ -972,6 +978,23 @@ mod tests {
             .model()
             .friction(&Vec3::new(0.01, 0.0, -1.0));
         assert_eq!(exact, Vec3::new(5.03, 0.0, -8.0));
+    }
+
+    #[test]
+    fn absurd_sizes_are_parameter_errors() {
+        for (lengths, masses, field) in [
+            ([0.3, 1e300, 0.4], [1.0, 1.0, 1.0], "lengths[1] = 1e300"),
+            ([0.3, 0.4, 0.4], [1.0, 1.0, 1e100], "masses[2] = 1e100"),
+            ([0.3, 0.4, -1.0], [1.0, 1.0, 1.0], "lengths[2] = -1"),
+        ] {
+            let p = RobotParams {
+                lengths,
+                masses,
+                ..RobotParams::default()
+            };
+            let e = p.validate().unwrap_err().to_string();
+            assert!(e.starts_with(field), "{e}");
+        }
     }
 
     #[test]
