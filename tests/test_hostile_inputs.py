@@ -418,3 +418,11 @@ def test_a_wrong_type_below_a_tagged_block_names_its_field(make, message):
         make()
     assert str(e.value) == message
     assert ar.Wall(position=None).position is None  # optional numbers may be None
+
+
+def test_an_int_beyond_the_float_range_is_a_parameter_error() -> None:
+    """``Wall(stiffness=10**400)`` raised a TypeError whose text was an OverflowError."""
+    with pytest.raises(ar.ParameterError, match=r"^stiffness = ≈1\.00000e\+400 is invalid"):
+        ar.Wall(stiffness=10**400)
+    with pytest.raises(ar.ParameterError, match=r"^b = ≈-1\.00000e\+400 is invalid"):
+        ar.AdmittanceFilter(b=-(10**400))

@@ -149,6 +149,12 @@ class _Block:
             ):
                 got = "None" if value is None else type(value).__name__
                 raise TypeError(f"{f.name} must be a number, got {got}")
+            if isinstance(value, int) and not isinstance(value, bool) and "int" not in kind:
+                if abs(value) > sys.float_info.max:
+                    # float() would raise OverflowError deep in the conversion.
+                    raise ParameterError(
+                        f"{f.name} = {shown(value)} is invalid: must be a finite number"
+                    )
 
     def _validate(self) -> None:
         self._reject_bools()
