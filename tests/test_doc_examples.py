@@ -45,6 +45,27 @@ def test_python_examples_run_as_printed(path, tmp_path, monkeypatch):
             plt.close("all")
 
 
+def test_readme_showcases_say_what_they_print(tmp_path, monkeypatch):
+    """Issue #21 item 7: the README's own scenarios are stable, and what it says about the
+    variants that are not is what they print."""
+    import admit_rs as ar
+
+    (tmp_path / "examples").symlink_to(ROOT / "examples")
+    monkeypatch.chdir(tmp_path)
+    ns: dict[str, object] = {}
+    exec(_blocks(ROOT / "README.md")[0].split("ar.paper.figure(19)")[0], ns)  # noqa: S102
+    mine, real, sim = ns["mine"], ns["real"], ns["sim"]
+    assert ar.simulate(mine).verdict == "stable"
+    assert sim.result().verdict.startswith("stable (torque saturated in 9 % of samples")
+    eq17 = ar.simulate(mine.replace(**{"controller.law": "inverse_jacobian"}))
+    assert eq17.verdict.startswith("unstable: force oscillation, contact kept")
+    assert "11 % of f_d" in eq17.verdict
+    fast = ar.simulate(real.replace(z_reference=ar.Sine(amplitude=0.05, omega=1.0)))
+    assert fast.verdict.startswith("unstable: force oscillation, contact kept")
+    assert "22 % of f_d" in fast.verdict
+    assert round(100 * fast.metrics["torque_saturation"]) == 14
+
+
 def _commands(text: str) -> list[str]:
     """``admit-rs tune …`` commands as printed in backticks (one per line or wrapped)."""
     flat = " ".join(text.split())
