@@ -321,11 +321,12 @@ def test_bad_input_gives_clear_errors():
 
 def test_predict_fields_and_friction_options():
     sc = ar.paper.scenario("fig14")
-    rest = ar.analysis.predict(sc)
-    assert list(rest) == list(ar.analysis.PREDICTION_NAMES)
-    assert rest["stable"] and rest["spectral_radius"] < 1
+    rest = ar.analysis.predict(sc, friction="rest")
+    assert list(rest) == [*ar.analysis.PREDICTION_NAMES, "friction_amplitude", "verdict"]
+    assert rest["stable"] and rest["spectral_radius"] < 1 and rest["friction_amplitude"] == 0
     assert rest["rise_time_63"] > 0 and rest["settling_time"] > rest["rise_time_63"]
-    step = ar.analysis.predict(sc, friction="step")
+    step = ar.analysis.predict(sc)
+    assert step == ar.analysis.predict(sc, friction="step")  # the default
     # The peak joint speed of the step transient, well above ε = 0.01 rad/s.
     assert 0.02 < step["friction_amplitude"] < 0.2
     assert step["stable"] and step["overshoot_pct"] != rest["overshoot_pct"]
@@ -353,3 +354,93 @@ def test_caveats_say_what_the_model_leaves_out():
     assert not at.equilibrium and at.nstates == 18
     with pytest.raises(ar.ParameterError, match="at = 20"):
         ar.analysis.linearize(ar.paper.scenario("fig14"), at=20.0)
+
+
+def _held_grid() -> tuple[ar.Scenario, dict, dict]:
+    """Issue #21's grid: fig. 14 with the motion held, k_e 1e4-1e6 × b 100-800 (6 × 4)."""
+    ke = [float(v) for v in np.geomspace(1e4, 1e6, 6)]
+    return fig14(), {"wall.stiffness": ke}, {"admittance.b": [100.0, 200.0, 400.0, 800.0]}
+
+
+def test_the_default_prediction_is_the_validated_linearisation():
+    sc, x, y = _held_grid()
+    p, s = _agreement(sc, x, y, duration=10.0)
+    # ar.analysis.predict's default (friction="step", Margins()) agrees on every cell ...
+    default = ar.analysis.stability_map(sc.replace(duration=10.0), x=x, y=y)
+    assert default["stable"].to_list() == ar.analysis.stability_map(
+        sc.replace(duration=10.0), x=x, y=y, friction="step")["stable"].to_list()
+    assert (p == s).all(), (p, s)
+    assert p.any() and not p.all()
+    # ... where friction at rest (SPEC §12's small-signal slope) calls bouncing cells
+    # stable: 6 by ρ < 1 alone (the issue's count), 4 even with the margins.
+    rest = ar.analysis.stability_map(sc.replace(duration=10.0), x=x, y=y, friction="rest")
+    optimistic = rest["stable"].to_numpy() & ~s.ravel()
+    assert optimistic.sum() == 4 and (rest["stable"].to_numpy() == s.ravel()).sum() == 20
+    rho = (rest["spectral_radius"].to_numpy() < 1) & ~s.ravel()
+    assert rho.sum() == 6
+
+
+ITEM2 = fig14().replace(**{"wall.stiffness": 1e6, "admittance.b": 3000.0, "sensor.latency": 1})
+
+
+def test_stable_requires_margins_not_only_a_spectral_radius_below_1():
+    p = ar.analysis.predict(ITEM2)
+    assert p["spectral_radius"] == pytest.approx(0.99865, abs=1e-5)
+    assert p["dominant_frequency"] == pytest.approx(63.7, abs=0.1)
+    assert p["dominant_damping"] == pytest.approx(0.0034, abs=1e-4)
+    assert p["stable"] is False
+    assert p["verdict"].startswith("insufficient margin (ρ = 0.998653 < 1): damping ratio ζ "
+                                   "0.00337 < 0.05; gain margin 1.02 < 1.1; phase margin 0.6")
+    # ... and the simulator agrees that it is not a stable run: it loses contact.
+    res = ar.simulate(ITEM2)
+    assert res.stable is False and res.metrics["contact_loss"] > 0.6
+    # The margins are the user's: ρ < 1 alone calls it stable.
+    loose = ar.analysis.Margins(min_damping=0.0, min_gain_margin=1.0, min_phase_margin=0.0,
+                                min_delay_margin=0.0)
+    assert ar.analysis.predict(ITEM2, margins=loose)["stable"] is True
+    with pytest.raises(ar.ParameterError, match="min_gain_margin"):
+        ar.analysis.Margins(min_gain_margin=0.5)
+
+
+@pytest.mark.parametrize("sc", [ar.paper.scenario("fig14"), ITEM2], ids=["fig14", "item2"])
+def test_margins_equal_python_control_on_the_force_loop(sc):
+    """Gain, phase and delay margins of the loop cut at the filter input, against
+    python-control's stability_margins on a dense frequency response of sys.force_loop."""
+    import control
+
+    p = ar.analysis.predict(sc)
+    sys = ar.analysis.linearize(sc, friction="step")
+    loop = sys.force_loop
+    # The loop closes to the linearisation: A = A0 − B c̃.
+    assert np.allclose(loop.A - loop.B @ loop.C, sys.A, rtol=0, atol=1e-12 * abs(sys.A).max())
+    w = np.geomspace(1e-3, np.pi / sc.period, 20_000)
+    gm, pm, _, _, wgc, _ = control.stability_margins(control.frd(loop, w))
+    assert p["gain_margin"] == pytest.approx(gm, rel=1e-4)
+    assert p["phase_margin"] == pytest.approx(pm, rel=1e-4, abs=1e-3)
+    delay = math.radians(pm) / wgc / sc.period
+    assert p["delay_margin"] == pytest.approx(delay, rel=1e-3)
+
+
+def test_tune_reports_the_true_worst_case_over_every_verified_point(capsys):
+    """Issue #21 item 3: the box's centre is predicted at 10.34 % and simulated at 16.75 %;
+    the summary's worst case is over every point, predicted and simulated, and says why
+    the answer is not verified."""
+    from admit_rs import cli
+
+    argv = ["tune", "fig14", "--vary", "admittance.b=100:3000",
+            "--over", "wall.stiffness=1e4:1e5"]  # fmt: skip
+    assert cli.main(argv) == 3
+    out = capsys.readouterr().out
+    res = ar.analysis.tune(ar.paper.scenario("fig14"), vary={"admittance.b": (100, 3000)},
+                           over={"wall.stiffness": (1e4, 1e5)})  # fmt: skip
+    v = res.verification
+    centre = v.filter(pl.col("point") == "centre").row(0, named=True)
+    predicted = max(res.predicted["overshoot_pct"].max(), v["predicted_overshoot_pct"].max())
+    assert res.worst("overshoot_pct") == (predicted, v["overshoot_pct"].max())
+    assert predicted == pytest.approx(centre["predicted_overshoot_pct"]) == pytest.approx(
+        10.34, abs=0.01)
+    assert centre["overshoot_pct"] == pytest.approx(16.75, abs=0.01)
+    assert "worst overshoot 10.34 %" in out and "worst overshoot 16.75 % (limit 10 %)" in out
+    assert "NOT verified" in out and not res.verified
+    assert "wall.stiffness = 3.162e+04 (centre), motion held: overshoot 16.75 % > 10 %" in out
+    assert "with motion: unstable: force oscillation, contact kept" in out

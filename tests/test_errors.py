@@ -80,6 +80,7 @@ MISSPELLED = [
     (ar.ForceSensor, "noise_stdd", "noise_std"),
     (ar.Actuator, "torque_limt", "torque_limit"),
     (ar.UrdfArm, "tip_lnk", "tip_link"),
+    (ar.Criteria, "force_limt", "force_limit"),
 ]
 
 

@@ -231,9 +231,9 @@ def test_urdf_stages_in_lanes_agree_with_simulate(arm_name):
 
     The Panda's draws keep the actuator undelayed: with one sample of actuator delay its tuned
     TDC flails (torque at the limit, contact lost) and the lanes' last-bit ``exp`` grows about
-    100× per 0.1 s, so a run may hit the velocity limit in one path and not the other, while
-    the metrics still call such a 0.5-s flailing run stable (its oscillation and contact-loss
-    metrics are NaN)."""
+    100× per 0.1 s, so a run may hit the velocity limit in one path and not the other. These
+    0.5-s runs are too short to assess (``stable`` is None): every run not judged unstable is
+    compared."""
     arm = _urdf_arms()[arm_name]
     vary = URDF_VARY if arm_name == "ur5" else URDF_VARY | {"actuator.delay": ar.Choice([0])}
     worst = 0.0
@@ -246,18 +246,24 @@ def test_urdf_stages_in_lanes_agree_with_simulate(arm_name):
             alone = ar.simulate(base.replace(seed=row["noise_seed"], **changes))
             assert _same_sample(row["diverged_at"], alone.diverged_at), (name, row["run_id"])
             assert row["stable"] == alone.stable, (name, row["run_id"])
-            if not alone.stable:
+            if alone.stable is False:
                 continue
             compared += 1
             for m in ar.METRICS:
                 # A run that only grazes the wall (force_peak 7e-13 N in one path, 0 in the
                 # other, seen on the Panda) is compared on the 10-N scale of its force.
                 scale = _FORCE_SCALE.get(m, 0.0)
+                if m == "bounces":
+                    # A count of touches at f ≈ 0 is as sensitive as each touch: a graze of
+                    # 7e-13 N is a touch and a bounce in one path and nothing in the other
+                    # (docs/sweeps.md, "What lanes promise").
+                    assert abs(row[m] - alone.metrics[m]) <= 1, (name, row["run_id"], m)
+                    continue
                 assert _agree(row[m], alone.metrics[m], scale), (name, row["run_id"], m)
                 a, b = row[m], alone.metrics[m]
                 if a is not None and b is not None and not math.isnan(b) and b != 0:
                     worst = max(worst, abs(a - b) / abs(b))
-        assert compared >= 4, (arm_name, name, f"only {compared} stable runs")
+        assert compared >= 4, (arm_name, name, f"only {compared} runs not unstable")
     print(f"{arm_name}: worst relative metric gap {worst:.2e}")
 
 
@@ -285,3 +291,34 @@ def test_mixed_arm_tables_are_the_same_bits_on_any_threads_and_chunks():
     assert ref.equals(_mixed_arms(threads=2))
     assert ref.equals(_mixed_arms(threads=2, chunk_size=7))
     assert ref.equals(_mixed_arms(threads=1, chunk_size=64))
+
+
+def test_lane_promise_is_what_the_twin_measures():
+    """docs/sweeps.md, "What lanes promise": a lane row agrees with ``ar.simulate`` to 1e-9
+    where its run is insensitive to last-bit perturbations; ``twin=True`` measures that as
+    ``lane_gap`` (the other path being ``ar.simulate``'s bits), flags the sensitive rows
+    (bouncing model-free runs) and is itself deterministic."""
+    stable = ar.paper.scenario("fig19").replace(duration=3.0)
+    vary = {"wall.stiffness": ar.LogUniform(1e4, 1e5), "wall.position_error": ar.Uniform(0, 0.01)}
+    table = ar.sweep(stable, vary=vary, samples=8, seed=5, twin=True, progress=False)
+    assert table["stable"].all() and (table["lane_gap"] <= 1e-9).all()
+    for row in table.head(3).iter_rows(named=True):
+        alone = ar.simulate(stable.replace(seed=row["noise_seed"], **{p: row[p] for p in vary}))
+        gap = max(abs(row[m] - alone.metrics[m])
+                  / max(abs(row[m]), abs(alone.metrics[m]), 1e-9)
+                  for m in ar.METRIC_NAMES if not math.isnan(alone.metrics[m]))  # fmt: skip
+        assert gap == pytest.approx(row["lane_gap"], rel=1e-6, abs=1e-300)
+    # A tool bouncing on a stiff wall: the last bits grow (to 23 % in one run), and the twin
+    # says so.
+    bouncing = ar.paper.scenario("fig14").replace(duration=3.0, **{"admittance.b": 200.0})
+    stiff = {"wall.stiffness": ar.LogUniform(3e5, 1e6)}
+    mf = ar.sweep(bouncing, vary=stiff, samples=8, seed=7, twin=True, progress=False)
+    assert not mf["stable"].any() and (mf["lane_gap"] > 1e-9).sum() == 2
+    assert mf["lane_gap"].max() > 0.1
+    again = ar.sweep(bouncing, vary=stiff, samples=8, seed=7, twin=True, threads=1,
+                     chunk_size=3, progress=False)  # fmt: skip
+    assert again.equals(mf)
+    # On the scalar path the twin is the lane path: the same gaps.
+    scalar = ar.sweep(bouncing, vary=stiff, samples=8, seed=7, twin=True, lanes=False,
+                      progress=False)  # fmt: skip
+    assert np.array_equal(scalar["lane_gap"].to_numpy(), mf["lane_gap"].to_numpy())

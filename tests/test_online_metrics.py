@@ -33,17 +33,23 @@ def reference_metrics(scenario: ar.Scenario, res: ar.Result) -> dict[str, float]
     t, f, fd = (tr[c].to_numpy() for c in ("t", "f", "f_d"))
     n, tangent = _frame(scenario)
     error = np.stack([tr[f"{c}_ref"].to_numpy() - tr[c].to_numpy() for c in "xyz"], axis=1)
+    in_plane = error - np.outer(error @ n, n)
     out = {
         "x_rms_error": float(np.sqrt(np.mean((error @ n) ** 2))),
         "z_rms_error": float(np.sqrt(np.mean((error @ tangent) ** 2))),
+        "path_rms_error": float(np.sqrt(np.mean(np.sum(in_plane**2, axis=1)))),
         "force_peak": float(f.max()),
     }
+    touching = f > 0
+    first = int(np.argmax(touching)) if touching.any() else len(f)
+    out["bounces"] = float(np.sum(touching[first:-1] & ~touching[first + 1 :]))
     end, period = t[-1], scenario.period
     steady = t >= end - WINDOW - 1e-9 * period
     late = t >= TRANSIENT - 1e-9 * period
     out["force_ss_error"] = float(np.mean(fd[steady] - f[steady]))
     out["force_rms_error"] = float(np.sqrt(np.mean((fd[late] - f[late]) ** 2)))
     out["contact_loss"] = float(np.mean(f[late] == 0.0))
+    out["assessed_time"] = float((late.sum() - 1) * period)
     window = steady & late
     out["force_oscillation"] = float(
         np.std(f[window] - fd[window]) / np.mean(np.abs(fd[window]))
@@ -69,6 +75,16 @@ def reference_metrics(scenario: ar.Scenario, res: ar.Result) -> dict[str, float]
         out["rise_time_10_90"] = float(first[0.9] - first[0.1])
         out["peak_time"] = float(t[np.argmax(np.abs(f))])
         out["overshoot_pct"] = 100.0 * (out["force_peak"] - value) / value
+        # The step's first peak: the first local maximum once f has reached f_d.
+        above = f >= value
+        if above.any():
+            start = int(np.argmax(above))
+            falls = np.nonzero(np.diff(f[start:]) < 0)[0]
+            peak = start + (int(falls[0]) if len(falls) else int(np.argmax(f[start:])))
+            out["step_overshoot_pct"] = 100.0 * (f[peak] - value) / value
+            out["step_peak_time"] = float(t[peak])
+        else:
+            out["step_overshoot_pct"], out["step_peak_time"] = 0.0, math.nan
     return out
 
 

@@ -200,12 +200,12 @@ def test_figure_returns_a_matplotlib_figure():
 def test_cli_run_scenario_toml(tmp_path, capsys):
     toml = tmp_path / "sc.toml"
     toml.write_text(
-        "duration = 0.5\n[wall]\nstiffness = 50000.0\nposition_error = 0.0\n"
+        "duration = 3.0\n[wall]\nstiffness = 50000.0\nposition_error = 0.0\n"
         '[admittance]\nkind = "admittance"\nb = 400.0\nka = 1.0\n'
     )
     trace = tmp_path / "trace.parquet"
     assert cli.main(["run", str(toml), "-o", str(trace)]) == 0
-    assert pl.read_parquet(trace).height == 501
+    assert pl.read_parquet(trace).height == 3001
     assert '"stable": true' in capsys.readouterr().out
     toml.write_text("duration = -1.0\n")
     assert cli.main(["run", str(toml)]) == 2

@@ -121,7 +121,8 @@ def test_arm_pickles_with_its_text_and_runs_anywhere(tmp_path):
     sc = ar.paper.scenario("fig14").replace(
         robot=back, controller=ar.TimeDelayControl.for_arm(back), duration=0.2
     )
-    assert ar.simulate(sc).stable
+    res = ar.simulate(sc)  # 0.2 s: runs, too short to assess
+    assert not res.diverged and res.verdict.startswith("not assessed")
 
 
 def test_dotted_paths_sweeps_and_model_errors():

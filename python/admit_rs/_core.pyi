@@ -48,8 +48,10 @@ def simulate(scenario: dict[str, Any]) -> dict[str, Any]:
     """Run one scenario with the GIL released.
 
     Returns ``{"columns": {name: ndarray},
-    "metrics": {name: float, "stable": bool, "diverged": bool},
-    "diverged_at": float | None, "divergence_cause": str | None}``.
+    "metrics": {name: float, "stable": bool | None, "diverged": bool},
+    "verdict": str, "diverged_at": float | None, "divergence_cause": str | None}``;
+    ``stable`` and ``verdict`` are judged by the scenario's ``criteria`` (None: not
+    assessed).
     """
 
 def robot_terms(
@@ -102,7 +104,8 @@ def simulate_batch(
     """Run a batch on ``threads`` threads (None: all cores), GIL released; ``lanes``: the
     three-link arm's runs four at a time in SIMD lanes (within 1e-9 of the scalar path).
 
-    Returns ``{"metrics": {name: ndarray}, "stable": ndarray[bool], "diverged": ndarray[bool],
+    Returns ``{"metrics": {name: ndarray}, "stable": list[bool | None], "verdict": list[str],
+    "diverged": ndarray[bool],
     "diverged_at": ndarray (NaN when the run completed), "divergence_cause": list[str | None],
     "traces": list[dict] | None}``.
     An invalid scenario raises ``ParameterError`` (with ``index``) before anything runs.
@@ -111,7 +114,8 @@ def simulate_batch(
 def linearize(scenario: dict[str, Any], at: float | None = None) -> dict[str, Any]:
     """The one-period closed loop linearised about its contact equilibrium (or the state
     at time ``at``), GIL released: ``a`` (n×n), ``b`` (n×1), ``c`` (3×n), ``d`` (3×1)
-    as ndarrays, ``labels``, ``state`` (the operating point), ``force_desired``,
+    and ``c_measured`` (n: the measured force f̃ = c_measured·x, what the force loop feeds
+    back) as ndarrays, ``labels``, ``state`` (the operating point), ``force_desired``,
     ``outputs`` ([f, n·X, t̂·X] there), ``reference_normal``, ``penetration``,
     ``period``, ``equilibrium``, ``iterations``, ``caveats``. Raises
     ``admit_rs.errors.AnalysisError`` without a contact equilibrium or a singular one."""
@@ -120,8 +124,9 @@ def predict_batch(scenarios: list[dict[str, Any]], threads: int | None = None) -
     """Linearise and predict every scenario on ``threads`` threads (None: all cores),
     GIL released: one ndarray per prediction field (``force_ss_error``, ``x_ss_error``,
     ``overshoot_pct``, ``rise_time_63``, ``settling_time``, ``spectral_radius``,
-    ``dominant_frequency``, ``dominant_damping``, ``stable`` (bool),
-    ``peak_joint_speed``) and ``error`` (list of None or why a scenario has no
+    ``dominant_frequency``, ``dominant_damping``, ``stable`` (bool: ρ < 1 only),
+    ``peak_joint_speed``, the force loop's ``gain_margin``, ``phase_margin`` [deg] and
+    ``delay_margin`` [samples]) and ``error`` (list of None or why a scenario has no
     prediction; its fields are then NaN)."""
 
 class Stepper:

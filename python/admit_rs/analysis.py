@@ -32,6 +32,7 @@ from admit_rs.errors import AnalysisError, ParameterError
 __all__ = [
     "PREDICTION_NAMES",
     "AnalysisError",
+    "Margins",
     "TuneResult",
     "friction_gain",
     "linearize",
@@ -41,7 +42,75 @@ __all__ = [
 ]
 
 PREDICTION_NAMES: tuple[str, ...] = tuple(_core.PREDICTION_NAMES)
-"""Fields of :func:`predict`, in order."""
+"""Numeric fields of :func:`predict`, in order (it adds ``verdict``)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class Margins:
+    """What a prediction needs, beyond ρ < 1, to be called stable (SPEC §17).
+
+    A loop with ρ = 0.9987 and ζ = 0.003 is stable on paper and rings for seconds in
+    simulation (docs/analysis.md). The margins are of the force loop, cut where the
+    measured force enters the admittance filter (e_f = f_d − f̃): the loop gain
+    L(z) = c̃ (zI − A − B c̃)⁻¹ B of the linearisation, in python-control's
+    ``stability_margins`` conventions.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> ar.analysis.Margins(min_damping=0.1).min_damping
+        0.1
+    """
+
+    min_damping: float = 0.05
+    """Smallest damping ratio ζ of the dominant pole (the pole of largest modulus)."""
+    min_gain_margin: float = 1.1
+    """Smallest gain margin (factor; 1.1 ≈ 0.8 dB)."""
+    min_phase_margin: float = 5.0
+    """Smallest phase margin [deg]."""
+    min_delay_margin: float = 0.1
+    """Smallest delay margin: extra loop delay the loop tolerates [samples of T]."""
+
+    def __post_init__(self) -> None:
+        for name in ("min_damping", "min_gain_margin", "min_phase_margin", "min_delay_margin"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise ParameterError(f"Margins.{name} = {v!r} is invalid: must be a finite "
+                                     "number")  # fmt: skip
+        if self.min_gain_margin < 1 or self.min_delay_margin < 0 or self.min_damping < -1:
+            raise ParameterError(
+                f"Margins: min_gain_margin = {self.min_gain_margin} must be >= 1, "
+                f"min_delay_margin = {self.min_delay_margin} >= 0, min_damping >= -1"
+            )
+
+    def judge(self, p: Mapping[str, Any]) -> tuple[bool, str]:
+        """(stable, verdict) of one prediction (a row of :func:`stability_map`)."""
+        rho = float(p["spectral_radius"])
+        if not rho < 1:
+            return False, f"unstable: spectral radius ρ = {rho:.6g} ≥ 1"
+        failed = []
+        checks = [
+            ("dominant_damping", "damping ratio ζ", self.min_damping, ""),
+            ("gain_margin", "gain margin", self.min_gain_margin, ""),
+            ("phase_margin", "phase margin", self.min_phase_margin, "°"),
+            ("delay_margin", "delay margin", self.min_delay_margin, " samples"),
+        ]
+        for key, words, limit, unit in checks:
+            v = float(p[key])
+            if not v >= limit:  # NaN fails too
+                failed.append(f"{words} {v:.3g}{unit} < {limit:g}{unit}")
+        if failed:
+            return False, f"insufficient margin (ρ = {rho:.6g} < 1): " + "; ".join(failed)
+        return True, "stable"
+
+    def apply(self, table: pl.DataFrame) -> pl.DataFrame:
+        """``table`` with ``stable`` and ``verdict`` judged by these margins."""
+        judged = [self.judge(r) if r["error"] is None else (False, f"no prediction: {r['error']}")
+                  for r in table.iter_rows(named=True)]  # fmt: skip
+        return table.with_columns(
+            pl.Series("stable", [j[0] for j in judged], dtype=pl.Boolean),
+            pl.Series("verdict", [j[1] for j in judged], dtype=pl.String),
+        )
+
 
 STEP_ITERATIONS = 4
 """Updates of the friction amplitude under ``friction="step"``."""
@@ -67,7 +136,10 @@ def linearize(scenario: Scenario, at: float | None = None, friction: Any = "rest
     ``operating_point`` (state label → value), ``operating_outputs`` (f, x, z there),
     ``force_desired``, ``penetration``, ``equilibrium`` (bool), ``caveats`` (what the model
     assumes, in words: contact kept, smoothed Coulomb friction as its slope at rest, noise
-    and resolution off, actuator limits inactive or saturated).
+    and resolution off, actuator limits inactive or saturated), and ``force_loop``: the
+    loop gain L(z) cut where the measured force enters the filter (input e_f, output f̃;
+    the closed loop is L's negative unity feedback), whose
+    ``control.stability_margins`` are :func:`predict`'s margins.
 
     ``friction="rest"`` (SPEC §12) linearises smoothed Coulomb friction c·tanh(q̇/ε) to its
     slope c/ε at rest, which is right for small signals; a number A [rad/s] uses instead its
@@ -102,6 +174,15 @@ def linearize(scenario: Scenario, at: float | None = None, friction: Any = "rest
         raw["a"], raw["b"], raw["c"], raw["d"], raw["period"],
         inputs=["f_d"], outputs=["f", "x", "z"], states=list(raw["labels"]),
         name=(scenario.label or "closed_loop").replace(".", "_"),
+    )  # fmt: skip
+    # The force loop cut where the measured force f̃ = c̃ x enters the filter (f_d enters
+    # only as e_f = f_d − f̃): L(z) = c̃ (zI − A − B c̃)⁻¹ B, so that A = A₀ − B c̃.
+    c_m = np.asarray(raw["c_measured"], dtype=float).reshape(1, -1)
+    b = np.asarray(raw["b"], dtype=float)
+    sys.force_loop = control.ss(
+        np.asarray(raw["a"]) + b @ c_m, b, c_m, np.zeros((1, 1)), raw["period"],
+        inputs=["e_f"], outputs=["f_measured"], states=list(raw["labels"]),
+        name="force_loop",
     )  # fmt: skip
     sys.operating_point = dict(zip(raw["labels"], map(float, raw["state"]), strict=True))
     sys.operating_outputs = dict(zip(["f", "x", "z"], raw["outputs"], strict=True))
@@ -167,28 +248,40 @@ def _raise_if(error: str | None) -> None:
         raise AnalysisError(error)
 
 
-def predict(scenario: Scenario, friction: Any = "rest") -> dict[str, float | bool]:
-    """What the linear model predicts for ``scenario`` (SPEC §12).
+def predict(
+    scenario: Scenario, friction: Any = "step", margins: Margins | None = None
+) -> dict[str, float | bool | str]:
+    """What the linear model predicts for ``scenario`` (SPEC §12, §17).
 
     ``force_ss_error`` (f_d − f) and ``x_ss_error`` (n·X_d − n·X) at the equilibrium;
     ``overshoot_pct``, ``rise_time_63``, ``settling_time`` of the predicted step response
-    f = f_d·s(t) in the definitions of SPEC §7 (NaN when unstable; a small-signal
-    prediction: friction is linearised at rest, so large steps can differ);
-    ``spectral_radius`` ρ = max |eig A|, ``dominant_frequency`` [Hz] and
-    ``dominant_damping`` of that pole; ``stable`` (ρ < 1). ``friction``: as in
-    :func:`linearize`.
+    f = f_d·s(t) in the definitions of SPEC §7 (NaN when ρ ≥ 1); ``spectral_radius``
+    ρ = max |eig A|, ``dominant_frequency`` [Hz] and ``dominant_damping`` ζ of that pole;
+    the force loop's ``gain_margin`` (factor), ``phase_margin`` [deg] and ``delay_margin``
+    [samples] (:class:`Margins` says where the loop is cut); ``peak_joint_speed`` and
+    ``friction_amplitude`` [rad/s] (the describing-function amplitude used); ``stable``:
+    ρ < 1 and every margin of ``margins`` (default :class:`Margins()`) met; ``verdict``
+    says which one failed.
+
+    ``friction``: as in :func:`linearize`; the default ``"step"`` (Coulomb friction at its
+    describing-function gain for the step's own joint speeds) is the linearisation
+    validated against simulation in docs/analysis.md. ``"rest"`` (the slope at q̇ = 0,
+    SPEC §12's small-signal model) predicts stability where the runs bounce.
 
     Example:
         >>> import admit_rs as ar
         >>> p = ar.analysis.predict(ar.paper.scenario("fig14"))
-        >>> p["stable"], round(p["spectral_radius"], 4)
-        (True, 0.9975)
+        >>> p["stable"], round(p["spectral_radius"], 4), p["verdict"]
+        (True, 0.9948, 'stable')
     """
     scenario = _check_scenario(scenario, "predict")
     _check_friction(scenario)
-    row = _predict_points(scenario, [{}], None, friction).row(0, named=True)
+    row = _predict_points(scenario, [{}], None, friction, margins).row(0, named=True)
     _raise_if(row.pop("error"))
-    return {k: bool(v) if k == "stable" else float(v) for k, v in row.items()}
+    out: dict[str, float | bool | str] = {}
+    for k, v in row.items():
+        out[k] = bool(v) if k == "stable" else str(v) if k == "verdict" else float(v)
+    return out
 
 
 def _numeric_axis(scenario: Scenario, spec: Any, axis: str) -> tuple[str, list[float]]:
@@ -250,7 +343,8 @@ def _predict_points(
     scenario: Scenario,
     points: Sequence[Mapping[str, float]],
     threads: int | None = None,
-    friction: Any = "rest",
+    friction: Any = "step",
+    margins: Margins | None = None,
 ) -> pl.DataFrame:
     if isinstance(friction, str) and friction == "step":
         raw = _predict_step(scenario, points, threads)
@@ -265,8 +359,11 @@ def _predict_points(
         columns[name] = raw[name]
     if "friction_amplitude" in raw:
         columns["friction_amplitude"] = raw["friction_amplitude"]
+    if "friction_amplitude" not in columns:
+        amp = friction if isinstance(friction, int | float) else 0.0
+        columns["friction_amplitude"] = [float(amp)] * len(points)
     columns["error"] = pl.Series("error", raw["error"], dtype=pl.String)
-    return pl.DataFrame(columns)
+    return (margins or Margins()).apply(pl.DataFrame(columns))
 
 
 def _predict_step(
@@ -312,7 +409,8 @@ def stability_map(
     x: Mapping[str, Sequence[float]],
     y: Mapping[str, Sequence[float]],
     threads: int | None = None,
-    friction: Any = "rest",
+    friction: Any = "step",
+    margins: Margins | None = None,
 ) -> pl.DataFrame:
     """:func:`predict` on every cell of the grid ``x`` × ``y`` (``{dotted path: values}``
     each), computed in Rust on all cores (or ``threads``).
@@ -320,7 +418,8 @@ def stability_map(
     One row per cell, x varying fastest: the two parameter columns, the fields of
     :func:`predict` and ``error`` (None, or why the cell has no prediction, e.g. no contact
     equilibrium: its fields are then NaN and ``stable`` False). Paths must name numeric
-    parameters (``ParameterError`` otherwise). ``friction``: as in :func:`linearize`.
+    parameters (``ParameterError`` otherwise). ``friction`` and ``margins``: as in
+    :func:`predict`.
 
     Example:
         >>> import admit_rs as ar
@@ -339,7 +438,7 @@ def stability_map(
     # Validate one cell of each extreme through the Python blocks (clear messages).
     for p in (points[0], points[-1]):
         scenario.replace(**p)
-    return _predict_points(scenario, points, threads, friction)
+    return _predict_points(scenario, points, threads, friction, margins)
 
 
 @dataclass(frozen=True)
@@ -354,13 +453,16 @@ class TuneResult:
     ``friction="step"`` (large signal)."""
     verification: pl.DataFrame
     """The box's corners and centre simulated with the chosen gains and the motion held
-    (the linearised setup): the ``over`` parameters, predicted and simulated ``stable``,
-    ``overshoot_pct``, ``settling_time``, and ``stable_with_motion`` (the scenario as
-    given, its motion reference included)."""
+    (the linearised setup): the ``over`` parameters, predicted and simulated ``stable``
+    (the simulated one by the scenario's ``criteria``, null if not assessed) with its
+    ``verdict``, ``overshoot_pct``, ``settling_time``; and the scenario as given, its motion
+    reference included: ``stable_with_motion``, ``verdict_with_motion``,
+    ``overshoot_pct_with_motion``."""
     worst_settling_time: float
-    """Predicted worst-case settling time over the box [s]."""
+    """Predicted worst-case settling time over the box [s] (the search's objective)."""
     verified: bool
-    """Every verification run (motion held) is stable and within the overshoot limit."""
+    """Every verification run is stable, with the motion held and with it, and the runs
+    with the motion held are within the overshoot limit."""
     max_overshoot_pct: float
     stability_margin: float
     evaluated: int
@@ -370,32 +472,61 @@ class TuneResult:
     rounds: int = 1
     """Search rounds (1 + corrections after a failed verification)."""
 
+    def worst(self, name: str) -> tuple[float, float]:
+        """(predicted, simulated) worst value of ``overshoot_pct`` or ``settling_time`` over
+        every point that was predicted (the box grid and the verified corners and centre)
+        and every point simulated with the motion held (NaN: none)."""
+        pred = [self.predicted[name]]
+        if self.verification.height:
+            pred.append(self.verification[f"predicted_{name}"])
+        predicted = pl.concat(pred).drop_nans().max()
+        simulated = (self.verification[name].drop_nans().max() if self.verification.height
+                     else None)  # fmt: skip
+        return (math.nan if predicted is None else float(predicted),  # type: ignore[arg-type]
+                math.nan if simulated is None else float(simulated))  # type: ignore[arg-type]
+
     def summary(self) -> str:
-        """A few lines of text: the gains, the predicted worst case, the verification."""
+        """A few lines of text: the gains, the true worst case predicted and simulated over
+        every point, the verification and, if it fails, why."""
         gains = ", ".join(f"{k} = {v:.4g}" for k, v in self.gains.items())
         v = self.verification
-
-        def top(table: pl.DataFrame, name: str) -> float:
-            return float(table[name].max())  # type: ignore[arg-type]
-
+        over_pred, over_sim = self.worst("overshoot_pct")
+        settle_pred, settle_sim = self.worst("settling_time")
+        points = self.predicted.height + v.height
         lines = [
             f"gains: {gains}",
-            f"predicted over the box: worst settling {self.worst_settling_time:.3f} s, "
-            f"worst overshoot {top(self.predicted, 'overshoot_pct'):.2f} %, "
-            f"max spectral radius {top(self.predicted, 'spectral_radius'):.5f} "
+            f"predicted at {points} points (the box grid, its corners and centre): worst "
+            f"overshoot {over_pred:.2f} %, worst settling {settle_pred:.3f} s, max spectral "
+            f"radius {float(self.predicted['spectral_radius'].max()):.5f} "  # type: ignore[arg-type]
             f"(round {self.rounds}, predicted overshoot limit "
             f"{self.predicted_overshoot_limit:.3g} %)",
         ]
         if v.height:
+            held = int(v["stable"].fill_null(False).sum())
+            moving = int(v["stable_with_motion"].fill_null(False).sum())
             lines.append(
-                f"simulated at {v.height} points (corners and centre, motion held): "
-                f"{int(v['stable'].sum())} stable, worst overshoot "
-                f"{top(v, 'overshoot_pct'):.2f} % (limit {self.max_overshoot_pct} %), worst "
-                f"settling {top(v, 'settling_time'):.3f} s; with the scenario's motion "
-                f"{int(v['stable_with_motion'].sum())} stable -> "
-                + ("verified" if self.verified else "NOT verified")
+                f"simulated at {v.height} points (corners and centre), motion held: {held} "
+                f"stable, worst overshoot {over_sim:.2f} % (limit {self.max_overshoot_pct:g} "
+                f"%), worst settling {settle_sim:.3f} s; with the scenario's motion: "
+                f"{moving} stable -> " + ("verified" if self.verified else "NOT verified")
             )
+            lines += [f"  {reason}" for reason in self._failures()]
         return "\n".join(lines)
+
+    def _failures(self) -> list[str]:
+        """Why the verification failed, one line per failing point."""
+        out = []
+        over = list(self.verification.columns[: self.verification.columns.index("point")])
+        for r in self.verification.iter_rows(named=True):
+            at = ", ".join(f"{k} = {r[k]:.4g}" for k in over) + f" ({r['point']})"
+            if r["stable"] is not True:
+                out.append(f"{at}, motion held: {r['verdict']}")
+            elif r["overshoot_pct"] > self.max_overshoot_pct:
+                out.append(f"{at}, motion held: overshoot {r['overshoot_pct']:.2f} % > "
+                           f"{self.max_overshoot_pct:g} %")  # fmt: skip
+            if r["stable_with_motion"] is not True:
+                out.append(f"{at}, with motion: {r['verdict_with_motion']}")
+        return out
 
 
 def _axis_points(lo: float, hi: float, n: int) -> list[float]:
@@ -521,13 +652,17 @@ def tune(
         evaluated += predicted.height
         verification = (_verify(scenario, gains, obox, verify_duration, threads) if verify
                         else pl.DataFrame())  # fmt: skip
-        verified = bool(
+        # Null (not assessed) counts as not stable.
+        held = bool(
             verify
             and verification.height > 0
-            and verification["stable"].all()
+            and verification["stable"].fill_null(False).all()
             and (verification["overshoot_pct"] <= max_overshoot_pct).all()
         )
-        if not verify or verified or rounds > corrections:
+        verified = held and bool(verification["stable_with_motion"].fill_null(False).all())
+        # The corrections below act on the held step; the motion's verdict cannot be
+        # corrected by an overshoot limit, so a held pass ends the search.
+        if not verify or held or rounds > corrections:
             break
         last = (gains, worst_settling, predicted, verification, verified, offset.copy())
         # The simulator disagrees: carry its excess over the prediction to the nearest
@@ -538,7 +673,7 @@ def tune(
             excess = float(seen[v])
             if math.isfinite(excess):
                 offset[g] = max(offset[g], excess + 0.5)
-        if not verification["stable"].all():
+        if not verification["stable"].fill_null(False).all():
             stability_margin *= 2
     limit = float(np.min(max_overshoot_pct - offset))
     return TuneResult(
@@ -602,9 +737,12 @@ def _search(
         rho = table["spectral_radius"].to_numpy().reshape(-1, m)
         over_pct = table["overshoot_pct"].to_numpy().reshape(-1, m)
         settle = table["settling_time"].to_numpy().reshape(-1, m)
+        # Stable by ar.analysis.Margins() (damping, gain, phase and delay margins) too.
+        margins_ok = table["stable"].to_numpy().astype(bool).reshape(-1, m)
         with np.errstate(invalid="ignore"):
             ok = (
-                np.all(rho <= 1 - stability_margin, axis=1)
+                np.all(margins_ok, axis=1)
+                & np.all(rho <= 1 - stability_margin, axis=1)
                 & np.all(over_pct <= np.asarray(limit)[None, :] if np.ndim(limit) else
                          over_pct <= limit, axis=1)
                 & np.all(np.isfinite(settle), axis=1)
@@ -649,10 +787,13 @@ def _verify(
     columns: dict[str, Any] = {p: [pt[p] for pt in [*corners, centre]] for p in obox}
     columns["point"] = ["corner"] * len(corners) + ["centre"]
     columns["predicted_stable"] = pred["stable"]
-    columns["stable"] = sim["stable"]
+    columns["stable"] = pl.Series(sim["stable"], dtype=pl.Boolean)
+    columns["verdict"] = pl.Series(sim["verdict"], dtype=pl.String)
     columns["predicted_overshoot_pct"] = pred["overshoot_pct"]
     columns["overshoot_pct"] = sim["metrics"]["overshoot_pct"]
     columns["predicted_settling_time"] = pred["settling_time"]
     columns["settling_time"] = sim["metrics"]["settling_time"]
-    columns["stable_with_motion"] = moving["stable"]
+    columns["stable_with_motion"] = pl.Series(moving["stable"], dtype=pl.Boolean)
+    columns["verdict_with_motion"] = pl.Series(moving["verdict"], dtype=pl.String)
+    columns["overshoot_pct_with_motion"] = moving["metrics"]["overshoot_pct"]
     return pl.DataFrame(columns)

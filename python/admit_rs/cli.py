@@ -30,7 +30,8 @@ from admit_rs.errors import AnalysisError, ParameterError
 EXIT_CODES = """exit codes:
   0    success (run: the scenario is stable)
   2    invalid input: bad parameter, unknown key, unreadable TOML, missing file, bad usage
-  3    run: the scenario completed or diverged but is not stable (see "verdict");
+  3    run: the scenario completed or diverged but is not stable, or is too short to
+       assess (see "verdict");
        tune: the simulation did not verify the tuned gains
   130  interrupted (Ctrl-C); sweep writes the finished runs first"""
 
@@ -101,7 +102,7 @@ def _run(args: argparse.Namespace) -> int:
         print(_table(report))
     else:
         print(json.dumps(_json_safe(report), indent=2, allow_nan=False))
-    return 0 if result.stable else 3
+    return 0 if result.stable is True else 3
 
 
 def _json_safe(value: Any) -> Any:
@@ -116,17 +117,39 @@ def _json_safe(value: Any) -> Any:
     return f if math.isfinite(f) else None
 
 
+_SETTLED = frozenset({
+    "force_ss_error", "force_rms_error", "overshoot_pct", "settling_time", "rise_time_63",
+    "rise_time_10_90", "peak_time", "step_overshoot_pct", "step_peak_time",
+})  # fmt: skip
+"""Metrics that describe a settled response: for a run that is not stable they are marked."""
+
+
 def _table(report: dict[str, Any]) -> str:
     from admit_rs.metrics import METRICS
 
+    settled = report["stable"] is True
     rows = [("verdict", report["verdict"], "")]
     for name, value in report["metrics"].items():
         unit = METRICS[name].unit if name in METRICS else ""
-        text = str(value) if isinstance(value, bool) else f"{value:.6g}"
-        rows.append((name, "–" if text == "nan" else text, "" if unit == "bool" else unit))
+        if value is None:
+            text = "null"
+        elif isinstance(value, bool):
+            text = str(value)
+        else:
+            text = f"{value:.6g}"
+        text = "–" if text == "nan" else text
+        if not settled and name in _SETTLED and text != "–":
+            text += " *"  # a number of an unsettled run: not a good response
+        rows.append((name, text, "" if unit.startswith("bool") else unit))
     width = max(len(r[0]) for r in rows)
     vwidth = max(len(r[1]) for r in rows[1:])
     lines = [f"{n:<{width}}  {v:>{vwidth}}  {u}".rstrip() for n, v, u in rows]
+    if not settled:
+        what = "not assessed" if report["stable"] is None else "NOT STABLE"
+        lines.insert(0, f"{what}: {report['verdict']}")
+        lines.append(f"* the run is {what.lower()}: these numbers describe no settled "
+                     "response (steady error, rise, overshoot); do not read them as its "
+                     "performance")  # fmt: skip
     return "\n".join(lines)
 
 
@@ -184,9 +207,10 @@ def _sweep(args: argparse.Namespace) -> int:
     assert not isinstance(table, tuple)
     elapsed = time.perf_counter() - start
     table.write_parquet(args.output)
-    unstable = int((~table["stable"]).sum())
+    unstable = int((table["stable"] == False).sum())  # noqa: E712 (a polars mask)
+    unassessed = table["stable"].null_count()
     print(f"{table.height} runs in {elapsed:.1f} s ({table.height / elapsed:.0f} runs/s),"
-          f" {unstable} unstable -> {args.output}")  # fmt: skip
+          f" {unstable} unstable, {unassessed} not assessed -> {args.output}")  # fmt: skip
     return 0
 
 

@@ -880,6 +880,48 @@ class Sampled(_Signal):
 
 Signal: TypeAlias = Step | Sine | Sampled
 
+
+@dataclass(frozen=True, kw_only=True)
+class Criteria(_Block):
+    """What a run must meet to be called stable (SPEC §17): ``Result.stable``,
+    ``Result.verdict`` and a sweep table's ``stable``/``verdict`` columns are judged by it.
+
+    A diverged run is unstable. Otherwise every limit that is set is checked and each one
+    that fails is named in the verdict with its value and limit; a force-controlled run
+    whose assessed window (t ≥ 1 s) is shorter than ``min_assessed`` is "not assessed"
+    (``stable`` is ``None``, null in tables). Position-only runs are judged on divergence
+    and, if set, ``max_path_error`` and ``max_torque_saturation``.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> sc = ar.paper.scenario("fig14").replace(**{"criteria.force_limit": 11.0})
+        >>> ar.simulate(sc).verdict
+        'unstable: force peak 12.58 N above force_limit 11 N'
+    """
+
+    max_force_oscillation: float = 0.1
+    """Largest force_oscillation (std(f − f_d) over the last 2 s / mean |f_d|) of a stable
+    force-controlled run [fraction of f_d]."""
+    max_contact_loss: float = 0.05
+    """Largest contact_loss (fraction of samples with f = 0 after t = 1 s) of a stable
+    force-controlled run [fraction]."""
+    force_limit: float | None = None
+    """Largest contact force anywhere in the run (force_peak) [N]; ``None``: not judged."""
+    max_bounces: int | None = None
+    """Largest number of bounces (contact lost after first contact) [count]; ``None``: not
+    judged."""
+    max_path_error: float | None = None
+    """Largest path_rms_error [m]; ``None``: not judged."""
+    max_torque_saturation: float | None = None
+    """Largest torque_saturation (fraction of samples with a joint at its torque limit)
+    [fraction]; ``None``: not judged."""
+    min_assessed: float = 1.0
+    """Shortest assessed window (assessed_time, from t = 1 s to the end) a force-controlled
+    run needs for a verdict [s]; shorter runs are "not assessed"."""
+
+    _check: ClassVar[str] = "criteria"
+
+
 _UNIONS: dict[str, tuple[type, ...]] = {
     "robot": (Robot, UrdfArm),
     "wall": (Wall, type(None)),
@@ -889,6 +931,7 @@ _UNIONS: dict[str, tuple[type, ...]] = {
     "z_reference": (Step, Sine, Sampled),
     "sensor": (ForceSensor,),
     "actuator": (Actuator,),
+    "criteria": (Criteria,),
 }
 
 
@@ -931,6 +974,8 @@ class Scenario(_Block):
     """Run length [s], a multiple of ``period``."""
     velocity_limit: float = 100.0
     """A run stops as unstable when any |q̇| reaches this [rad/s]."""
+    criteria: Criteria = field(default_factory=Criteria)
+    """What a run must meet to be called stable (SPEC §17)."""
     label: str = ""
     """Free text carried into results and plots; :meth:`replace` drops it when it changes
     anything else (pass ``label=`` to keep one). Without a label, plots and exports

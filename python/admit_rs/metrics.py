@@ -15,24 +15,15 @@ Example:
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 
 __all__ = [
-    "CONTACT_LOSS_LIMIT",
     "METRICS",
-    "OSCILLATION_LIMIT",
     "Metric",
     "markdown",
-    "verdict",
 ]
-
-OSCILLATION_LIMIT = 0.1
-"""A force-controlled run with ``force_oscillation`` above this is not stable."""
-CONTACT_LOSS_LIMIT = 0.05
-"""A force-controlled run with ``contact_loss`` above this is not stable."""
 
 
 @dataclass(frozen=True)
@@ -80,13 +71,28 @@ METRICS: Mapping[str, Metric] = MappingProxyType({
                "–", _STEP),
         Metric("rise_time_10_90", "s", "time from f ≥ 10 % to f ≥ 90 % of f_d", _WHOLE,
                "RiseTime (10 %–90 % of the final value)", _STEP),
-        Metric("peak_time", "s", "time of the first maximum of |f|", _WHOLE, "PeakTime", _STEP),
+        Metric("peak_time", "s", "time of the whole run's maximum |f| (the sample where "
+               "force_peak is first reached). With motion along the wall this can be a bump "
+               "long after the step (fig. 14: 1.716 s); the step's own first peak is "
+               "step_peak_time", _WHOLE, "PeakTime (the whole run's maximum)", _STEP),
+        Metric("step_overshoot_pct", "%", "the step response's own overshoot: 100 (p − "
+               "f_d,final) / f_d,final with p the step's first peak, the first local maximum "
+               "of f at or after f first reaches f_d (fig. 14: 12.57 N at 0.321 s); 0 when f "
+               "never reaches f_d. Unlike overshoot_pct, later bumps and bounces do not count",
+               _WHOLE, "– (Overshoot takes the whole run's maximum: overshoot_pct)", _STEP),
+        Metric("step_peak_time", "s", "time of the step's first peak (fig. 14: 0.321 s); NaN "
+               "when f never reaches f_d", _WHOLE,
+               "– (PeakTime is the whole run's maximum: peak_time)", _STEP),
         Metric("z_rms_error", "m", "RMS of the motion error t̂·(X_d − X) along the wall's "
                "tangent t̂: z_d − z for the paper's wall (metres, not mm)", _WHOLE, "–",
                "every run"),
         Metric("x_rms_error", "m", "RMS of the error n·(X_d − X) along the wall normal n (x_d − x "
                "for the paper's wall), X_d including the admittance output x_a", _WHOLE, "–",
                "every run"),
+        Metric("path_rms_error", "m", "RMS of the tip's position error within the wall's "
+               "tangent plane, |(X_d − X) − n·(X_d − X) n|, in force-controlled runs (the "
+               "motion the task asks for); in position-only runs the whole error |X_d − X|. "
+               "What Criteria.max_path_error judges", _WHOLE, "–", "every run"),
         Metric("contact_loss", "fraction (0–1)", "fraction of samples with f = 0 (a fraction, "
                "not a percentage: 0.36 means 36 % of the samples)", "t ≥ 1 s", "–"),
         Metric("force_oscillation", "fraction (0–1)", "std(f − f_d) / mean |f_d|: the force's "
@@ -94,6 +100,12 @@ METRICS: Mapping[str, Metric] = MappingProxyType({
                "window this is std(f) / |final f_d|; measuring the spread about f_d keeps a run "
                "that tracks a sine from counting as oscillating. NaN when the window is empty "
                "(runs ≤ 1 s) or f_d ≡ 0 there", _LAST, "–"),
+        Metric("bounces", "count", "number of times contact is lost (f > 0 followed by f = "
+               "0) after first contact. Tells bouncing (many) from ripple in contact (0)",
+               _WHOLE, "–"),
+        Metric("assessed_time", "s", "span of the window the force criteria judge, from t = "
+               "1 s to the end of the run; a run with less than Criteria.min_assessed is "
+               "\"not assessed\"", "t ≥ 1 s", "–"),
         Metric("torque_saturation", "fraction (0–1)", "fraction of samples with any joint's "
                "applied torque at the actuator's torque_limit (0 without a limit)", _WHOLE, "–",
                "every run"),
@@ -101,51 +113,19 @@ METRICS: Mapping[str, Metric] = MappingProxyType({
                "URDF position limit (rad for revolute joints, m for prismatic ones); 0 if none, "
                "and 0 for arms without limits (the three-link arm)", _WHOLE, "–",
                "every run"),
-        Metric("stable", "bool", "not diverged and, for force-controlled runs, "
-               f"force_oscillation ≤ {OSCILLATION_LIMIT} and contact_loss ≤ "
-               f"{CONTACT_LOSS_LIMIT} (a criterion whose metric is NaN is not applied); "
-               "Result.verdict says which criterion failed", _WHOLE, "–", "every run"),
+        Metric("stable", "bool or null", "judged by Scenario.criteria (ar.Criteria): False "
+               "when the run diverged or any criterion that is set fails (by default "
+               "force_oscillation ≤ 0.1 and contact_loss ≤ 0.05 for force-controlled runs); "
+               "None (null in tables) when a force-controlled run is not assessed "
+               "(assessed_time < min_assessed, or f_d ≡ 0 in the window); True otherwise. "
+               "Result.verdict (a sweep's verdict column) names each failed criterion with "
+               "its value and limit", _WHOLE, "–", "every run"),
         Metric("diverged", "bool", "the run stopped early: a non-finite state, a singular "
                "Jacobian or a joint speed |q̇| ≥ the velocity limit (100 rad/s); its error metrics "
                "are NaN and diverged_at / divergence_cause say when and why", _WHOLE, "–",
                "every run"),
     ]
 })  # fmt: skip
-
-
-def _pct(v: float) -> str:
-    return f"{100 * v:.0f} %" if v >= 0.01 else f"{100 * v:.2g} %"
-
-
-def verdict(
-    metrics: Mapping[str, object],
-    diverged_at: float | None = None,
-    divergence_cause: str | None = None,
-) -> str:
-    """Why a run is (not) stable, in words: ``"stable"`` or ``"unstable: ..."`` naming each
-    failed criterion with its value and limit.
-
-    Example:
-        >>> verdict({"stable": False, "diverged": False, "contact_loss": 0.78,
-        ...          "force_oscillation": 0.05})
-        'unstable: contact lost in 78 % of samples after 1 s (limit 5 %)'
-    """
-    if metrics.get("diverged") or diverged_at is not None:
-        when = "" if diverged_at is None else f" at t = {diverged_at:.4g} s"
-        why = f" ({divergence_cause})" if divergence_cause else ""
-        return f"unstable: diverged{when}{why}"
-    failed = []
-    osc = float(metrics.get("force_oscillation", math.nan))  # type: ignore[arg-type]
-    loss = float(metrics.get("contact_loss", math.nan))  # type: ignore[arg-type]
-    if loss > CONTACT_LOSS_LIMIT:
-        failed.append(f"contact lost in {_pct(loss)} of samples after 1 s"
-                      f" (limit {_pct(CONTACT_LOSS_LIMIT)})")  # fmt: skip
-    if osc > OSCILLATION_LIMIT:
-        failed.append(f"force oscillates: std over the last 2 s is {_pct(osc)} of f_d"
-                      f" (limit {_pct(OSCILLATION_LIMIT)})")  # fmt: skip
-    if failed:
-        return "unstable: " + "; ".join(failed)
-    return "stable"
 
 
 def markdown() -> str:

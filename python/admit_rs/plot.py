@@ -294,7 +294,14 @@ def _clip_torques(ax: Any, trace: pl.DataFrame) -> str:
 
 
 def _stable_mask(table: pl.DataFrame) -> npt.NDArray[np.bool_]:
-    return table["stable"].to_numpy().astype(bool)
+    """Runs judged stable; a run not assessed (null: too short) is not among them."""
+    return (table["stable"] == True).fill_null(False).to_numpy().astype(bool)  # noqa: E712
+
+
+def _bad(table: pl.DataFrame) -> str:
+    """What the runs outside :func:`_stable_mask` are: "unstable", or "not stable" when some
+    were not assessed (null ``stable``)."""
+    return "not stable" if table["stable"].null_count() else "unstable"
 
 
 def sweep_scatter(table: pl.DataFrame, x: str, metric: str, *, logx: bool | None = None) -> Figure:
@@ -316,7 +323,7 @@ def sweep_scatter(table: pl.DataFrame, x: str, metric: str, *, logx: bool | None
         top = finite.max() if finite.size else 1.0
         bad = np.where(np.isfinite(ys[~stable]), ys[~stable], top)
         ax.scatter(xs[~stable], bad, marker="x", color="r",
-                   label=f"unstable ({(~stable).sum()})")  # fmt: skip
+                   label=f"{_bad(table)} ({(~stable).sum()})")  # fmt: skip
     if logx if logx is not None else _log_axis(xs):
         ax.set_xscale("log")
     ax.set_xlabel(_with_unit(x))
@@ -343,7 +350,7 @@ def sweep_hist(table: pl.DataFrame, metric: str, bins: int = 50) -> Figure:
     ax.set_xlabel(_metric_label(metric))
     ax.set_ylabel("runs")
     ax.grid(True, alpha=0.3)
-    ax.set_title(f"{metric}: {stable.sum()} stable, {(~stable).sum()} unstable runs")
+    ax.set_title(f"{metric}: {stable.sum()} stable, {(~stable).sum()} {_bad(table)} runs")
     return fig
 
 
@@ -475,13 +482,13 @@ def sweep_heatmap(
         ax.text(cx, cy, f"{unstable[r, c]} ✗", color="w" if all_bad[r, c] else "k",
                 ha="center", va="center", fontsize=8, bbox=box)  # fmt: skip
     if all_bad.any():
-        handles.append(Patch(facecolor="#8b0000", label="unstable: every run in the cell"))
+        handles.append(Patch(facecolor="#8b0000", label=f"{_bad(table)}: every run in the cell"))
     if some_bad.any():
         handles.append(Patch(fill=False, hatch="xx", edgecolor="r",
-                             label="some runs unstable (count ✗)"))  # fmt: skip
+                             label=f"some runs {_bad(table)} (count ✗)"))  # fmt: skip
     if overlay_unstable and (~stable).any():
         handles.append(ax.scatter(xp[~stable], yp[~stable], marker="x", color="r", s=12,
-                                  lw=0.8, label=f"unstable run ({(~stable).sum()})"))  # fmt: skip
+                                  lw=0.8, label=f"{_bad(table)} run ({(~stable).sum()})"))  # fmt: skip
     _finish_grid_axes(ax, xe, ye, logx, logy, _with_unit(x, units), _with_unit(y, units), handles)
     for axis, cats in ((ax.xaxis, xcat), (ax.yaxis, ycat)):
         if cats is not None:
@@ -489,7 +496,7 @@ def sweep_heatmap(
             axis.set_minor_locator(NullLocator())
     _declutter(fig, ax)
     ax.set_title(textwrap.fill(f"{agg} {metric} over {x} × {y} ({table.height} runs,"
-                               f" {int((~stable).sum())} unstable)", 70))  # fmt: skip
+                               f" {int((~stable).sum())} {_bad(table)})", 70))  # fmt: skip
     return fig
 
 
@@ -776,12 +783,13 @@ def stability_map(
             check_column(overlay.columns, name, "column")
         ox = overlay[x].to_numpy().astype(float)
         oy = overlay[y].to_numpy().astype(float)
-        ok = overlay["stable"].to_numpy().astype(bool)
+        ok = _stable_mask(overlay)
         handles.append(ax.scatter(ox[ok], oy[ok], marker="o", facecolors="none",
                                   edgecolors="g", s=28, lw=1.2,
                                   label=f"simulated stable ({ok.sum()})"))  # fmt: skip
+        bad = f"simulated {_bad(overlay)} ({(~ok).sum()})"
         handles.append(ax.scatter(ox[~ok], oy[~ok], marker="x", color="darkred", s=28,
-                                  lw=1.2, label=f"simulated unstable ({(~ok).sum()})"))  # fmt: skip
+                                  lw=1.2, label=bad))  # fmt: skip
         joined = table.select(x, y, pl.col("stable").alias("_predicted")).join(
             overlay.select(pl.col(x).cast(table[x].dtype), pl.col(y).cast(table[y].dtype),
                            pl.col("stable").alias("_simulated")),

@@ -387,7 +387,7 @@ def _stability_lines(table: pl.DataFrame, name: str) -> list[str]:
     rows = _curves(table, name)
     if "verdict" not in rows.columns:
         return []
-    bad = rows.filter(~pl.col("stable"))
+    bad = rows.filter(~pl.col("stable").fill_null(False))  # not assessed is not stable
     if bad.is_empty():
         return [f"- Stability: every curve stable ({rows.height})"]
     return [f"- Stability: **{r['label']}: {r['verdict']}**" for r in bad.iter_rows(named=True)]

@@ -15,7 +15,6 @@ from admit_rs import _core
 from admit_rs._names import MetricsDict, UnknownNameError
 from admit_rs.config import Scenario
 from admit_rs.errors import AdmitError
-from admit_rs.metrics import verdict
 from admit_rs.plot import plot_result
 
 if TYPE_CHECKING:
@@ -37,11 +36,21 @@ class Result:
 
     scenario: Scenario
     trace: pl.DataFrame
-    metrics: dict[str, float | bool]
+    metrics: dict[str, float | bool | None]
     diverged_at: float | None
     """Time [s] at which the run stopped as unstable, ``None`` if it completed."""
     divergence_cause: str | None
     """Why it stopped (velocity limit, non-finite state, singular Jacobian)."""
+    verdict: str = ""
+    """``"stable"``, ``"unstable: ..."`` naming each failed criterion of
+    ``scenario.criteria`` with its value and limit, or ``"not assessed: ..."`` (SPEC §17).
+
+    Example:
+        >>> import admit_rs as ar
+        >>> sc = ar.paper.scenario("fig14")
+        >>> ar.simulate(sc.replace(**{"wall.stiffness": 7e5, "admittance.b": 200})).verdict
+        'unstable: loss of contact: f = 0 in 88 % of samples after t = 1 s, ...'
+    """
 
     @property
     def diverged(self) -> bool:
@@ -49,26 +58,16 @@ class Result:
         return self.diverged_at is not None
 
     @property
-    def stable(self) -> bool:
-        """Not diverged and, for force-controlled runs, ``force_oscillation`` ≤ 0.1 and
-        ``contact_loss`` ≤ 0.05. :attr:`verdict` says which criterion failed."""
-        return bool(self.metrics["stable"])
-
-    @property
-    def verdict(self) -> str:
-        """``"stable"``, or ``"unstable: ..."`` naming each failed criterion in words.
-
-        Example:
-            >>> import admit_rs as ar
-            >>> sc = ar.paper.scenario("fig14")
-            >>> ar.simulate(sc.replace(**{"wall.stiffness": 7e5, "admittance.b": 200})).verdict
-            'unstable: contact lost in 88 % of samples after 1 s (limit 5 %); force oscillates...'
-        """
-        return verdict(self.metrics, self.diverged_at, self.divergence_cause)
+    def stable(self) -> bool | None:
+        """Judged by ``scenario.criteria`` (:class:`admit_rs.Criteria`): ``False`` if the
+        run diverged or a criterion fails, ``None`` if it is too short to assess, else
+        ``True``. :attr:`verdict` says why."""
+        value = self.metrics["stable"]
+        return None if value is None else bool(value)
 
     def step_info(self) -> dict[str, float]:
         """Force step metrics under python-control's ``step_info`` names."""
-        m = self.metrics
+        m: Mapping[str, Any] = self.metrics
         return {
             "RiseTime": float(m["rise_time_10_90"]),
             "SettlingTime": float(m["settling_time"]),
@@ -82,9 +81,8 @@ class Result:
         return plot_result(self, title=title)
 
     def __repr__(self) -> str:
-        status = self.verdict
         label = f" {self.scenario.label!r}" if self.scenario.label else ""
-        return f"<Result{label}: {self.trace.height} samples, {status}>"
+        return f"<Result{label}: {self.trace.height} samples, {self.verdict}>"
 
 
 def _result(scenario: Scenario, columns: dict[str, Any], raw: Mapping[str, Any]) -> Result:
@@ -94,6 +92,7 @@ def _result(scenario: Scenario, columns: dict[str, Any], raw: Mapping[str, Any])
         metrics=MetricsDict(raw["metrics"]),
         diverged_at=raw["diverged_at"],
         divergence_cause=raw["divergence_cause"],
+        verdict=str(raw["verdict"]),
     )
 
 
@@ -102,9 +101,12 @@ def simulate(scenario: Scenario) -> Result:
 
     Example:
         >>> import admit_rs as ar
-        >>> r = ar.simulate(ar.paper.scenario("fig14").replace(duration=1.0))
+        >>> r = ar.simulate(ar.paper.scenario("fig14").replace(duration=3.0))
         >>> r.trace.height, r.stable
-        (1001, True)
+        (3001, True)
+        >>> ar.simulate(ar.paper.scenario("fig14").replace(duration=1.0)).verdict
+        'not assessed: only 0 s of the run after t = 1 s, min_assessed is 1 s'
+
     """
     if not isinstance(scenario, Scenario):
         raise TypeError(f"simulate() takes an admit_rs.Scenario, got {type(scenario).__name__}")

@@ -2,11 +2,11 @@
 
 Example:
     >>> import admit_rs as ar
-    >>> table = ar.sweep(ar.paper.scenario("fig19").replace(duration=1.0),
+    >>> table = ar.sweep(ar.paper.scenario("fig19").replace(duration=4.0),
     ...                  vary={"wall.stiffness": ar.LogUniform(1e4, 1e5)},
     ...                  samples=4, seed=0, progress=False)
-    >>> table.select("run_id", "stable").to_dicts()[0]
-    {'run_id': 0, 'stable': True}
+    >>> table.select("run_id", "stable", "verdict").to_dicts()[0]
+    {'run_id': 0, 'stable': True, 'verdict': 'stable'}
 
 Each run draws its random numbers from a generator seeded by ``(seed, run_id)`` only, and
 runs share nothing, so the table is bit-identical on 1 thread or many, in any chunking,
@@ -397,7 +397,9 @@ def _run_chunk(
         columns[path] = pl.Series(path, [_column_value(r[path], dtype) for r in rows],
                                   dtype=dtype, strict=False)  # fmt: skip
     columns.update(raw["metrics"])
-    columns["stable"] = raw["stable"]
+    # True, False or None (not assessed: null), typed so that every chunk agrees.
+    columns["stable"] = pl.Series("stable", raw["stable"], dtype=pl.Boolean)
+    columns["verdict"] = pl.Series("verdict", raw["verdict"], dtype=pl.String)
     columns["diverged"] = raw["diverged"]
     columns["diverged_at"] = raw["diverged_at"]
     columns["divergence_cause"] = pl.Series(raw["divergence_cause"], dtype=pl.String)
@@ -658,6 +660,7 @@ def sweep(
     chunk_size: int = DEFAULT_CHUNK_SIZE,
     progress: bool = True,
     lanes: bool = True,
+    twin: bool = False,
 ) -> pl.DataFrame | tuple[pl.DataFrame, pl.DataFrame]:
     """Runs ``scenario`` over a grid and/or random draws of its parameters.
 
@@ -677,17 +680,27 @@ def sweep(
         client: a ``dask.distributed.Client``: chunks run as tasks on its workers.
         chunk_size: runs per checkpoint file and per Dask task.
         progress: show a tqdm bar (runs/s, ETA).
-        lanes: run the three-link arm's runs four at a time in SIMD lanes (SPEC §13, about
-            2.4x the scalar path). A lane run agrees with ``ar.simulate`` to 1e-9 relative
-            (only ``exp`` differs, in the last bits) and the table is the same bits on any
-            threads, chunking, resume or Dask. ``False``: the scalar path, each run
-            ``ar.simulate``'s bits.
+        lanes: run the runs four at a time in SIMD lanes (SPEC §13, about 2.4x the scalar
+            path). The table is the same bits on any threads, chunking, resume or Dask.
+            ``False``: the scalar path, each run ``ar.simulate``'s bits. A lane run's
+            arithmetic is the scalar run's except ``exp`` (and sin/cos on URDF chains),
+            within 2 ulp; how far that moves its metrics is the run's own sensitivity
+            (docs/sweeps.md): ≤ 1e-9 relative where the run is insensitive (``twin``
+            measures it), any digit, verdict or divergence time where it is not.
+        twin: also run every row on the other path (lanes ↔ scalar: a perturbation of the
+            last bits) and add ``lane_gap``, the largest relative difference of any metric
+            between the two (0: equal; inf when the verdict or the divergence differ). A
+            row with ``lane_gap`` > 1e-9 is sensitive: its metrics are not reproducible
+            beyond that, whichever path computed them. Computed after the sweep (not
+            checkpointed); costs a second run of every row.
 
     Returns:
         One row per run: ``run_id``, ``seed``, a column per varied path, the metrics of
-        :data:`admit_rs.METRICS`, ``stable``, ``diverged``, ``diverged_at`` and
-        ``divergence_cause``; with ``traces``, the tuple ``(table, traces)``. An unstable
-        run is a row with ``stable = False``; ``diverged`` says whether it stopped early.
+        :data:`admit_rs.METRICS`, ``stable``, ``verdict``, ``diverged``, ``diverged_at``
+        and ``divergence_cause``; with ``traces``, the tuple ``(table, traces)``. Each run
+        is judged by its scenario's ``criteria`` (``criteria.*`` paths can be varied too):
+        ``stable`` is False for an unstable run (``verdict`` names the failed criteria),
+        null for a run too short to assess; ``diverged`` says whether it stopped early.
 
     Raises:
         TypeError: unknown path (with the closest valid ones) or wrong type.
@@ -780,9 +793,44 @@ def sweep(
         raise SweepInterrupted(table) from None
     bar.close()
     table, long = _assemble([done[i] for i in sorted(done)], plan)
+    if twin:
+        table = _with_lane_gap(table, plan, threads, lanes)
     if traces is True:
         return table, long if long is not None else pl.DataFrame()
     return table
+
+
+LANE_GAP_SCALE = 1e-9
+"""Floor of the scale in ``lane_gap``: differences of metrics near 0 count absolutely."""
+
+
+def _with_lane_gap(
+    table: pl.DataFrame, plan: _Plan, threads: int | None, lanes: bool
+) -> pl.DataFrame:
+    """``table`` with ``lane_gap``: each row run again on the other path (lanes ↔ scalar)."""
+    ids = table["run_id"].to_list()
+    gaps = np.zeros(len(ids))
+    for start in range(0, len(ids), 1024):
+        sub = ids[start : start + 1024]
+        configs = _configs(plan.base, [plan.rows[i] for i in sub], sub, plan.seed)
+        other = _core.simulate_batch(configs, threads, False, not lanes)
+        mine = table.slice(start, len(sub))
+        gap = np.zeros(len(sub))
+        for name, values in other["metrics"].items():
+            a, b = mine[name].to_numpy().astype(float), np.asarray(values, dtype=float)
+            both_nan = np.isnan(a) & np.isnan(b)
+            scale = np.maximum(np.maximum(np.abs(a), np.abs(b)), LANE_GAP_SCALE)
+            with np.errstate(invalid="ignore"):
+                rel = np.where(both_nan, 0.0, np.abs(a - b) / scale)
+            gap = np.maximum(gap, np.where(np.isnan(rel), np.inf, rel))
+        # Another verdict, or a divergence at another time (or only on one path).
+        differs = np.asarray(mine["stable"].to_list(), dtype=object) != np.asarray(
+            other["stable"], dtype=object)
+        at_a = mine["diverged_at"].to_numpy().astype(float)
+        at_b = np.asarray(other["diverged_at"], dtype=float)
+        differs |= ~((at_a == at_b) | (np.isnan(at_a) & np.isnan(at_b)))
+        gaps[start : start + len(sub)] = np.where(differs, np.inf, gap)
+    return table.with_columns(pl.Series("lane_gap", gaps, dtype=pl.Float64))
 
 
 def _finished_runs(

@@ -62,6 +62,10 @@ pub struct Linearization {
     pub b: DVector<f64>,
     pub c: DMatrix<f64>,
     pub d: DVector<f64>,
+    /// δf̃_k = c_measured δx_k: the force the sensor reports (what the force loop feeds
+    /// back; f_d enters only as e_f = f_d − f̃, so the loop cut there is
+    /// L(z) = c_measured (zI − A − B c_measured)⁻¹ B).
+    pub c_measured: DVector<f64>,
     /// State labels (the flat state of `Simulation::state_labels` without `sample`).
     pub labels: Vec<String>,
     /// The operating point x*.
@@ -130,7 +134,8 @@ struct Map<'a, R: RobotModel<N>, const N: usize> {
 /// Φ(x) and y(x) at one point.
 struct Eval {
     next: Vec<f64>,
-    y: [f64; 3],
+    /// f, n·X, t̂·X and the measured force f̃.
+    y: [f64; 4],
     reference_normal: f64,
     penetration: f64,
 }
@@ -164,7 +169,12 @@ impl<R: RobotModel<N>, const N: usize> Map<'_, R, N> {
         let p = nalgebra::Vector3::new(tr.x[last], tr.y[last], tr.z[last]);
         let r = nalgebra::Vector3::new(tr.x_ref[last], tr.y_ref[last], tr.z_ref[last]);
         let fr = self.sim.frame();
-        let y = [tr.f[last], fr.normal.dot(&p), fr.tangent.dot(&p)];
+        let y = [
+            tr.f[last],
+            fr.normal.dot(&p),
+            fr.tangent.dot(&p),
+            tr.f_measured[last],
+        ];
         let reference_normal = fr.normal.dot(&r);
         let penetration = tr.penetration[last];
         let mut next = self.sim.state();
@@ -189,8 +199,8 @@ impl<R: RobotModel<N>, const N: usize> Map<'_, R, N> {
         let n = x.len();
         let mut a = DMatrix::zeros(n, n);
         let mut b = DVector::zeros(n);
-        let mut c = DMatrix::zeros(3, n);
-        let mut d = DVector::zeros(3);
+        let mut c = DMatrix::zeros(4, n);
+        let mut d = DVector::zeros(4);
         let mut xp = x.to_vec();
         for j in 0..=n {
             let (v0, scale) = if j < n {
@@ -209,7 +219,7 @@ impl<R: RobotModel<N>, const N: usize> Map<'_, R, N> {
                     this.eval(x, v0 + off)
                 }
             };
-            let (col, ycol): (Vec<f64>, [f64; 3]) = if five {
+            let (col, ycol): (Vec<f64>, [f64; 4]) = if five {
                 let p1 = at(h, self)?;
                 let m1 = at(-h, self)?;
                 let p2 = at(2.0 * h, self)?;
@@ -219,7 +229,7 @@ impl<R: RobotModel<N>, const N: usize> Map<'_, R, N> {
                     (0..n)
                         .map(|i| f(p1.next[i], m1.next[i], p2.next[i], m2.next[i]))
                         .collect(),
-                    [0, 1, 2].map(|i| f(p1.y[i], m1.y[i], p2.y[i], m2.y[i])),
+                    [0, 1, 2, 3].map(|i| f(p1.y[i], m1.y[i], p2.y[i], m2.y[i])),
                 )
             } else {
                 let p1 = at(h, self)?;
@@ -228,12 +238,12 @@ impl<R: RobotModel<N>, const N: usize> Map<'_, R, N> {
                     (0..n)
                         .map(|i| (p1.next[i] - m1.next[i]) / (2.0 * h))
                         .collect(),
-                    [0, 1, 2].map(|i| (p1.y[i] - m1.y[i]) / (2.0 * h)),
+                    [0, 1, 2, 3].map(|i| (p1.y[i] - m1.y[i]) / (2.0 * h)),
                 )
             };
             if j < n {
                 a.set_column(j, &DVector::from_vec(col));
-                c.set_column(j, &nalgebra::Vector3::from(ycol));
+                c.set_column(j, &nalgebra::Vector4::from(ycol));
             } else {
                 b = DVector::from_vec(col);
                 d = DVector::from_row_slice(&ycol);
@@ -495,7 +505,9 @@ where
     if e0.penetration > 0.0 {
         rel = rel.min(e0.penetration / 8.0);
     }
-    let (a, b, c, d) = map.jacobian(&x, force, rel, true)?;
+    let (a, b, c4, d4) = map.jacobian(&x, force, rel, true)?;
+    let c_measured = c4.row(3).transpose();
+    let (c, d) = (c4.rows(0, 3).into_owned(), d4.rows(0, 3).into_owned());
     if equilibrium {
         // Scale-free: the pole nearest 1 (rows of A differ by orders of magnitude).
         let gap = a
@@ -515,10 +527,11 @@ where
         b,
         c,
         d,
+        c_measured,
         labels,
         state: x,
         force_desired: force,
-        outputs: e0.y,
+        outputs: [e0.y[0], e0.y[1], e0.y[2]],
         reference_normal: e0.reference_normal,
         penetration: e0.penetration,
         period: config.period,
@@ -596,7 +609,9 @@ mod tests {
         let diff = (&a2 - &l.a).abs().max();
         assert!(diff <= 1e-7 * scale, "Richardson: {diff:e} of {scale:e}");
         assert!((&b2 - &l.b).abs().max() <= 1e-7 * l.b.abs().max());
-        assert!((&c2 - &l.c).abs().max() <= 1e-7 * l.c.abs().max());
+        assert!((c2.rows(0, 3) - &l.c).abs().max() <= 1e-7 * l.c.abs().max());
+        // Without a sensor model the measured force is the true one.
+        assert!((c2.row(3) - l.c.row(0)).abs().max() <= 1e-7 * l.c.abs().max());
     }
 
     /// Eqs. (26), (28) with k_a: f(∞) = f_d k_a k_e / (k + k_a k_e), penetration f/k_e.

@@ -1,7 +1,7 @@
 //! What the linear model predicts (SPEC §12): poles, steady state and the step response's
 //! metrics in the definitions of SPEC §7, and many predictions in parallel for maps.
 
-use nalgebra::DMatrix;
+use nalgebra::{Complex, DMatrix, DVector};
 use rayon::prelude::*;
 
 use crate::analysis::linearize::{linearize, AnalysisError, AnalysisResult, Linearization};
@@ -30,13 +30,19 @@ pub struct Prediction {
     /// Largest |q̇_j| of the linear response to the whole step 0 → f_d in its first
     /// `PEAK_WINDOW` [rad/s] (the amplitude for a describing-function friction gain).
     pub peak_joint_speed: f64,
+    /// Margins of the force loop ([`loop_margins`]).
+    pub gain_margin: f64,
+    /// [deg].
+    pub phase_margin: f64,
+    /// [samples].
+    pub delay_margin: f64,
 }
 
 /// Window of `peak_joint_speed` [s]: the transient of a step, not a slow divergence.
 pub const PEAK_WINDOW: f64 = 0.5;
 
 /// Field names of `Prediction`, in the order of `values`.
-pub const PREDICTION_NAMES: [&str; 10] = [
+pub const PREDICTION_NAMES: [&str; 13] = [
     "force_ss_error",
     "x_ss_error",
     "overshoot_pct",
@@ -47,11 +53,14 @@ pub const PREDICTION_NAMES: [&str; 10] = [
     "dominant_damping",
     "stable",
     "peak_joint_speed",
+    "gain_margin",
+    "phase_margin",
+    "delay_margin",
 ];
 
 impl Prediction {
     /// The fields as numbers (`stable` as 0/1), in `PREDICTION_NAMES` order.
-    pub fn values(&self) -> [f64; 10] {
+    pub fn values(&self) -> [f64; 13] {
         [
             self.force_ss_error,
             self.x_ss_error,
@@ -63,6 +72,9 @@ impl Prediction {
             self.dominant_damping,
             if self.stable { 1.0 } else { 0.0 },
             self.peak_joint_speed,
+            self.gain_margin,
+            self.phase_margin,
+            self.delay_margin,
         ]
     }
 
@@ -79,6 +91,9 @@ impl Prediction {
             dominant_damping: f64::NAN,
             stable: false,
             peak_joint_speed: f64::NAN,
+            gain_margin: f64::NAN,
+            phase_margin: f64::NAN,
+            delay_margin: f64::NAN,
         }
     }
 }
@@ -102,6 +117,152 @@ pub fn dominant_pole(a: &DMatrix<f64>, period: f64) -> (f64, f64, f64) {
         1.0
     };
     (rho, freq, damping)
+}
+
+/// Stability margins of the force loop, in python-control's `stability_margins`
+/// conventions (frequencies as θ = ωT in rad per sample).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopMargins {
+    /// 1/|L| where L crosses the negative real axis (the smallest; inf if it never does).
+    pub gain: f64,
+    /// 180° + arg L at the gain crossovers |L| = 1, the smallest, wrapped to (−180°, 180°]
+    /// (inf without a crossover) [deg].
+    pub phase: f64,
+    /// The smallest phase margin / θ over the crossovers: the extra loop delay that
+    /// destabilises [samples] (0 when a phase margin is ≤ 0).
+    pub delay: f64,
+}
+
+/// Solves (zI − H) x = r for an upper Hessenberg H, by Gaussian elimination with pivoting
+/// between neighbouring rows: O(n²).
+fn hessenberg_solve(h: &DMatrix<f64>, z: Complex<f64>, r: &[Complex<f64>]) -> Vec<Complex<f64>> {
+    let n = r.len();
+    let mut m: Vec<Complex<f64>> = (0..n * n)
+        .map(|k| {
+            let (i, j) = (k / n, k % n);
+            let v = Complex::new(-h[(i, j)], 0.0);
+            if i == j {
+                v + z
+            } else {
+                v
+            }
+        })
+        .collect();
+    let mut x = r.to_vec();
+    for k in 0..n.saturating_sub(1) {
+        if m[(k + 1) * n + k].norm() > m[k * n + k].norm() {
+            for j in k..n {
+                m.swap(k * n + j, (k + 1) * n + j);
+            }
+            x.swap(k, k + 1);
+        }
+        let pivot = m[k * n + k];
+        if pivot.norm() == 0.0 {
+            continue;
+        }
+        let l = m[(k + 1) * n + k] / pivot;
+        for j in k..n {
+            let v = m[k * n + j];
+            m[(k + 1) * n + j] -= l * v;
+        }
+        let v = x[k];
+        x[k + 1] -= l * v;
+    }
+    for i in (0..n).rev() {
+        let mut acc = x[i];
+        for j in i + 1..n {
+            acc -= m[i * n + j] * x[j];
+        }
+        x[i] = acc / m[i * n + i];
+    }
+    x
+}
+
+/// The force loop cut where the measured force enters the filter (f_d enters only as
+/// e_f = f_d − f̃): L(z) = c̃ (zI − A₀)⁻¹ B with A₀ = A + B c̃, so that the closed loop is
+/// A = A₀ − B c̃ (negative feedback, python-control's convention). Evaluated on a
+/// logarithmic grid of θ = ωT in (0, π] refined around every pole of the open and the
+/// closed loop, crossings located by bisection.
+pub fn loop_margins(lin: &Linearization) -> LoopMargins {
+    let c = &lin.c_measured;
+    let a0 = &lin.a + &lin.b * c.transpose();
+    let (q, h) = a0.clone().hessenberg().unpack();
+    let qb: Vec<Complex<f64>> = (q.transpose() * &lin.b)
+        .iter()
+        .map(|v| Complex::new(*v, 0.0))
+        .collect();
+    let cq: DVector<f64> = q.transpose() * c;
+    let l_at = |theta: f64| -> Complex<f64> {
+        let x = hessenberg_solve(&h, Complex::from_polar(1.0, theta), &qb);
+        cq.iter().zip(&x).map(|(c, x)| x * *c).sum()
+    };
+    let pi = std::f64::consts::PI;
+    let mut grid: Vec<f64> = (0..=600)
+        .map(|i| 1e-5 * (pi / 1e-5).powf(i as f64 / 600.0))
+        .collect();
+    for l in a0
+        .complex_eigenvalues()
+        .iter()
+        .chain(lin.a.complex_eigenvalues().iter())
+    {
+        let (r, th) = (l.norm(), l.arg().abs());
+        if r > 0.2 && th > 0.0 {
+            let w = (1.0 - r).abs().max(1e-7);
+            for k in [-8.0, -4.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 4.0, 8.0] {
+                let t = th + k * w;
+                if t > 1e-5 && t < pi {
+                    grid.push(t);
+                }
+            }
+        }
+    }
+    grid.sort_by(f64::total_cmp);
+    grid.dedup();
+    let values: Vec<Complex<f64>> = grid.iter().map(|&t| l_at(t)).collect();
+    // Bisection on a sign change of g between grid points a and b.
+    let bisect = |mut a: f64, mut b: f64, g: &dyn Fn(Complex<f64>) -> f64| -> f64 {
+        let mut ga = g(l_at(a));
+        for _ in 0..40 {
+            let m = 0.5 * (a + b);
+            let gm = g(l_at(m));
+            if (gm > 0.0) == (ga > 0.0) {
+                a = m;
+                ga = gm;
+            } else {
+                b = m;
+            }
+        }
+        0.5 * (a + b)
+    };
+    let magnitude = |l: Complex<f64>| l.norm().ln();
+    let imaginary = |l: Complex<f64>| l.im;
+    let (mut gain, mut phase, mut delay) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    for i in 1..grid.len() {
+        let (l0, l1) = (values[i - 1], values[i]);
+        if !(l0.norm().is_finite() && l1.norm().is_finite()) {
+            continue;
+        }
+        if (magnitude(l0) > 0.0) != (magnitude(l1) > 0.0) {
+            let t = bisect(grid[i - 1], grid[i], &magnitude);
+            let arg = l_at(t).arg() + pi;
+            // Wrapped to (−180°, 180°].
+            let pm = if arg > pi { arg - 2.0 * pi } else { arg };
+            phase = phase.min(pm.to_degrees());
+            delay = delay.min(if pm > 0.0 { pm / t } else { 0.0 });
+        }
+        if (l0.im > 0.0) != (l1.im > 0.0) && (l0.re < 0.0 || l1.re < 0.0) {
+            let l = l_at(bisect(grid[i - 1], grid[i], &imaginary));
+            if l.re < 0.0 {
+                gain = gain.min(1.0 / l.norm());
+            }
+        }
+    }
+    // At the Nyquist frequency L is real: a crossing of the negative axis if Re L < 0.
+    let nyquist = l_at(pi);
+    if nyquist.re < 0.0 {
+        gain = gain.min(1.0 / nyquist.norm());
+    }
+    LoopMargins { gain, phase, delay }
 }
 
 /// Response of output `output` (0: f, 1: n·X, 2: t̂·X) to a unit step of δf_d from rest,
@@ -169,6 +330,7 @@ pub fn step_metrics(s: &[f64], period: f64) -> (f64, f64, f64) {
 pub fn predict_from(lin: &Linearization, horizon: usize) -> Prediction {
     let (rho, freq, damping) = dominant_pole(&lin.a, lin.period);
     let stable = rho < 1.0;
+    let margins = loop_margins(lin);
     let watch: Vec<usize> = lin
         .labels
         .iter()
@@ -205,6 +367,9 @@ pub fn predict_from(lin: &Linearization, horizon: usize) -> Prediction {
         dominant_damping: damping,
         stable,
         peak_joint_speed: peak * lin.force_desired.abs(),
+        gain_margin: margins.gain,
+        phase_margin: margins.phase,
+        delay_margin: margins.delay,
     }
 }
 
@@ -281,6 +446,37 @@ mod tests {
         assert!((f - th / (2.0 * std::f64::consts::PI * t)).abs() < 1e-9);
         let (re, im) = (r.ln() / t, th / t);
         assert!((zeta + re / (re * re + im * im).sqrt()).abs() < 1e-9);
+    }
+
+    /// L(z) = k/(z − 1), an integrator: |L| = 1 at θ_c = 2 asin(k/2), arg L = −(π + θ)/2,
+    /// so PM = (π − θ_c)/2, the delay margin PM/θ_c and GM = 2/k (at the Nyquist frequency).
+    #[test]
+    fn margins_of_a_discrete_integrator() {
+        let k = 0.3;
+        let lin = Linearization {
+            a: DMatrix::from_element(1, 1, 1.0 - k),
+            b: DVector::from_element(1, 1.0),
+            c: DMatrix::from_element(3, 1, 0.0),
+            d: DVector::zeros(3),
+            c_measured: DVector::from_element(1, k),
+            labels: vec!["x".into()],
+            state: vec![0.0],
+            force_desired: 1.0,
+            outputs: [0.0; 3],
+            reference_normal: 0.0,
+            penetration: 0.0,
+            period: 1e-3,
+            equilibrium: true,
+            iterations: 0,
+            caveats: vec![],
+        };
+        let m = loop_margins(&lin);
+        let pi = std::f64::consts::PI;
+        let theta = 2.0 * (k / 2.0f64).asin();
+        let pm = (pi - theta) / 2.0;
+        assert!((m.phase - pm.to_degrees()).abs() < 1e-9, "{m:?}");
+        assert!((m.delay - pm / theta).abs() < 1e-9, "{m:?}");
+        assert!((m.gain - 2.0 / k).abs() < 1e-9, "{m:?}");
     }
 
     /// The fig. 14 prediction and a batch of it agree, in order; a bad cell is its error.

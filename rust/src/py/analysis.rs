@@ -41,6 +41,7 @@ pub(super) fn linearize<'py>(
         "b": dmatrix(py, &b)?,
         "c": dmatrix(py, &lin.c)?,
         "d": dmatrix(py, &d)?,
+        "c_measured": PyArray1::from_vec(py, lin.c_measured.as_slice().to_vec()),
         "labels": lin.labels,
         "state": PyArray1::from_vec(py, lin.state),
         "force_desired": lin.force_desired,

@@ -36,6 +36,7 @@ fn outcome_into(
     metrics.set_item("stable", run_metrics.stable)?;
     metrics.set_item("diverged", run_metrics.diverged)?;
     out.set_item("metrics", metrics)?;
+    out.set_item("verdict", run_metrics.judgement(&outcome).verdict)?;
     match outcome {
         Outcome::Completed => {
             out.set_item("diverged_at", py.None())?;
@@ -168,7 +169,8 @@ fn trace_dict<'py>(py: Python<'py>, trace: Trace) -> PyResult<Bound<'py, PyDict>
 }
 
 /// Runs a batch of scenario dicts on `threads` threads (None: all cores) with the GIL
-/// released. Returns metric columns (one entry per run, in order), `stable`, `diverged`,
+/// released. Returns metric columns (one entry per run, in order), `stable` (a list of
+/// True, False or None: not assessed), `verdict` (words), `diverged`,
 /// `diverged_at` (NaN when stable), `divergence_cause` and, with `traces`, one column
 /// dict per run. An invalid scenario raises before anything runs, naming its index.
 /// `lanes`: three-link runs advance four at a time in SIMD lanes (within 1e-9 of off).
@@ -208,7 +210,8 @@ pub(super) fn simulate_batch<'py>(
     let out = PyDict::new(py);
     let n = runs.len();
     let mut columns: Vec<Vec<f64>> = vec![Vec::with_capacity(n); METRIC_NAMES.len()];
-    let mut stable = Vec::with_capacity(n);
+    let stable = PyList::empty(py);
+    let verdicts = PyList::empty(py);
     let mut diverged = Vec::with_capacity(n);
     let mut diverged_at = Vec::with_capacity(n);
     let causes = PyList::empty(py);
@@ -217,7 +220,8 @@ pub(super) fn simulate_batch<'py>(
         for (c, v) in columns.iter_mut().zip(run.metrics.values()) {
             c.push(v);
         }
-        stable.push(run.metrics.stable);
+        stable.append(run.metrics.stable)?;
+        verdicts.append(run.metrics.judgement(&run.outcome).verdict)?;
         diverged.push(run.metrics.diverged);
         match run.outcome {
             Outcome::Completed => {
@@ -238,7 +242,8 @@ pub(super) fn simulate_batch<'py>(
         metrics.set_item(name, PyArray1::from_vec(py, col))?;
     }
     out.set_item("metrics", metrics)?;
-    out.set_item("stable", PyArray1::from_vec(py, stable))?;
+    out.set_item("stable", stable)?;
+    out.set_item("verdict", verdicts)?;
     out.set_item("diverged", PyArray1::from_vec(py, diverged))?;
     out.set_item("diverged_at", PyArray1::from_vec(py, diverged_at))?;
     out.set_item("divergence_cause", causes)?;

@@ -21,6 +21,7 @@ use crate::control::reference::Signal;
 use crate::error::Error;
 use crate::robot::chain::UrdfArmParams;
 use crate::robot::RobotParams;
+use crate::sim::criteria::CriteriaParams;
 use crate::sim::scenario::ScenarioConfig;
 use crate::world::actuator::ActuatorParams;
 use crate::world::environment::WallParams;
@@ -82,7 +83,7 @@ fn variants(schema: &Schema) -> Map<String, Value> {
 /// comments, `type`, `default` where the block has a `Default`), keyed as the Python blocks
 /// are tagged: `three_link`, `urdf`, `wall`, `sensor`, `actuator`, `model`,
 /// `computed_torque`, `model_free`, `time_delay`, `admittance`, `impedance`, `step`, `sine`,
-/// `sampled` and `scenario`.
+/// `sampled`, `criteria` and `scenario`.
 pub fn schemas() -> Value {
     let mut out = Map::new();
     out.insert("three_link".into(), schema_value::<RobotParams>());
@@ -100,6 +101,7 @@ pub fn schemas() -> Value {
     out.insert("admittance".into(), schema_value::<AdmittanceParams>());
     out.insert("impedance".into(), schema_value::<ImpedanceParams>());
     out.extend(variants(&schemars::schema_for!(Signal)));
+    out.insert("criteria".into(), schema_value::<CriteriaParams>());
     out.insert("scenario".into(), schema_value::<ScenarioConfig>());
     Value::Object(out)
 }
@@ -126,6 +128,7 @@ pub fn defaults() -> Value {
     out.insert("model_free".into(), to_value(&ModelFreeParams::default()));
     out.insert("time_delay".into(), to_value(&TimeDelayParams::default()));
     out.insert("admittance".into(), to_value(&AdmittanceParams::default()));
+    out.insert("criteria".into(), to_value(&CriteriaParams::default()));
     out.insert("scenario".into(), to_value(&ScenarioConfig::default()));
     Value::Object(out)
 }

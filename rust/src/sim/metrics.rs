@@ -4,6 +4,7 @@
 use crate::control::reference::Signal;
 use crate::control::task::TaskFrame;
 use crate::robot::TaskVector;
+use crate::sim::criteria::{judge, CriteriaParams, Judgement};
 use crate::sim::outcome::Outcome;
 use crate::sim::scenario::ScenarioConfig;
 use crate::sim::trace::{Row, Trace};
@@ -14,10 +15,6 @@ pub const STEADY_STATE_WINDOW: f64 = 2.0;
 pub const TRANSIENT_END: f64 = 1.0;
 /// Settling band, as a fraction of f_d.
 pub const SETTLING_BAND: f64 = 0.02;
-/// A force-controlled run whose `force_oscillation` exceeds this is not stable.
-pub const OSCILLATION_LIMIT: f64 = 0.1;
-/// A force-controlled run whose `contact_loss` exceeds this is not stable.
-pub const CONTACT_LOSS_LIMIT: f64 = 0.05;
 
 /// Metrics of one run. Force metrics are NaN in position-only runs, step metrics NaN when
 /// f_d is not a step, and every error metric NaN when the run diverged (`force_peak`
@@ -38,12 +35,21 @@ pub struct Metrics {
     pub rise_time_63: f64,
     /// step_info RiseTime: from 10 % to 90 % of f_d [s].
     pub rise_time_10_90: f64,
-    /// step_info PeakTime: time of the first maximum of |f| [s].
+    /// step_info PeakTime: time of the whole run's maximum |f| (the first sample that
+    /// reaches it) [s]; with motion this can be a bump long after the step.
     pub peak_time: f64,
+    /// The step's own overshoot: 100 (p − f_d) / f_d [%] with p the step's first peak, the
+    /// first local maximum of f at or after f first reaches f_d; 0 when f never reaches f_d.
+    pub step_overshoot_pct: f64,
+    /// Time of that first peak [s]; NaN when f never reaches f_d.
+    pub step_peak_time: f64,
     /// RMS of z_d − z over the whole run [m].
     pub z_rms_error: f64,
     /// RMS of X_d,x − x over the whole run [m].
     pub x_rms_error: f64,
+    /// RMS of the tip's error within the tangent plane (force-controlled runs), or of the
+    /// whole error |X_d − X| (position-only runs) over the whole run [m].
+    pub path_rms_error: f64,
     /// Fraction of samples with f = 0 for t ≥ 1 s.
     pub contact_loss: f64,
     /// std(f − f_d) / mean|f_d| over the last 2 s (t ≥ 1 s); for a constant f_d in that
@@ -54,15 +60,23 @@ pub struct Metrics {
     /// Largest excursion of any joint beyond its URDF position limit [rad or m]; 0 if none
     /// (and for arms without limits, such as the three-link arm).
     pub joint_limit_violation: f64,
+    /// f > 0 → f = 0 transitions after first contact (force-controlled runs).
+    pub bounces: f64,
+    /// Span of the window the force criteria judge, from t = 1 s to the end [s] (NaN for
+    /// position-only runs).
+    pub assessed_time: f64,
     /// The run stopped early (non-finite state or the velocity limit).
     pub diverged: bool,
-    /// Not diverged and, for force-controlled runs, `force_oscillation` ≤ 0.1 and
-    /// `contact_loss` ≤ 0.05 (a criterion whose metric is NaN is not applied).
-    pub stable: bool,
+    /// Judged by `criteria` (SPEC §17, [`judge`]); `None`: not assessed.
+    pub stable: Option<bool>,
+    /// The criteria the run was judged by.
+    pub criteria: CriteriaParams,
+    /// Whether the run has a force loop (what [`judge`] applies).
+    pub force_control: bool,
 }
 
 /// Metric names in the order of `Metrics::values`.
-pub const METRIC_NAMES: [&str; 14] = [
+pub const METRIC_NAMES: [&str; 19] = [
     "force_ss_error",
     "force_rms_error",
     "force_peak",
@@ -71,10 +85,15 @@ pub const METRIC_NAMES: [&str; 14] = [
     "rise_time_63",
     "rise_time_10_90",
     "peak_time",
+    "step_overshoot_pct",
+    "step_peak_time",
     "z_rms_error",
     "x_rms_error",
+    "path_rms_error",
     "contact_loss",
     "force_oscillation",
+    "bounces",
+    "assessed_time",
     "torque_saturation",
     "joint_limit_violation",
 ];
@@ -90,13 +109,23 @@ impl Metrics {
             self.rise_time_63,
             self.rise_time_10_90,
             self.peak_time,
+            self.step_overshoot_pct,
+            self.step_peak_time,
             self.z_rms_error,
             self.x_rms_error,
+            self.path_rms_error,
             self.contact_loss,
             self.force_oscillation,
+            self.bounces,
+            self.assessed_time,
             self.torque_saturation,
             self.joint_limit_violation,
         ]
+    }
+
+    /// `stable` and the verdict in words, for a run that ended with `outcome`.
+    pub fn judgement(&self, outcome: &Outcome) -> Judgement {
+        judge(self, &self.criteria, self.force_control, outcome)
     }
 
     /// The metrics of a recorded run, by replaying its trace through [`OnlineMetrics`];
@@ -246,6 +275,22 @@ pub struct OnlineMetrics {
     crossings: [Option<usize>; 3],
     /// First sample of the largest |f|.
     peak: (usize, f64),
+    /// The step's first peak: f_d not yet reached, rising (the peak so far) or found.
+    lobe: Lobe,
+    /// Tangent-plane error (force control) or whole error (position only).
+    path: SumOfSquares,
+    /// Whether the last sample touched (a bounce is leaving contact).
+    touching: bool,
+    bounces: usize,
+    criteria: CriteriaParams,
+}
+
+/// The step response's first peak (`step_overshoot_pct`, `step_peak_time`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Lobe {
+    Before,
+    Open { at: usize, peak: f64 },
+    Closed { at: usize, peak: f64 },
 }
 
 /// The levels of `OnlineMetrics::crossings`, as fractions of f_d.
@@ -285,6 +330,11 @@ impl OnlineMetrics {
             last_unsettled: None,
             crossings: [None; 3],
             peak: (0, f64::NEG_INFINITY),
+            lobe: Lobe::Before,
+            path: SumOfSquares::ZERO,
+            touching: false,
+            bounces: 0,
+            criteria: config.criteria,
         }
     }
 
@@ -308,6 +358,10 @@ impl OnlineMetrics {
         self.last_unsettled = None;
         self.crossings = [None; 3];
         self.peak = (0, f64::NEG_INFINITY);
+        self.lobe = Lobe::Before;
+        self.path = SumOfSquares::ZERO;
+        self.touching = false;
+        self.bounces = 0;
     }
 
     /// Samples taken so far.
@@ -330,13 +384,23 @@ impl OnlineMetrics {
         let [xr, yr, zr] = row.reference;
         let [x, y, z] = row.position;
         let e = TaskVector::new(xr - x, yr - y, zr - z);
-        self.along_n.push(self.normal.dot(&e));
+        let e_n = self.normal.dot(&e);
+        self.along_n.push(e_n);
         self.along_t.push(self.tangent.dot(&e));
         if !self.force_control {
+            self.path.push(e.norm());
             return;
         }
+        // Within the tangent plane: the motion the task asks for (n is unit length).
+        self.path.push((e - self.normal * e_n).norm());
         let (f, f_d) = (row.f, row.f_d);
         self.force_peak = self.force_peak.max(f);
+        if f > 0.0 {
+            self.touching = true;
+        } else if self.touching {
+            self.touching = false;
+            self.bounces += 1;
+        }
         if k >= self.steady_start {
             self.steady_error_sum += f_d - f;
         }
@@ -360,6 +424,13 @@ impl OnlineMetrics {
             if f.abs() > self.peak.1 {
                 self.peak = (k, f.abs());
             }
+            // The first local maximum at or after f first reaches f_d.
+            self.lobe = match self.lobe {
+                Lobe::Before if sign * (f - target) >= 0.0 => Lobe::Open { at: k, peak: f },
+                Lobe::Open { peak, .. } if sign * (f - peak) > 0.0 => Lobe::Open { at: k, peak: f },
+                Lobe::Open { at, peak } if sign * (f - peak) < 0.0 => Lobe::Closed { at, peak },
+                other => other,
+            };
         }
     }
 
@@ -441,17 +512,33 @@ impl OnlineMetrics {
                 (Some(_), _) => self.saturated as f64 / len as f64,
             },
             joint_limit_violation: self.limit_excursion,
+            step_overshoot_pct: nan,
+            step_peak_time: nan,
+            path_rms_error: nan,
+            bounces: nan,
+            assessed_time: nan,
             diverged,
-            stable: !diverged,
+            stable: None,
+            criteria: self.criteria,
+            force_control: self.force_control,
         };
+        m.stable = self.judged(m, outcome);
         if diverged || len == 0 {
             return m;
         }
         m.x_rms_error = self.along_n.rms();
         m.z_rms_error = self.along_t.rms();
+        m.path_rms_error = self.path.rms();
         if !self.force_control {
+            m.stable = self.judged(m, outcome);
             return m;
         }
+        m.bounces = self.bounces as f64;
+        m.assessed_time = if self.late_start < len {
+            self.time(len - 1 - self.late_start)
+        } else {
+            0.0
+        };
         let steady = len.saturating_sub(self.steady_start.min(len));
         m.force_ss_error = self.steady_error_sum / steady as f64;
         m.force_rms_error = self.late_error.rms();
@@ -461,8 +548,6 @@ impl OnlineMetrics {
             nan
         };
         m.force_oscillation = self.spread.relative_std();
-        m.stable = within(m.force_oscillation, OSCILLATION_LIMIT)
-            && within(m.contact_loss, CONTACT_LOSS_LIMIT);
         if let Some(value) = self.step {
             // Relative to f_d: undefined (NaN) for f_d = 0.
             m.overshoot_pct = if value == 0.0 {
@@ -480,14 +565,25 @@ impl OnlineMetrics {
             m.rise_time_63 = at(rise);
             m.rise_time_10_90 = at(ninety) - at(ten);
             m.peak_time = self.time(self.peak.0);
+            (m.step_overshoot_pct, m.step_peak_time) = match self.lobe {
+                Lobe::Before => (0.0, nan),
+                Lobe::Open { at, peak } | Lobe::Closed { at, peak } => (
+                    if value == 0.0 {
+                        nan
+                    } else {
+                        100.0 * (peak - value) / value
+                    },
+                    self.time(at),
+                ),
+            };
         }
+        m.stable = self.judged(m, outcome);
         m
     }
-}
 
-/// A stability criterion holds: the metric is at most `limit`, or NaN (not judged).
-fn within(value: f64, limit: f64) -> bool {
-    value.is_nan() || value <= limit
+    fn judged(&self, m: Metrics, outcome: &Outcome) -> Option<bool> {
+        judge(&m, &self.criteria, self.force_control, outcome).stable
+    }
 }
 
 #[cfg(test)]
@@ -555,7 +651,7 @@ mod tests {
             (0.0, 0.0, 0.0)
         );
         assert_eq!(m.contact_loss, 0.0);
-        assert!(m.stable);
+        assert_eq!(m.stable, Some(true));
         // 1 s ≤ t ≤ 1.1 s off by −0.1 N per 10 ms: mean and RMS over the 2001 samples.
         let m = metrics_of(&config(), |k| {
             10.0 + if (1000..=1100).contains(&k) {
@@ -587,7 +683,7 @@ mod tests {
             "{}",
             m.force_oscillation
         );
-        assert!(m.stable);
+        assert_eq!(m.stable, Some(true));
         // Large offset, tiny spread: Welford's update keeps it (a one-pass Σd² − n·mean²
         // would lose it in cancellation).
         let m = metrics_of(&config(), |k| 1e6 + if k % 2 == 0 { -1e-6 } else { 1e-6 });
@@ -599,7 +695,7 @@ mod tests {
         // Contact lost in the last 2 s: 2000 of 2001 samples.
         let m = metrics_of(&config(), |k| if k == 1000 { 10.0 } else { 0.0 });
         assert_eq!(m.contact_loss, 2000.0 / 2001.0);
-        assert!(!m.stable);
+        assert_eq!(m.stable, Some(false));
     }
 
     #[test]

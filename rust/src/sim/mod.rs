@@ -6,6 +6,7 @@
 //! `lanes` advances four `simulation`s' plants together in SIMD lanes; `sweep` runs many
 //! `simulation`s, in lanes where their structure allows.
 
+pub mod criteria;
 pub mod dispatch;
 pub mod lanes;
 pub mod metrics;

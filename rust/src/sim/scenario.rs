@@ -6,6 +6,7 @@ use crate::control::reference::Signal;
 use crate::error::{check, short, Error, Result};
 use crate::robot::chain::UrdfArmParams;
 use crate::robot::RobotParams;
+use crate::sim::criteria::CriteriaParams;
 use crate::world::actuator::ActuatorParams;
 use crate::world::environment::WallParams;
 use crate::world::sensor::SensorParams;
@@ -86,6 +87,8 @@ pub struct ScenarioConfig {
     pub duration: f64,
     /// A run stops as unstable when any |q̇| reaches this [rad/s].
     pub velocity_limit: f64,
+    /// What a run must meet to be called stable (SPEC §17).
+    pub criteria: CriteriaParams,
 }
 
 impl Default for ScenarioConfig {
@@ -113,6 +116,7 @@ impl Default for ScenarioConfig {
             substeps: 10,
             duration: 10.0,
             velocity_limit: 100.0,
+            criteria: CriteriaParams::default(),
         }
     }
 }
@@ -157,6 +161,7 @@ impl ScenarioConfig {
             .map_err(|e| e.within("actuator"))?;
         check::positive("duration", self.duration)?;
         check::positive("velocity_limit", self.velocity_limit)?;
+        self.criteria.validate().map_err(|e| e.within("criteria"))?;
         if self.substeps == 0 || self.substeps > MAX_SUBSTEPS {
             return Err(Error::parameter(
                 "substeps",

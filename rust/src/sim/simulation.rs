@@ -652,7 +652,7 @@ mod tests {
             }
             Outcome::Completed => panic!("expected divergence"),
         }
-        assert!(!r.metrics.stable);
+        assert_eq!(r.metrics.stable, Some(false));
     }
 
     #[test]

@@ -1,0 +1,267 @@
+//! Verdicts a user can set (SPEC §17): the criteria a run is judged by, and the judgement
+//! in words. One place decides `stable` and writes the verdict, so `Result.metrics`,
+//! `Result.verdict`, sweep tables and the command line cannot disagree.
+
+use crate::error::{check, Error, Result};
+use crate::sim::metrics::Metrics;
+use crate::sim::outcome::Outcome;
+
+/// What a run must meet to be called stable. Limits left at ``None`` are not judged.
+#[derive(
+    Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
+#[serde(default, deny_unknown_fields)]
+pub struct CriteriaParams {
+    /// Largest force_oscillation (std(f − f_d) over the last 2 s / mean |f_d|) of a stable force-controlled run [fraction of f_d].
+    pub max_force_oscillation: f64,
+    /// Largest contact_loss (fraction of samples with f = 0 after t = 1 s) of a stable force-controlled run [fraction].
+    pub max_contact_loss: f64,
+    /// Largest contact force anywhere in the run (force_peak) [N]; ``None``: not judged.
+    pub force_limit: Option<f64>,
+    /// Largest number of bounces (contact lost after first contact) [count]; ``None``: not judged.
+    pub max_bounces: Option<f64>,
+    /// Largest path_rms_error [m]; ``None``: not judged.
+    pub max_path_error: Option<f64>,
+    /// Largest torque_saturation (fraction of samples with a joint at its torque limit) [fraction]; ``None``: not judged.
+    pub max_torque_saturation: Option<f64>,
+    /// Shortest assessed window (assessed_time, from t = 1 s to the end) a force-controlled run needs for a verdict [s]; shorter runs are "not assessed".
+    pub min_assessed: f64,
+}
+
+impl Default for CriteriaParams {
+    fn default() -> Self {
+        Self {
+            max_force_oscillation: 0.1,
+            max_contact_loss: 0.05,
+            force_limit: None,
+            max_bounces: None,
+            max_path_error: None,
+            max_torque_saturation: None,
+            min_assessed: 1.0,
+        }
+    }
+}
+
+impl CriteriaParams {
+    pub fn validate(&self) -> Result<()> {
+        check::non_negative("max_force_oscillation", self.max_force_oscillation)?;
+        check::non_negative("max_contact_loss", self.max_contact_loss)?;
+        check::non_negative("min_assessed", self.min_assessed)?;
+        for (name, v) in [
+            ("force_limit", self.force_limit),
+            ("max_path_error", self.max_path_error),
+            ("max_torque_saturation", self.max_torque_saturation),
+        ] {
+            if let Some(v) = v {
+                check::non_negative(name, v)?;
+            }
+        }
+        if let Some(b) = self.max_bounces {
+            if !(b.is_finite() && b >= 0.0 && b == b.round()) {
+                return Err(Error::parameter(
+                    "max_bounces",
+                    b,
+                    "a whole number >= 0 or None",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The judgement of one run: `stable` (``None``: not assessed) and why, in words.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Judgement {
+    pub stable: Option<bool>,
+    pub verdict: String,
+}
+
+/// A short number: 4 significant digits, trailing zeros dropped (1e-4 ≤ |x| < 1e6), else
+/// scientific.
+pub fn short(x: f64) -> String {
+    if !x.is_finite() {
+        return format!("{x}");
+    }
+    if x == 0.0 {
+        return "0".into();
+    }
+    let a = x.abs();
+    if (1e-4..1e6).contains(&a) {
+        let digits = (3 - a.log10().floor() as i32).clamp(0, 12) as usize;
+        let s = format!("{x:.digits$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_owned()
+        } else {
+            s
+        }
+    } else {
+        format!("{x:.3e}")
+    }
+}
+
+/// A fraction as a percentage: whole per cent from 1 %, two significant digits below.
+fn pct(v: f64) -> String {
+    if v >= 0.01 {
+        format!("{:.0} %", 100.0 * v)
+    } else {
+        format!("{} %", short(float_2g(100.0 * v)))
+    }
+}
+
+fn float_2g(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    let scale = 10f64.powi(1 - x.abs().log10().floor() as i32);
+    (x * scale).round() / scale
+}
+
+/// Judges a run (SPEC §17). Diverged: unstable. Any criterion that fails: unstable, each
+/// named with its value and limit. Otherwise a force-controlled run whose assessed window
+/// is shorter than `min_assessed` (or empty) is not assessed (`stable` = None); position-only
+/// runs are judged on divergence and, if set, the path error and torque saturation.
+pub fn judge(
+    m: &Metrics,
+    criteria: &CriteriaParams,
+    force_control: bool,
+    outcome: &Outcome,
+) -> Judgement {
+    if let Outcome::Diverged { time, cause } = outcome {
+        return Judgement {
+            stable: Some(false),
+            verdict: format!("unstable: diverged at t = {} s ({cause})", short(*time)),
+        };
+    }
+    let mut failed: Vec<String> = Vec::new();
+    let mut unjudged: Vec<String> = Vec::new();
+    let exceeds = |v: f64, limit: f64| v.is_finite() && v > limit;
+    if force_control {
+        let (loss, osc) = (m.contact_loss, m.force_oscillation);
+        if exceeds(loss, criteria.max_contact_loss) {
+            failed.push(format!(
+                "loss of contact: f = 0 in {} of samples after t = 1 s, {} bounces \
+                 (max_contact_loss {})",
+                pct(loss),
+                short(m.bounces),
+                pct(criteria.max_contact_loss)
+            ));
+        }
+        if exceeds(osc, criteria.max_force_oscillation) {
+            // Ripple in contact (friction, motion) reads differently from bouncing.
+            let kind = if loss == 0.0 {
+                "force oscillation, contact kept"
+            } else {
+                "force oscillation with loss of contact"
+            };
+            failed.push(format!(
+                "{kind}: std(f − f_d) over the last 2 s is {} of f_d (max_force_oscillation {})",
+                pct(osc),
+                pct(criteria.max_force_oscillation)
+            ));
+        }
+        if let Some(limit) = criteria.force_limit {
+            if exceeds(m.force_peak, limit) {
+                failed.push(format!(
+                    "force peak {} N above force_limit {} N",
+                    short(m.force_peak),
+                    short(limit)
+                ));
+            }
+        }
+        if let Some(limit) = criteria.max_bounces {
+            if exceeds(m.bounces, limit) {
+                failed.push(format!(
+                    "{} bounces above max_bounces {}",
+                    short(m.bounces),
+                    short(limit)
+                ));
+            }
+        }
+        if !(m.assessed_time >= criteria.min_assessed && m.assessed_time > 0.0) {
+            unjudged.push(format!(
+                "only {} s of the run after t = 1 s, min_assessed is {} s",
+                short(m.assessed_time.max(0.0)),
+                short(criteria.min_assessed)
+            ));
+        } else if osc.is_nan() || loss.is_nan() {
+            unjudged.push("f_d is 0 in the last 2 s, so force_oscillation is undefined".into());
+        }
+    }
+    if let Some(limit) = criteria.max_path_error {
+        if exceeds(m.path_rms_error, limit) {
+            failed.push(format!(
+                "path error {} m RMS above max_path_error {} m",
+                short(m.path_rms_error),
+                short(limit)
+            ));
+        }
+    }
+    if let Some(limit) = criteria.max_torque_saturation {
+        if exceeds(m.torque_saturation, limit) {
+            failed.push(format!(
+                "torque saturated in {} of samples (max_torque_saturation {})",
+                pct(m.torque_saturation),
+                pct(limit)
+            ));
+        }
+    }
+    if !failed.is_empty() {
+        return Judgement {
+            stable: Some(false),
+            verdict: format!("unstable: {}", failed.join("; ")),
+        };
+    }
+    if !unjudged.is_empty() {
+        return Judgement {
+            stable: None,
+            verdict: format!("not assessed: {}", unjudged.join("; ")),
+        };
+    }
+    let mut notes: Vec<String> = Vec::new();
+    if !force_control {
+        notes.push(match criteria.max_path_error {
+            Some(_) => "position-only run: judged on divergence and path error".into(),
+            None => "position-only run: judged on divergence only (set max_path_error)".into(),
+        });
+    }
+    if criteria.max_torque_saturation.is_none() && m.torque_saturation > 0.0 {
+        notes.push(format!(
+            "torque saturated in {} of samples, not judged (set max_torque_saturation)",
+            pct(m.torque_saturation)
+        ));
+    }
+    Judgement {
+        stable: Some(true),
+        verdict: if notes.is_empty() {
+            "stable".into()
+        } else {
+            format!("stable ({})", notes.join("; "))
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn short_numbers() {
+        assert_eq!(short(38.8123), "38.81");
+        assert_eq!(short(0.321), "0.321");
+        assert_eq!(short(10.0), "10");
+        assert_eq!(short(1e300), "1.000e300");
+        assert_eq!(short(-2.5e-7), "-2.500e-7");
+        assert_eq!(pct(0.78), "78 %");
+        assert_eq!(pct(0.00123), "0.12 %");
+    }
+
+    #[test]
+    fn bounces_must_be_whole() {
+        let c = CriteriaParams {
+            max_bounces: Some(1.5),
+            ..Default::default()
+        };
+        assert!(c.validate().is_err());
+        assert!(CriteriaParams::default().validate().is_ok());
+    }
+}

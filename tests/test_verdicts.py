@@ -1,0 +1,185 @@
+"""Verdicts a user can set and trust (SPEC §17, issue #21 items 4-7): ``ar.Criteria``
+judges ``stable`` and the verdict in one place (the Rust core), so ``Result``, sweep
+tables and the command line agree; short runs are "not assessed"; ripple and loss of
+contact read differently; the step's own first peak beside python-control's whole-run
+maximum."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import admit_rs as ar
+import control
+import numpy as np
+import polars as pl
+import pytest
+from admit_rs import cli
+
+FIG14 = ar.paper.scenario("fig14")
+
+
+def test_criteria_is_a_scenario_block_with_the_spec_defaults():
+    c = FIG14.criteria
+    assert c == ar.Criteria()
+    assert (c.max_force_oscillation, c.max_contact_loss, c.min_assessed) == (0.1, 0.05, 1.0)
+    assert (c.force_limit, c.max_bounces, c.max_path_error, c.max_torque_saturation) == (
+        None, None, None, None)  # fmt: skip
+    with pytest.raises(ar.ParameterError, match=r"criteria.max_contact_loss = -0.1 is invalid"):
+        FIG14.replace(**{"criteria.max_contact_loss": -0.1})
+    with pytest.raises(ar.ParameterError, match=r"max_bounces = 1.5 is invalid"):
+        ar.Criteria(max_bounces=1.5)
+    with pytest.raises(ar.UnknownParameterError, match="force_limit"):
+        ar.Criteria(force_limt=20.0)
+
+
+def test_a_force_limit_names_the_peak_and_the_limit():
+    # fig. 14's first-contact peak is 12.57 N for f_d = 10 N: "stable" by default, not
+    # with an 11 N limit.
+    assert ar.simulate(FIG14).verdict == "stable"
+    res = ar.simulate(FIG14.replace(**{"criteria.force_limit": 11.0}))
+    assert res.stable is False
+    assert res.verdict == f"unstable: force peak {res.metrics['force_peak']:.4g} N above " \
+                          "force_limit 11 N"
+
+
+def test_ripple_in_contact_and_loss_of_contact_read_differently():
+    # b = 2000 with the z motion: the force ripples at friction reversals, contact kept.
+    ripple = ar.simulate(FIG14.replace(**{"admittance.b": 2000.0}))
+    # (one touch-and-go during the first contact, before the assessed window)
+    assert ripple.metrics["contact_loss"] == 0.0 and ripple.metrics["bounces"] <= 1
+    assert ripple.metrics["force_oscillation"] > 0.1
+    assert ripple.verdict.startswith("unstable: force oscillation, contact kept: std(f − f_d)")
+    # The limit is the user's: at 20 % the same run is stable.
+    loose = ar.simulate(FIG14.replace(**{"admittance.b": 2000.0,
+                                         "criteria.max_force_oscillation": 0.2}))
+    assert loose.stable is True and loose.verdict == "stable"
+    # A stiff wall and little damping: the tool bounces.
+    bounce = ar.simulate(FIG14.replace(**{"wall.stiffness": 7e5, "admittance.b": 200.0}))
+    assert bounce.metrics["bounces"] > 10
+    assert bounce.verdict.startswith("unstable: loss of contact: f = 0 in ")
+    assert "force oscillation with loss of contact" in bounce.verdict
+    limited = ar.simulate(FIG14.replace(**{"wall.stiffness": 7e5, "admittance.b": 200.0,
+                                           "criteria.max_contact_loss": 1.0,
+                                           "criteria.max_force_oscillation": 100.0,
+                                           "criteria.max_bounces": 3}))
+    assert limited.verdict == (f"unstable: {limited.metrics['bounces']:.0f} bounces above "
+                               "max_bounces 3")
+
+
+@pytest.mark.parametrize("duration", [0.5, 1.0, 1.5])
+def test_a_run_too_short_to_assess_is_not_stable_but_not_assessed(duration):
+    res = ar.simulate(FIG14.replace(duration=duration))
+    assert res.stable is None and res.metrics["stable"] is None
+    assessed = max(duration - 1.0, 0.0)
+    assert res.metrics["assessed_time"] == pytest.approx(assessed, abs=1e-12)
+    assert res.verdict == (f"not assessed: only {assessed:g} s of the run after t = 1 s, "
+                           "min_assessed is 1 s")
+    assert "not assessed" in repr(res)
+    # The user may accept a shorter window.
+    short = ar.simulate(FIG14.replace(duration=duration, **{"criteria.min_assessed": 0.25}))
+    assert short.stable is (True if duration == 1.5 else None)
+    # A failed criterion is a failure even in a short run.
+    peak = ar.simulate(FIG14.replace(duration=duration, **{"criteria.force_limit": 5.0}))
+    assert peak.stable is False and peak.verdict.startswith("unstable: force peak")
+
+
+def test_a_position_only_run_is_judged_on_its_path_and_torque_when_asked():
+    weak = FIG14.replace(admittance=None, actuator=ar.Actuator(torque_limit=(20.0, 5.0, 2.0)))
+    res = ar.simulate(weak)
+    m = res.metrics
+    assert not m["diverged"] and m["torque_saturation"] > 0.9 and m["path_rms_error"] > 0.05
+    # Default criteria: judged on divergence only, and the verdict says so and what it saw.
+    assert res.stable is True
+    assert res.verdict.startswith("stable (position-only run: judged on divergence only")
+    assert "torque saturated in" in res.verdict
+    judged = ar.simulate(weak.replace(**{"criteria.max_path_error": 0.01,
+                                         "criteria.max_torque_saturation": 0.1}))
+    assert judged.stable is False
+    assert judged.verdict == (
+        f"unstable: path error {m['path_rms_error']:.4g} m RMS above max_path_error 0.01 m; "
+        f"torque saturated in {100 * m['torque_saturation']:.0f} % of samples "
+        "(max_torque_saturation 10 %)")
+    # path_rms_error of a position-only run is the whole error |X_d − X| (x and z here).
+    assert m["path_rms_error"] == pytest.approx(math.hypot(m["x_rms_error"],
+                                                           m["z_rms_error"]), rel=1e-9)
+
+
+def test_sweep_tables_carry_the_same_judgement_null_when_not_assessed():
+    base = FIG14.replace(duration=3.0)
+    grid = {"admittance.b": [200.0, 2000.0], "criteria.max_force_oscillation": [0.1, 0.5],
+            "duration": [1.0, 3.0]}
+    one = ar.sweep(base, grid=grid, threads=1, progress=False)
+    assert one["stable"].dtype == pl.Boolean and one["verdict"].dtype == pl.String
+    assert one["stable"].null_count() == 4  # the 1-s runs
+    for row in one.iter_rows(named=True):
+        res = ar.simulate(base.replace(**{p: row[p] for p in grid}))
+        assert row["stable"] == res.stable and row["verdict"] == res.verdict
+    # Deterministic with criteria on any thread count and chunking.
+    for threads, chunk in [(2, 256), (1, 3)]:
+        other = ar.sweep(base, grid=grid, threads=threads, chunk_size=chunk, progress=False)
+        assert other.equals(one)
+
+
+def test_step_first_peak_and_whole_run_maximum_have_their_own_names():
+    res = ar.simulate(FIG14)
+    m, tr = res.metrics, res.trace
+    # Whole run (python-control's PeakTime): a bump from the z motion.
+    assert m["peak_time"] == pytest.approx(1.716)
+    # The step's own first peak, after first contact.
+    assert m["step_peak_time"] == pytest.approx(0.321)
+    f = tr["f"].to_numpy()
+    assert m["step_overshoot_pct"] == pytest.approx(100 * (f[321] - 10) / 10, rel=1e-12)
+    info = control.step_info(f, T=tr["t"].to_numpy(), yfinal=10.0)
+    assert res.step_info()["PeakTime"] == pytest.approx(info["PeakTime"])
+    assert ar.METRICS["peak_time"].description.startswith("time of the whole run's maximum")
+    assert "first local maximum" in ar.METRICS["step_overshoot_pct"].description
+
+
+BOUNCING = FIG14.replace(**{"wall.stiffness": 1e6},
+                         sensor=ar.ForceSensor(noise_std=0.5, latency=1), seed=2)
+
+
+BOUNCING_TOML = "seed = 2\n[wall]\nstiffness = 1e6\n[sensor]\nnoise_std = 0.5\nlatency = 1\n"
+
+
+def test_an_unstable_run_does_not_look_good_in_the_cli_table(tmp_path, capsys):
+    path = tmp_path / "bounce.toml"
+    path.write_text(BOUNCING_TOML)
+    code = cli.main(["run", str(path), "--format", "table"])
+    out = capsys.readouterr().out
+    assert code == 3
+    first = out.splitlines()[0]
+    assert first.startswith("NOT STABLE: unstable: loss of contact")
+    row = next(line for line in out.splitlines() if line.startswith("force_ss_error"))
+    assert row.split()[-2] == "*" or row.rstrip().endswith("* N")
+    assert "these numbers describe no settled response" in out
+    # JSON keeps the numbers and says stable false.
+    cli.main(["run", str(path)])
+    report = json.loads(capsys.readouterr().out)
+    assert report["stable"] is False and report["verdict"].startswith("unstable:")
+
+
+def test_a_stable_run_is_not_marked(tmp_path, capsys):
+    path = tmp_path / "ok.toml"
+    path.write_text("duration = 3.0\n")
+    assert cli.main(["run", str(path), "--format", "table"]) == 0
+    out = capsys.readouterr().out
+    assert out.splitlines()[0].startswith("verdict") and " *" not in out
+
+
+def test_the_verdict_names_the_numbers_it_judged():
+    res = ar.simulate(BOUNCING)
+    m = res.metrics
+    assert res.stable is False
+    assert f"f = 0 in {100 * m['contact_loss']:.0f} % of samples" in res.verdict
+    assert f"{m['bounces']:.0f} bounces" in res.verdict
+    assert repr(res).endswith(f"{res.verdict}>")
+
+
+def test_numpy_agrees_with_bounces_on_a_bouncing_run():
+    res = ar.simulate(BOUNCING)
+    f = res.trace["f"].to_numpy()
+    touching = f > 0
+    first = int(np.argmax(touching))
+    assert res.metrics["bounces"] == np.sum(touching[first:-1] & ~touching[first + 1:])
