@@ -4,6 +4,7 @@ no file or symlink planted in the folder is followed."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import warnings
@@ -68,13 +69,16 @@ def test_a_chunk_copied_from_a_sweep_with_another_base_scenario_is_recomputed(tm
     ours, theirs = tmp_path / "ours", tmp_path / "theirs"
     clean = run(checkpoint=ours)
     run(other, checkpoint=theirs)
-    for name in ["chunk-000000.parquet", "chunk-000002.parquet"]:
+    # Chunk 0 with its checksum file (its own fingerprint then names it), chunk 2 without.
+    for name in ["chunk-000000.parquet", "chunk-000000.parquet.sha256", "chunk-000002.parquet"]:
         (ours / name).write_bytes((theirs / name).read_bytes())
     table, messages = resume(ours)
     assert table.equals(clean)
     assert len(messages) == 2
     assert messages[0].startswith(f"checkpoint: {ours / 'chunk-000000.parquet'} is from another"
                                   " sweep (fingerprint ")  # fmt: skip
+    assert messages[1].startswith(f"checkpoint: {ours / 'chunk-000002.parquet'} is damaged or not"
+                                  " this sweep's (its bytes do not match")  # fmt: skip
     assert "recomputing runs 4..5" in messages[1]
     assert resume(ours)[1] == []
 
@@ -144,6 +148,9 @@ def test_renamed_column_with_a_valid_file_is_named(tmp_path, clean):
     meta = {k: v for k, v in meta.items() if k.startswith("admit_rs.")}
     pl.read_parquet(chunk).rename({"force_peak": "forcd_peak"}).write_parquet(chunk,
                                                                               metadata=meta)
+    # Its checksum file rewritten too: the content checksum inside the file still names it.
+    seal = ck / "chunk-000001.parquet.sha256"
+    seal.write_text(hashlib.sha256(chunk.read_bytes()).hexdigest())
     table, messages = resume(ck)
     assert table.equals(clean)
     assert messages == [
@@ -164,7 +171,8 @@ def test_planted_tmp_symlink_is_not_followed(tmp_path, clean):
     assert precious.read_text() == "do not overwrite"
     assert all((ck / f"chunk-{i:06d}.tmp").is_symlink() for i in range(4))  # left alone
     assert sorted(p.name for p in ck.iterdir() if not p.is_symlink()) == [
-        "chunk-000000.parquet", "chunk-000001.parquet", "chunk-000002.parquet",
+        "chunk-000000.parquet", "chunk-000000.parquet.sha256", "chunk-000001.parquet",
+        "chunk-000001.parquet.sha256", "chunk-000002.parquet", "chunk-000002.parquet.sha256",
         "manifest.json",
     ]  # fmt: skip
     # The trace folder of traces=PATH is written the same way.
@@ -202,6 +210,8 @@ def test_damaged_traces_file_is_named_and_recomputed(tmp_path):
     other = tmp_path / "other"
     run(BASE.replace(**{"wall.position_error": 0.0}), checkpoint=other, traces=True)
     traces.write_bytes((other / "traces-000001.parquet").read_bytes())
+    seal = ck / "traces-000001.parquet.sha256"
+    seal.write_bytes((other / "traces-000001.parquet.sha256").read_bytes())
     with pytest.warns(ar.CheckpointWarning, match="is from another sweep"):
         table, long = run(checkpoint=ck, traces=True)
     assert table.equals(clean) and long.equals(clean_traces)

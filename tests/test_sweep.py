@@ -358,13 +358,17 @@ def test_damaged_or_foreign_checkpoint_chunk_is_named_and_recomputed(tmp_path):
     # where chunk 2 belongs (a foreign file).
     damaged = ck / "chunk-000001.parquet"
     damaged.write_bytes(damaged.read_bytes()[: damaged.stat().st_size // 2])
-    (ck / "chunk-000002.parquet").write_bytes((ck / "chunk-000000.parquet").read_bytes())
+    for suffix in ["", ".sha256"]:  # with its checksum file: intact, but not chunk 2
+        (ck / f"chunk-000002.parquet{suffix}").write_bytes(
+            (ck / f"chunk-000000.parquet{suffix}").read_bytes()
+        )
     before = (ck / "chunk-000000.parquet").read_bytes()
     with pytest.warns(ar.CheckpointWarning) as record:
         resumed = run(vary=VARY, samples=9, seed=2, chunk_size=3, checkpoint=ck)
     messages = sorted(str(w.message) for w in record)
     assert len(messages) == 2
-    assert f"checkpoint: {damaged} is unreadable (" in messages[0]
+    # Its bytes no longer match its checksum file: named before Parquet parses them.
+    assert f"checkpoint: {damaged} is damaged or not this sweep's (" in messages[0]
     assert messages[0].endswith("recomputing runs 3..5 (the file will be replaced)")
     assert messages[1] == (
         f"checkpoint: {ck / 'chunk-000002.parquet'} is not the chunk of runs 6..8 of this sweep"

@@ -487,8 +487,9 @@ def sweep_heatmap(
         handles.append(Patch(fill=False, hatch="xx", edgecolor="r",
                              label=f"some runs {_bad(table)} (count ✗)"))  # fmt: skip
     if overlay_unstable and (~stable).any():
+        bad = f"{_bad(table)} run ({(~stable).sum()})"
         handles.append(ax.scatter(xp[~stable], yp[~stable], marker="x", color="r", s=12,
-                                  lw=0.8, label=f"{_bad(table)} run ({(~stable).sum()})"))  # fmt: skip
+                                  lw=0.8, label=bad))  # fmt: skip
     _finish_grid_axes(ax, xe, ye, logx, logy, _with_unit(x, units), _with_unit(y, units), handles)
     for axis, cats in ((ax.xaxis, xcat), (ax.yaxis, ycat)):
         if cats is not None:

@@ -484,6 +484,31 @@ class _Checkpoint:
     def _path(self, kind: str, index: int) -> Path:
         return self.folder / f"{kind}-{index:06d}.parquet"
 
+    @staticmethod
+    def _digest_of(path: Path) -> str:
+        h = hashlib.sha256()
+        with path.open("rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+        return h.hexdigest()
+
+    def _seal(self, path: Path) -> None:
+        """Writes the SHA-256 of ``path``'s bytes beside it (``<name>.sha256``)."""
+        digest = self._digest_of(path).encode()
+        _atomic_write(_sidecar(path), lambda f: f.write(digest))
+
+    def _intact(self, path: Path) -> str | None:
+        """Why ``path`` must not be parsed, or ``None``: its bytes are checked against the
+        checksum beside it before Parquet reads them, because a flipped length in a page
+        can make the reader allocate exabytes and abort the process."""
+        seal = _sidecar(path)
+        if not seal.exists():
+            return f"{path} has no checksum file {seal.name} beside it (an older or foreign file)"
+        if seal.read_bytes().strip() != self._digest_of(path).encode():
+            return (f"{path} is damaged or not this sweep's (its bytes do not match"
+                    f" {seal.name})")  # fmt: skip
+        return None
+
     def _read(self, path: Path, ids: range) -> tuple[pl.DataFrame | None, str | None]:
         """A chunk or traces file, or why it cannot be used."""
         meta = pl.read_parquet_metadata(path)
@@ -509,27 +534,31 @@ class _Checkpoint:
         if not path.exists():
             return None
         tpath = self._path("traces", index)
-        problem = None
         table = long = None
-        try:
-            # The run_ids check first: a chunk copied under another index says so.
-            table = pl.read_parquet(path)
-            foreign = _foreign(table, None, plan, ids)
-            if foreign:
-                problem = f"{path} is {foreign}"
-            else:
-                table, problem = self._read(path, ids)
-            if problem is None and self.traces:
-                if not tpath.exists():
-                    problem = f"{path} has no {tpath.name} beside it"
+        # The bytes are checked before Parquet parses them (see `_intact`).
+        problem = self._intact(path)
+        if problem is None and self.traces and tpath.exists():
+            problem = self._intact(tpath)
+        if problem is None:
+            try:
+                # The run_ids check first: a chunk copied under another index says so.
+                table = pl.read_parquet(path)
+                foreign = _foreign(table, None, plan, ids)
+                if foreign:
+                    problem = f"{path} is {foreign}"
                 else:
-                    long, problem = self._read(tpath, ids)
-            if problem is None and table is not None:
-                foreign = _foreign(table, long, plan, ids)
-                problem = f"{path} is {foreign}" if foreign else None
-        except (Exception, PanicException) as e:  # a damaged file can fail in any way
-            reason = str(e).strip().splitlines()[0] if str(e).strip() else ""
-            problem = f"{path} is unreadable ({type(e).__name__}: {reason[:200]})"
+                    table, problem = self._read(path, ids)
+                if problem is None and self.traces:
+                    if not tpath.exists():
+                        problem = f"{path} has no {tpath.name} beside it"
+                    else:
+                        long, problem = self._read(tpath, ids)
+                if problem is None and table is not None:
+                    foreign = _foreign(table, long, plan, ids)
+                    problem = f"{path} is {foreign}" if foreign else None
+            except (Exception, PanicException) as e:  # a damaged file can fail in any way
+                reason = str(e).strip().splitlines()[0] if str(e).strip() else ""
+                problem = f"{path} is unreadable ({type(e).__name__}: {reason[:200]})"
         if problem is not None or table is None:
             warnings.warn(
                 f"checkpoint: {problem}; recomputing runs {ids.start}..{ids.stop - 1}"
@@ -545,11 +574,20 @@ class _Checkpoint:
     ) -> None:
         # Traces first, the chunk last and atomically: a chunk file means a finished chunk.
         if traces is not None:
-            _atomic_parquet(traces, self._path("traces", index), self._metadata(ids, traces))
-        _atomic_parquet(table, self._path("chunk", index), self._metadata(ids, table))
+            tpath = self._path("traces", index)
+            _atomic_parquet(traces, tpath, self._metadata(ids, traces))
+            self._seal(tpath)
+        path = self._path("chunk", index)
+        _atomic_parquet(table, path, self._metadata(ids, table))
+        self._seal(path)
 
     def _metadata(self, ids: range, frame: pl.DataFrame) -> dict[str, str]:
         return {_FINGERPRINT: self.fingerprint, _RUNS: _runs(ids), _CHECKSUM: _checksum(frame)}
+
+
+def _sidecar(path: Path) -> Path:
+    """The file holding the SHA-256 of ``path``'s bytes."""
+    return path.with_name(path.name + ".sha256")
 
 
 _FINGERPRINT = "admit_rs.sweep_fingerprint"
