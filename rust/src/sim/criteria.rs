@@ -3,7 +3,6 @@
 //! `Result.verdict`, sweep tables and the command line cannot disagree.
 
 use crate::error::{check, Error, Result};
-use crate::sim::metrics::Metrics;
 use crate::sim::outcome::Outcome;
 
 /// What a run must meet to be called stable. Limits left at ``None`` are not judged.
@@ -69,6 +68,19 @@ impl CriteriaParams {
     }
 }
 
+/// The figures of a run that the criteria read. `Metrics::figures` gives them; the
+/// criteria take them by value so that this file stays below the metrics (no cycle).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Figures {
+    pub force_peak: f64,
+    pub contact_loss: f64,
+    pub force_oscillation: f64,
+    pub bounces: f64,
+    pub assessed_time: f64,
+    pub path_rms_error: f64,
+    pub torque_saturation: f64,
+}
+
 /// The judgement of one run: `stable` (``None``: not assessed) and why, in words.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Judgement {
@@ -121,7 +133,7 @@ fn float_2g(x: f64) -> f64 {
 /// is shorter than `min_assessed` (or empty) is not assessed (`stable` = None); position-only
 /// runs are judged on divergence and, if set, the path error and torque saturation.
 pub fn judge(
-    m: &Metrics,
+    m: &Figures,
     criteria: &CriteriaParams,
     force_control: bool,
     outcome: &Outcome,

@@ -4,7 +4,7 @@
 use crate::control::reference::Signal;
 use crate::control::task::TaskFrame;
 use crate::robot::TaskVector;
-use crate::sim::criteria::{judge, CriteriaParams, Judgement};
+use crate::sim::criteria::{judge, CriteriaParams, Figures, Judgement};
 use crate::sim::outcome::Outcome;
 use crate::sim::scenario::ScenarioConfig;
 use crate::sim::trace::{Row, Trace};
@@ -125,7 +125,20 @@ impl Metrics {
 
     /// `stable` and the verdict in words, for a run that ended with `outcome`.
     pub fn judgement(&self, outcome: &Outcome) -> Judgement {
-        judge(self, &self.criteria, self.force_control, outcome)
+        judge(&self.figures(), &self.criteria, self.force_control, outcome)
+    }
+
+    /// What the criteria read.
+    fn figures(&self) -> Figures {
+        Figures {
+            force_peak: self.force_peak,
+            contact_loss: self.contact_loss,
+            force_oscillation: self.force_oscillation,
+            bounces: self.bounces,
+            assessed_time: self.assessed_time,
+            path_rms_error: self.path_rms_error,
+            torque_saturation: self.torque_saturation,
+        }
     }
 
     /// The metrics of a recorded run, by replaying its trace through [`OnlineMetrics`];
@@ -582,7 +595,7 @@ impl OnlineMetrics {
     }
 
     fn judged(&self, m: Metrics, outcome: &Outcome) -> Option<bool> {
-        judge(&m, &self.criteria, self.force_control, outcome).stable
+        judge(&m.figures(), &self.criteria, self.force_control, outcome).stable
     }
 }
 

@@ -50,7 +50,10 @@ fn configs(
 fn lanes<const N: usize>(arm: &UrdfArmParams, configs: &[ScenarioConfig]) -> Vec<RunResult> {
     let mut sims: Vec<Simulation<UrdfArm<N>, N>> = configs
         .iter()
-        .map(|c| Simulation::with_robot(c, UrdfArm::<N>::new(arm).unwrap()).unwrap())
+        .map(|c| {
+            Simulation::with_robot(c, UrdfArm::<N>::new(arm).expect("a valid test scenario"))
+                .expect("a valid test scenario")
+        })
         .collect();
     let four: [&Simulation<UrdfArm<N>, N>; 4] = std::array::from_fn(|l| &sims[l % sims.len()]);
     assert!(LaneStages::pack(four).is_some());
@@ -65,7 +68,7 @@ fn lanes<const N: usize>(arm: &UrdfArmParams, configs: &[ScenarioConfig]) -> Vec
 fn agree(configs: &[ScenarioConfig], runs: &[RunResult]) -> (f64, usize) {
     let (mut worst_of_all, mut completed) = (0.0_f64, 0);
     for (cfg, r) in configs.iter().zip(runs) {
-        let alone = simulate(cfg).unwrap();
+        let alone = simulate(cfg).expect("a valid test scenario");
         match (r.outcome, alone.outcome) {
             (Outcome::Completed, Outcome::Completed) => completed += 1,
             (
@@ -101,7 +104,7 @@ fn panda_lanes_agree_with_simulate() {
 
 fn panda_lanes() {
     let arm = params(PANDA, "panda_hand_tcp");
-    let robot = UrdfArm::<7>::new(&arm).unwrap();
+    let robot = UrdfArm::<7>::new(&arm).expect("a valid test scenario");
     let model = robot.model();
     let d0 = model
         .dynamics(
