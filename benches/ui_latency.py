@@ -63,7 +63,10 @@ def bench_page(args: argparse.Namespace) -> list[tuple[float, float]]:
         # The last state is what the page shows: check it once against ar.simulate.
         value = control.from_slider(float(positions[-1]))
         sc = base.replace(**{args.slider: value})
-        expected = ar.simulate(sc).trace["f"].to_numpy()
+        from admit_rs.ui import runs
+
+        full = runs.view_of(sc, ar.simulate(sc).trace, 3)
+        expected = runs.decimated(full)["f"]
         shown = np.asarray(browser.column(drv, "trace", "f"))
         assert np.array_equal(shown, expected), "the page's trace is not ar.simulate's"
         return out
@@ -96,13 +99,12 @@ setTimeout(() => { if (!fired) { fired = true; done(null); } }, 20000);
 def bench_panel(args: argparse.Namespace) -> list[tuple[float, float]]:
     import threading
 
-    import panel as pn
-    from bokeh.models import ColumnDataSource
-    from bokeh.plotting import figure
-
     import admit_rs as ar
+    import panel as pn
     from admit_rs.ui import browser, runs
     from admit_rs.ui.server import free_port
+    from bokeh.models import ColumnDataSource
+    from bokeh.plotting import figure
 
     base = ar.paper.scenario(args.scenario)
 

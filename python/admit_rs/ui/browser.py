@@ -37,6 +37,33 @@ return deep(document.body).replace(/\\s+/g, " ");
 
 MODEL_JS = "return Bokeh.documents[0].get_model_by_name(arguments[0]);"
 
+FIND_VIEW_JS = """
+function findView(name) {
+  function find(view) {
+    if (view.model.name === name) { return view; }
+    for (const c of view.child_views || []) { const f = find(c); if (f) { return f; } }
+    return null;
+  }
+  for (const root of Object.values(Bokeh.index)) { const f = find(root); if (f) { return f; } }
+  return null;
+}
+"""
+"""``findView(name)``: the view of the named model, in any of the page's roots."""
+
+
+def click(drv: Any, name: str) -> None:
+    """Clicks the button named ``name`` as a user does (its DOM button)."""
+    drv.execute_script(FIND_VIEW_JS + "findView(arguments[0]).shadow_el"
+                       ".querySelector('button').click();", name)  # fmt: skip
+
+
+def element(drv: Any, name: str, selector: str) -> Any:
+    """The DOM element ``selector`` inside the named model's view (scrolled into view)."""
+    return drv.execute_script(FIND_VIEW_JS + "const v = findView(arguments[0]);"
+                              "v.el.scrollIntoView({block: 'center'});"
+                              "return v.shadow_el.querySelector(arguments[1]);",
+                              name, selector)  # fmt: skip
+
 
 def available() -> str | None:
     """``None`` if Chromium and its driver are installed, else what is missing."""

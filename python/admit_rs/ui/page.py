@@ -36,19 +36,21 @@ from admit_rs.ui import runs
 
 log = logging.getLogger("admit_rs.ui")
 
+REST_DELAY_MS = 40
+"""How long after a new trace the page's texts and the prediction follow it."""
 PLOT_WIDTH = 470
 PLOT_HEIGHT = 210
 COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f"]
 BASELINE = "#9a9a9a"
 
 _URL_JS = """
-const q = cb_obj.text;
+const q = cb_obj.data.query[0];
 window.history.replaceState(null, "", window.location.pathname + q);
 link.value = window.location.href;
 """
 _DOWNLOAD_JS = """
-if (!cb_obj.text) { return; }
-const d = JSON.parse(cb_obj.text);
+if (!cb_obj.data.file[0]) { return; }
+const d = JSON.parse(cb_obj.data.file[0]);
 const blob = new Blob([d.text], {type: d.type});
 const a = document.createElement("a");
 a.href = URL.createObjectURL(blob);
@@ -71,6 +73,26 @@ if (navigator.clipboard && window.isSecureContext) {
   done("Copy the link from the box");
 }
 """
+
+
+TEMPLATE = """
+{% extends base %}
+{% block contents %}
+<style>
+  body { margin: 6px 10px; font-family: system-ui, sans-serif; }
+  .ar-grid { display: grid; grid-template-columns: 345px 960px 340px; column-gap: 10px; }
+</style>
+<div>{{ embed(roots.header) }}</div>
+<div>{{ embed(roots.status) }}</div>
+<div class="ar-grid">
+  <div>{{ embed(roots.controls) }}</div>
+  <div>{{ embed(roots.plots) }}</div>
+  <div>{{ embed(roots.plot_poles) }}{{ embed(roots.pole_text) }}{{ embed(roots.metrics) }}</div>
+</div>
+<div>{{ embed(roots.export) }}</div>
+{% endblock %}
+"""
+"""The page: header, status, then sliders | plots | poles, pole numbers and metrics."""
 
 
 def _slider_format(c: ctl.Control) -> CustomJSTickFormatter:
@@ -157,12 +179,14 @@ class TuningPage:
         self.link = TextInput(title="Link to this state", width=420, name="link")
         self.copy = Button(label="Copy link", width=110, name="copy_link")
         self.copy.js_on_click(CustomJS(args={"link": self.link, "btn": self.copy}, code=_COPY_JS))
-        self.url_state = Div(text="", visible=False, name="url_state")
-        self.url_state.js_on_change("text", CustomJS(args={"link": self.link}, code=_URL_JS))
+        # The URL and downloads go through data sources, not Divs: a Div's text change
+        # re-lays out the whole page (~25 ms here), a source's data does not.
+        self.url_state = ColumnDataSource(data={"query": [""]}, name="url_state")
+        self.url_state.js_on_change("data", CustomJS(args={"link": self.link}, code=_URL_JS))
         self.doc.js_on_event("document_ready", CustomJS(args={"link": self.link},
                              code="link.value = window.location.href;"))  # fmt: skip
-        self.download = Div(text="", visible=False, name="download")
-        self.download.js_on_change("text", CustomJS(code=_DOWNLOAD_JS))
+        self.download = ColumnDataSource(data={"file": [""]}, name="download")
+        self.download.js_on_change("data", CustomJS(code=_DOWNLOAD_JS))
 
         self.pin = Button(label="Pin as baseline", width=130, name="pin")
         self.pin.on_click(self._on_pin)
@@ -175,14 +199,14 @@ class TuningPage:
         self.export_text = TextAreaInput(title="Export", rows=10, width=960, name="export",
                                          visible=False)  # fmt: skip
 
-        self.verdict = Div(text="", width=960, name="verdict")
+        self.verdict = Div(text="", width=1600, name="verdict")
         self.error = Div(text="", width=960, name="error", visible=False)
         self.progress = Div(text="", width=600, name="progress", visible=False)
         self.cancel = Button(label="Cancel run", width=110, name="cancel", visible=False,
                              button_type="warning")  # fmt: skip
         self.cancel.on_click(self._on_cancel)
-        self.metrics = Div(text="", width=480, name="metrics")
-        self.pole_text = Div(text="", width=330, name="pole_text")
+        self.metrics = Div(text="", width=335, name="metrics")
+        self.pole_text = Div(text="", width=335, name="pole_text")
         self.controls_box = column(name="controls", width=340)
 
         self.trace = ColumnDataSource(data=_empty(), name="trace")
@@ -248,27 +272,34 @@ class TuningPage:
         poles.scatter("re", "im", source=self.dominant, size=14, marker="x",
                       color=COLORS[3], line_width=2.5)  # fmt: skip
         self.pole_plot = poles
-        self.plots = column(
-            row(f, pn),
-            row(pt, xa),
-            row(self.torque_plot, column(self.metrics)),
-        )
+        self.plots = column(row(f, pn), row(pt, xa), row(self.torque_plot))
 
-    def layout(self) -> Any:
-        header = row(
-            Div(text="<h2 style='margin:4px 0'>admit_rs — tune by hand</h2>", width=300),
-            self.picker, self.toml_path, column(Div(text="", height=12), self.toml_load),
+    def add_roots(self) -> None:
+        """The page as separate Bokeh roots placed by :data:`TEMPLATE`: a change of text
+        (verdict, metrics) or of the sliders re-lays out only its own root, not the plots
+        (a Div's new text re-lays out its whole root: ~25 ms for one root holding all)."""
+        pad = {"height": 12}
+        header = column(
+            row(Div(text="<h2 style='margin:4px 0'>admit_rs — tune by hand</h2>", width=300),
+                self.picker, self.toml_path, column(Div(text="", **pad), self.toml_load)),
+            row(column(Div(text="", **pad), self.pin), column(Div(text="", **pad), self.unpin),
+                self.link, column(Div(text="", **pad), self.copy),
+                column(Div(text="", **pad), self.export_toml),
+                column(Div(text="", **pad), self.export_ros)),
+            name="header",
         )  # fmt: skip
-        tools = row(
-            column(Div(text="", height=12), self.pin), column(Div(text="", height=12), self.unpin),
-            self.link, column(Div(text="", height=12), self.copy),
-            column(Div(text="", height=12), self.export_toml),
-            column(Div(text="", height=12), self.export_ros),
-        )  # fmt: skip
-        status = column(self.verdict, self.error, row(self.progress, self.cancel))
-        body = row(self.controls_box, self.plots, column(self.pole_plot, self.pole_text))
-        return column(header, tools, status, body, self.export_text, self.url_state,
-                      self.download, name="page")  # fmt: skip
+        self.plots.name = "plots"
+        status = column(self.verdict, self.error, row(self.progress, self.cancel),
+                        name="status")  # fmt: skip
+        # TEMPLATE places each root by its name.
+        for root in (header, status, self.controls_box, self.plots, self.pole_plot,
+                     self.pole_text, self.metrics, self.export_text):  # fmt: skip
+            self.doc.add_root(root)
+        # Not roots (every root must be placed in the page): held by the header instead.
+        header.tags = [self.url_state, self.download]
+        from jinja2 import Template
+
+        self.doc.template = Template(TEMPLATE)
 
     # -- controls -------------------------------------------------------------------------
 
@@ -350,10 +381,9 @@ class TuningPage:
             self.verdict.text = "<b>Simulated:</b> not run (see the error)"
             return
         self.current = scenario
-        self.url_state.text = ctl.query_string(self.base_name, self.overrides)
+        self.url_state.data = {"query": [ctl.query_string(self.base_name, self.overrides)]}
         self.generation += 1
         self.sim_worker.submit(self.generation, scenario)
-        self.predict_worker.submit(self.generation, scenario)
 
     def _next_tick(self, fn: Callable[[], None]) -> None:
         try:
@@ -362,6 +392,16 @@ class TuningPage:
             log.debug("admit-rs ui: session closed before a result arrived")
 
     def _run_job(self, job: runs.Job) -> None:
+        shown = False
+        try:
+            shown = self._run_and_show(job)
+        finally:
+            if not shown and (not job.stale() or job.cancelled):
+                self.predict_worker.submit(job.generation, job.scenario)
+
+    def _run_and_show(self, job: runs.Job) -> bool:
+        """Runs the job; True when its trace went to the page (which then starts the
+        prediction, see :meth:`_show_rest`)."""
         def progress(done: float, total: float) -> None:
             self._next_tick(partial(self._show_progress, job.generation, done, total))
 
@@ -369,14 +409,17 @@ class TuningPage:
             view = runs.run(job, progress)
         except (AdmitError, ValueError, TypeError) as e:
             self._next_tick(partial(self._show_run_error, job.generation, str(e)))
-            return
+            return False
         except Exception as e:  # not the user's input: say so, keep the trace for the log
             log.exception("admit-rs ui: the run failed")
             self._next_tick(partial(self._show_run_error, job.generation,
                                     f"internal error ({type(e).__name__}): {e}"))  # fmt: skip
-            return
-        if view is not None:
-            self._next_tick(partial(self._show_run, job.generation, view))
+            return False
+        if view is None:
+            return False
+        view.plotted = runs.decimated(view.columns)
+        self._next_tick(partial(self._show_run, job, view))
+        return True
 
     def _predict_job(self, job: runs.Job) -> None:
         try:
@@ -420,16 +463,28 @@ class TuningPage:
         self._show_error(message)
         self.verdict.text = "<b>Simulated:</b> failed (see the error)" + self._predicted_html
 
-    def _show_run(self, generation: int, view: runs.RunView) -> None:
-        if generation < self.applied_run:
+    def _show_run(self, job: runs.Job, view: runs.RunView) -> None:
+        """The new trace now; the words, the metrics and the prediction a moment later
+        (:data:`REST_DELAY_MS`), so that the browser's first work is the plots' redraw (on
+        two cores shared by server, browser and often more, every text re-layout and the
+        prediction's thread compete with it)."""
+        if job.generation < self.applied_run:
             return
-        self.applied_run = generation
+        self._set_torque_lines(view.joints)
+        self.plotted = view.plotted if view.plotted is not None else view.columns
+        self.trace.data = self.plotted
+        self.doc.add_timeout_callback(partial(self._show_rest, job, view), REST_DELAY_MS)
+
+    def _show_rest(self, job: runs.Job, view: runs.RunView) -> None:
+        if not job.stale() or job.cancelled:
+            self.predict_worker.submit(job.generation, job.scenario)
+        if job.generation < self.applied_run:
+            return
+        generation = self.applied_run = job.generation
         if generation == self.generation:
             self._hide_progress()
         self._clear_error()
         self.last_run = view
-        self._set_torque_lines(view.joints)
-        self.trace.data = dict(view.columns)
         xs, ys, color = [], [], []
         if view.torque_limits is not None:
             for j, lim in enumerate(view.torque_limits):
@@ -437,7 +492,8 @@ class TuningPage:
                     xs.append([0.0, view.duration])
                     ys.append([sign * lim, sign * lim])
                     color.append(COLORS[j % len(COLORS)])
-        self.limits.data = {"xs": xs, "ys": ys, "color": color}
+        if xs or self.limits.data["xs"]:
+            self.limits.data = {"xs": xs, "ys": ys, "color": color}
         self._sim_html = self._simulated_html(view)
         self.verdict.text = self._sim_html + self._predicted_html
         self.metrics.text = self._metrics_html(view)
@@ -462,6 +518,7 @@ class TuningPage:
 
     _sim_html = ""
     _predicted_html = ""
+    _exports = 0
 
     @staticmethod
     def _simulated_html(view: runs.RunView) -> str:
@@ -543,7 +600,7 @@ class TuningPage:
 
     def _on_pin(self) -> None:
         if self.last_run is not None:
-            self.baseline.data = dict(self.last_run.columns)
+            self.baseline.data = dict(self.plotted)
 
     def _on_unpin(self) -> None:
         self.baseline.data = _empty()
@@ -576,8 +633,9 @@ class TuningPage:
         self.export_text.title = f"Export: {name}"
         self.export_text.value = text
         self.export_text.visible = True
-        self.download.text = json.dumps({"name": name, "type": mime, "text": text,
-                                         "n": self.generation})  # fmt: skip
+        self._exports += 1  # a new value each time: the same file twice is two downloads
+        self.download.data = {"file": [json.dumps({"name": name, "type": mime, "text": text,
+                                                   "n": self._exports})]}  # fmt: skip
 
     def _closed(self, session_context: Any) -> None:
         self.sim_worker.close()
@@ -604,4 +662,4 @@ def build(doc: Document, start_name: str | None, start: Scenario) -> None:
             query[key] = [v.decode("utf-8", "replace") for v in values]
     page = TuningPage(doc, start_name, start, query)
     doc.title = "admit_rs tuning"
-    doc.add_root(page.layout())
+    page.add_roots()

@@ -125,6 +125,8 @@ class RunView:
     duration: float
     complete: bool
     """False when the run was cancelled: ``columns`` hold the samples up to then."""
+    plotted: dict[str, npt.NDArray[np.float64]] | None = None
+    """``columns`` at :func:`plot_indices` (what the browser draws), once computed."""
 
 
 def _directions(scenario: Scenario) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
@@ -156,6 +158,39 @@ def view_of(scenario: Scenario, trace: Any, joints: int) -> dict[str, npt.NDArra
     for j in range(1, joints + 1):
         out[f"tau{j}"] = col(f"tau{j}")
     return out
+
+
+PLOT_BUCKETS = 600
+"""Buckets of :func:`plot_indices`: more than the plots' inner width in pixels."""
+
+
+def plot_indices(columns: dict[str, npt.NDArray[np.float64]],
+                 buckets: int = PLOT_BUCKETS) -> npt.NDArray[np.int64]:  # fmt: skip
+    """The samples the plots draw: per bucket of consecutive samples, its first and last
+    and, for every column, the sample of its minimum and of its maximum. A line through
+    these is the full line at the plots' resolution (every peak kept, sample for sample),
+    with a few times fewer points for the browser to index and paint; every plotted point is
+    a sample of the run, unchanged."""
+    n = len(columns["t"])
+    if n <= 2 * buckets:
+        return np.arange(n, dtype=np.int64)
+    size = -(-n // buckets)
+    starts = np.arange(0, n, size, dtype=np.int64)
+    padded = len(starts) * size
+    picks = [starts, np.minimum(starts + size - 1, n - 1)]
+    for name, y in columns.items():
+        if name == "t":
+            continue
+        v = np.pad(np.nan_to_num(y, nan=0.0), (0, padded - n), mode="edge").reshape(-1, size)
+        picks.append(starts + np.argmin(v, axis=1))
+        picks.append(starts + np.argmax(v, axis=1))
+    return np.unique(np.minimum(np.concatenate(picks), n - 1))
+
+
+def decimated(columns: dict[str, npt.NDArray[np.float64]]) -> dict[str, npt.NDArray[np.float64]]:
+    """The columns at :func:`plot_indices`."""
+    idx = plot_indices(columns)
+    return {k: np.ascontiguousarray(v[idx]) for k, v in columns.items()}
 
 
 def joint_count(trace_columns: list[str]) -> int:
