@@ -179,6 +179,8 @@ def test_a_stale_long_run_stops_and_a_cancelled_one_keeps_its_samples():
 # -- in the browser ------------------------------------------------------------------------
 
 MISSING = browser.available()
+if MISSING is not None and os.environ.get("CI") == "true":
+    raise RuntimeError(f"CI must run the browser tests, but {MISSING} (.ci/run installs them)")
 needs_browser = pytest.mark.skipif(MISSING is not None, reason=f"no browser: {MISSING}")
 
 
