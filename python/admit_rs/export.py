@@ -383,7 +383,7 @@ def toml(scenario: Scenario, path: str | os.PathLike[str] | None = None) -> str:
         >>> text = ar.export.toml(sc)
         >>> ar.Scenario.from_dict(tomllib.loads(text)) == sc
         True
-        >>> print(text.splitlines()[1])
+        >>> print(text.splitlines()[0])
         wall = false  # None (TOML has no null)
     """
     if not isinstance(scenario, Scenario):

@@ -278,14 +278,17 @@ class TuningPage:
         """The page as separate Bokeh roots placed by :data:`TEMPLATE`: a change of text
         (verdict, metrics) or of the sliders re-lays out only its own root, not the plots
         (a Div's new text re-lays out its whole root: ~25 ms for one root holding all)."""
-        pad = {"height": 12}
+
+        def pad() -> Div:
+            return Div(text="", height=12)
+
         header = column(
             row(Div(text="<h2 style='margin:4px 0'>admit_rs — tune by hand</h2>", width=300),
-                self.picker, self.toml_path, column(Div(text="", **pad), self.toml_load)),
-            row(column(Div(text="", **pad), self.pin), column(Div(text="", **pad), self.unpin),
-                self.link, column(Div(text="", **pad), self.copy),
-                column(Div(text="", **pad), self.export_toml),
-                column(Div(text="", **pad), self.export_ros)),
+                self.picker, self.toml_path, column(pad(), self.toml_load)),
+            row(column(pad(), self.pin), column(pad(), self.unpin),
+                self.link, column(pad(), self.copy),
+                column(pad(), self.export_toml),
+                column(pad(), self.export_ros)),
             name="header",
         )  # fmt: skip
         self.plots.name = "plots"
@@ -329,7 +332,10 @@ class TuningPage:
                            + ")" if c.per_joint else "")  # fmt: skip
         slider = Slider(start=lo, end=hi, value=value, step=c.slider_step, title=title,
                         format=_slider_format(c), width=300, name=c.path,
-                        disabled=c.value is None, tags=[c.scale])  # fmt: skip
+                        disabled=c.value is None, show_value=c.value is not None,
+                        tags=[c.scale])  # fmt: skip
+        if c.value is None:
+            slider.title = f"{title}: off"
         slider.on_change("value", partial(self._on_slider, c))
         self.sliders[c.path] = slider
         if not c.nullable:
@@ -345,6 +351,8 @@ class TuningPage:
 
     def _on_toggle(self, c: ctl.Control, slider: Slider, attr: str, old: Any, new: Any) -> None:
         slider.disabled = not new
+        slider.show_value = bool(new)
+        slider.title = c.title if new else f"{c.title}: off"
         self.overrides[c.path] = c.from_slider(float(slider.value)) if new else None
         self._changed()
 
