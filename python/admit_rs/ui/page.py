@@ -335,7 +335,7 @@ class TuningPage:
                         disabled=c.value is None, show_value=c.value is not None,
                         tags=[c.scale])  # fmt: skip
         if c.value is None:
-            slider.title = f"{title}: off"
+            slider.title = f"{title} (off)"
         slider.on_change("value", partial(self._on_slider, c))
         self.sliders[c.path] = slider
         if not c.nullable:
@@ -352,7 +352,7 @@ class TuningPage:
     def _on_toggle(self, c: ctl.Control, slider: Slider, attr: str, old: Any, new: Any) -> None:
         slider.disabled = not new
         slider.show_value = bool(new)
-        slider.title = c.title if new else f"{c.title}: off"
+        slider.title = c.title if new else f"{c.title} (off)"
         self.overrides[c.path] = c.from_slider(float(slider.value)) if new else None
         self._changed()
 
