@@ -11,7 +11,7 @@ Example:
     (True, 10001, True)
 """
 
-from admit_rs import analysis, export, metrics, paper, plot
+from admit_rs import analysis, export, metrics, paper, plot, ui
 from admit_rs._core import METRIC_NAMES, TRACE_COLUMNS, __version__
 from admit_rs._names import UnknownNameError
 from admit_rs.config import (
@@ -102,4 +102,5 @@ __all__ = [
     "plot",
     "simulate",
     "sweep",
+    "ui",
 ]

@@ -5,6 +5,7 @@ admit-rs paper --figure 14 --out results    # one figure
 admit-rs run SCENARIO.toml [-o trace.parquet] [--plot run.png] [--format json|table]
 admit-rs tune fig14 --vary admittance.b=100:3000 --vary admittance.ka=0.2:5 \
     --over wall.stiffness=1e4:1e5 --max-overshoot 15      # predict, search, verify
+admit-rs ui [SCENARIO.toml | figNN] [--port P] [--no-browser]   # the tuning page
 
 Exit codes: 0 success, 2 invalid input, 3 run not stable, 130 interrupted.
 """
@@ -259,6 +260,23 @@ def _tune(args: argparse.Namespace) -> int:
     return 0 if result.verified else 3
 
 
+def _ui(args: argparse.Namespace) -> int:
+    from admit_rs import ui
+
+    try:
+        ui.serve(args.scenario, port=args.port, open_browser=not args.no_browser)
+    except KeyboardInterrupt:  # how a server is stopped: not a failure
+        print("admit-rs ui: stopped", file=sys.stderr)
+    except ImportError as e:
+        print(f"admit-rs: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:  # the port is taken, or not ours to bind
+        print(f"admit-rs: error: cannot serve on 127.0.0.1:{args.port}: {e.strerror or e}",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="admit-rs",
@@ -310,6 +328,13 @@ def _parser() -> argparse.ArgumentParser:
     tn.add_argument("--verify-duration", type=float, help="seconds per verification run")
     tn.add_argument("--format", choices=("json", "table"), default="table")
     tn.set_defaults(func=_tune)
+    ui = sub.add_parser("ui", help="the tuning page: sliders that re-simulate live, in a browser")
+    ui.add_argument("scenario", nargs="?", default="fig14",
+                    help="a paper figure (fig14, fig9:2 for its 2nd curve) or a TOML file "
+                         "(default fig14)")  # fmt: skip
+    ui.add_argument("--port", type=int, default=None, help="port on 127.0.0.1 (default: free)")
+    ui.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    ui.set_defaults(func=_ui)
     return p
 
 

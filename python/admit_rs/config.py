@@ -1026,7 +1026,10 @@ class Scenario(_Block):
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Scenario:
-        """Builds a scenario from the nested dict of :meth:`to_dict` (or a parsed TOML file)."""
+        """Builds a scenario from the nested dict of :meth:`to_dict` (or a parsed TOML file).
+
+        TOML has no null: ``wall = false`` and ``admittance = false`` stand for ``None``
+        (free space, position-only control), as :func:`admit_rs.export.toml` writes them."""
         return _from_dict(cls, data, "")
 
 
@@ -1262,7 +1265,9 @@ def _from_dict(cls: type[Any], data: Mapping[str, Any], path: str) -> Any:
                               key, names)  # fmt: skip
             _warn_renamed(f"{path}{key}", f"{path}{renamed}")
             key = renamed
-        if isinstance(value, Mapping) and key in _SLOTS:
+        if value is False and type(None) in _UNIONS.get(key, ()) and cls is Scenario:
+            value = None  # TOML has no null: `wall = false` is free space (export.toml)
+        elif isinstance(value, Mapping) and key in _SLOTS:
             sub = _table_type(key, value, f"{path}{key}")
             value = _from_dict(sub, value, f"{path}{key}.")
         elif isinstance(value, list):

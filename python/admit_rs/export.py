@@ -1,8 +1,9 @@
-"""Export a scenario's force loop to other control stacks.
+"""Export a scenario's force loop to other control stacks, and a whole scenario as TOML.
 
 :func:`ros2_admittance` writes the parameter file of ros2_controllers'
 ``admittance_controller`` for the force axis; docs/export.md gives the mapping and what
-does not map.
+does not map. :func:`toml` writes a scenario in the layout ``admit-rs run`` and
+:meth:`Scenario.from_dict <admit_rs.Scenario.from_dict>` read.
 
 Example:
     >>> import admit_rs as ar
@@ -25,6 +26,8 @@ Example:
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
 import os
 import re
@@ -32,14 +35,14 @@ import textwrap
 import warnings
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
-from admit_rs.config import AdmittanceFilter, Scenario, describe
+from admit_rs.config import AdmittanceFilter, Scenario, UrdfArm, _Block, describe
 from admit_rs.errors import ExportError, ParameterError
 
-__all__ = ["ExportWarning", "ros2_admittance", "sensor_filter_coefficient"]
+__all__ = ["ExportWarning", "ros2_admittance", "sensor_filter_coefficient", "toml"]
 
 _MASS_BOUNDS = (1e-4, 1e6)
 _STIFFNESS_BOUNDS = (0.0, 1e8)
@@ -303,3 +306,91 @@ def _bad(name: str, value: str, allowed: str) -> ParameterError:
     err = ParameterError(f"{name} = {value} is invalid: must be {allowed}")
     err.field, err.value, err.allowed = name, value, allowed
     return err
+
+
+def _toml_value(value: Any, where: str) -> str:
+    """One TOML value: a bool, number, string or (nested) array."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+        return repr(value)
+    if isinstance(value, str | Path):
+        # A JSON string is a TOML basic string (the same escapes, \\uXXXX included).
+        return json.dumps(str(value), ensure_ascii=False)
+    if isinstance(value, tuple | list):
+        return "[" + ", ".join(_toml_value(v, where) for v in value) + "]"
+    raise ExportError(f"{where}: cannot write a {type(value).__name__} as TOML")
+
+
+def _toml_table(block: _Block, name: str, out: list[str]) -> None:
+    """``[name]`` with the block's scalar fields, then its sub-blocks as ``[name.sub]``;
+    ``None`` fields are left out (every block's ``None`` default is what leaving a key out
+    gives back)."""
+    lines: list[str] = []
+    if block._kind is not None:
+        lines.append(f"kind = {_toml_value(block._kind, name)}")
+    subs: list[tuple[str, _Block]] = []
+    for f in dataclasses.fields(block):  # type: ignore[arg-type]
+        value = getattr(block, f.name)
+        where = f"{name}.{f.name}" if name else f.name
+        if isinstance(block, UrdfArm) and f.name in ("path", "urdf"):
+            value = _urdf_source(block, f.name)
+        if value is None or (f.name == "label" and value == ""):
+            if value is None and f.default is not None and name == "":
+                lines.append(f"{f.name} = false  # None (TOML has no null)")
+            continue
+        if isinstance(value, _Block):
+            subs.append((where, value))
+        else:
+            lines.append(f"{f.name} = {_toml_value(value, where)}")
+    if name:
+        out.append(f"\n[{name}]")
+    out.extend(lines)
+    for where, sub in subs:
+        _toml_table(sub, where, out)
+
+
+def _urdf_source(arm: UrdfArm, field: str) -> str | None:
+    """A URDF arm is written by its file's absolute path when that file still holds the
+    arm's document, else by the document itself."""
+    path = Path(arm.path) if arm.path else None
+    try:
+        same = path is not None and path.read_text(encoding="utf-8") == arm.urdf
+    except OSError:
+        same = False
+    if field == "path":
+        return str(path.resolve()) if same and path is not None else None
+    return None if same else arm.urdf
+
+
+def toml(scenario: Scenario, path: str | os.PathLike[str] | None = None) -> str:
+    """The scenario as a TOML document in the layout of :meth:`Scenario.to_dict` (what
+    ``admit-rs run`` reads); returns the text and, given ``path``, writes it there.
+
+    Every field is written, so the file does not depend on later changes of the defaults;
+    ``None`` fields are left out, except ``wall`` and ``admittance`` (whose defaults are
+    blocks), written ``false``. A URDF arm is written by its file's absolute path, or by its
+    document when the file no longer holds it. :meth:`Scenario.from_dict` of the parsed
+    text gives the scenario back.
+
+    Example:
+        >>> import admit_rs as ar, tomllib
+        >>> sc = ar.paper.scenario("fig5")           # position only: no wall, no filter
+        >>> text = ar.export.toml(sc)
+        >>> ar.Scenario.from_dict(tomllib.loads(text)) == sc
+        True
+        >>> print(text.splitlines()[0])
+        wall = false  # None (TOML has no null)
+    """
+    if not isinstance(scenario, Scenario):
+        raise TypeError(f"toml() takes an admit_rs.Scenario, got {type(scenario).__name__}")
+    out: list[str] = []
+    _toml_table(scenario, "", out)
+    text = "\n".join(out) + "\n"
+    if path is not None:
+        Path(path).write_text(text, encoding="utf-8")
+    return text

@@ -19,12 +19,16 @@ use crate::control::reference::Sample;
 #[serde(default, deny_unknown_fields)]
 pub struct AdmittanceParams {
     /// Mass [kg].
+    #[schemars(extend("x-ui" = {"min": 0.01, "max": 100.0, "scale": "log"}))]
     pub m: f64,
     /// Damping [N·s/m].
+    #[schemars(extend("x-ui" = {"min": 10.0, "max": 10000.0, "scale": "log"}))]
     pub b: f64,
     /// Stiffness [N/m]; 0 is Scheme 2.
+    #[schemars(extend("x-ui" = {"min": 0.0, "max": 2000.0, "scale": "linear"}))]
     pub k: f64,
     /// Filter gain k_a of eqs. (30)/(38): the filter input is k_a e_f [dimensionless].
+    #[schemars(extend("x-ui" = {"min": 0.01, "max": 10.0, "scale": "log"}))]
     pub ka: f64,
 }
 

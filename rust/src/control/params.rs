@@ -22,10 +22,13 @@ pub struct PositionGains<T: Real = f64> {
     /// whole Cartesian command, feed-forward included (only the feedback with
     /// ``scale_feedforward=False``) [dimensionless].
     #[serde(rename = "command_divisor", alias = "ka")]
+    #[schemars(extend("x-ui" = {"min": 0.01, "max": 100.0, "scale": "log"}))]
     pub ka: T,
     /// K_D of eq. (39) [1/s].
+    #[schemars(extend("x-ui" = {"min": 0.1, "max": 1000.0, "scale": "log"}))]
     pub kd: T,
     /// K_P of eq. (39) [1/s²].
+    #[schemars(extend("x-ui" = {"min": 1.0, "max": 10000.0, "scale": "log"}))]
     pub kp: T,
     /// ``True`` (SPEC, the paper as written): K_A⁻¹ multiplies Ẍ_d too. ``False``:
     /// V = Ẍ_d + K_A⁻¹(K_D ė + K_P e), a variant reading (see docs/reproduction.md).
@@ -87,8 +90,10 @@ impl<T: Real> PositionGains<T> {
 #[serde(default, deny_unknown_fields)]
 pub struct ModelError {
     /// Factor on every link mass (and inertia) in the controller's model [dimensionless].
+    #[schemars(extend("x-ui" = {"min": 0.5, "max": 2.0, "scale": "linear"}))]
     pub mass_scale: f64,
     /// Factor on viscous and Coulomb friction in the controller's model [dimensionless].
+    #[schemars(extend("x-ui" = {"min": 0.0, "max": 2.0, "scale": "linear"}))]
     pub friction_scale: f64,
 }
 
@@ -406,6 +411,7 @@ pub struct ModelFreeBlock {
     /// (D̄ = diag(...)) or an n×n symmetric positive definite matrix (rows), for URDF arms
     /// whose inertias differ by orders of magnitude between shoulder and wrist.
     #[serde(default = "default_inertia")]
+    #[schemars(extend("x-ui" = {"min": 0.001, "max": 10.0, "scale": "log"}))]
     pub inertia: Inertia,
     /// Torque constant K_t (eq. 18).
     #[serde(default = "default_torque_constant")]
@@ -457,6 +463,7 @@ pub struct TimeDelayBlock {
     /// (D̄ = diag(...)) or an n×n symmetric positive definite matrix (rows), for URDF arms
     /// whose inertias differ by orders of magnitude between shoulder and wrist.
     #[serde(default = "default_inertia")]
+    #[schemars(extend("x-ui" = {"min": 0.001, "max": 10.0, "scale": "log"}))]
     pub inertia: Inertia,
     /// Torque constant K_t (eq. 18).
     #[serde(default = "default_torque_constant")]

@@ -200,6 +200,59 @@ mod tests {
         }
     }
 
+    /// Every `x-ui` hint (the tuning page's slider: a typical range, a scale, a unit when the
+    /// doc has no bracket) is a usable range that holds the field's default.
+    #[test]
+    fn slider_hints_are_ranges_holding_the_default() {
+        fn walk(v: &Value, path: &str, found: &mut Vec<String>) {
+            match v {
+                Value::Object(map) => {
+                    if let Some(ui) = map.get("x-ui") {
+                        let lo = ui["min"].as_f64().expect("min");
+                        let hi = ui["max"].as_f64().expect("max");
+                        let scale = ui["scale"].as_str().expect("scale");
+                        assert!(lo < hi, "{path}: {lo} >= {hi}");
+                        assert!(scale == "linear" || (scale == "log" && lo > 0.0), "{path}");
+                        if let Some(d) = map.get("default").and_then(Value::as_f64) {
+                            assert!((lo..=hi).contains(&d), "{path}: default {d} outside");
+                        }
+                        let doc = map["description"].as_str().unwrap_or("");
+                        assert!(
+                            doc.contains('[') || ui.get("unit").is_some(),
+                            "{path}: unit"
+                        );
+                        found.push(path.to_owned());
+                    }
+                    for (k, x) in map {
+                        walk(x, &format!("{path}.{k}"), found);
+                    }
+                }
+                Value::Array(items) => items.iter().for_each(|x| walk(x, path, found)),
+                _ => {}
+            }
+        }
+        let s = schemas();
+        let mut found = Vec::new();
+        walk(&s, "", &mut found);
+        for field in [
+            ".admittance.properties.b",
+            ".admittance.properties.ka",
+            ".wall.properties.stiffness",
+            ".wall.properties.position_error",
+            ".sensor.properties.noise_std",
+            ".sensor.properties.cutoff",
+            ".sensor.properties.latency",
+            ".actuator.properties.torque_limit",
+            ".actuator.properties.delay",
+            ".time_delay.properties.kp",
+            ".time_delay.properties.command_divisor",
+            ".scenario.properties.duration",
+            ".scenario.properties.seed",
+        ] {
+            assert!(found.iter().any(|f| f == field), "{field} has no x-ui");
+        }
+    }
+
     #[test]
     fn every_python_block_has_a_schema_with_docs() {
         let s = schemas();

@@ -77,6 +77,7 @@ pub struct ScenarioConfig {
     pub actuator: ActuatorParams,
     /// Seed of the sensor noise (0 to 2^53). Sweeps derive each run's from (seed, run_id).
     #[serde(deserialize_with = "crate::schema::fields::seed")]
+    #[schemars(extend("x-ui" = {"min": 0.0, "max": 1000.0, "scale": "linear", "unit": ""}))]
     pub seed: u64,
     /// Controller period T [s].
     pub period: f64,
@@ -84,6 +85,7 @@ pub struct ScenarioConfig {
     #[serde(deserialize_with = "substeps")]
     pub substeps: usize,
     /// Run length [s], a multiple of ``period``.
+    #[schemars(extend("x-ui" = {"min": 0.5, "max": 30.0, "scale": "linear", "step": 0.5}))]
     pub duration: f64,
     /// A run stops as unstable when any |q̇| reaches this [rad/s].
     pub velocity_limit: f64,

@@ -20,11 +20,14 @@ pub struct ActuatorParams {
     /// |τ_j| limit [N·m]: one number for every joint or one per joint; ``None``: unlimited.
     #[serde(with = "crate::schema::fields::optional_numbers")]
     #[schemars(with = "Option<crate::schema::fields::Numbers>")]
+    #[schemars(extend("x-ui" = {"min": 1.0, "max": 1000.0, "scale": "log"}))]
     pub torque_limit: Option<Vec<f64>>,
     /// Largest |dτ/dt| [N·m/s]: the torque moves at most ``rate_limit``·T per period.
+    #[schemars(extend("x-ui" = {"min": 10.0, "max": 1000000.0, "scale": "log"}))]
     pub rate_limit: Option<f64>,
     /// Delay of the command in whole controller periods (0 to 100 000).
     #[serde(deserialize_with = "delay")]
+    #[schemars(extend("x-ui" = {"min": 0.0, "max": 50.0, "scale": "linear", "unit": "periods"}))]
     pub delay: usize,
 }
 

@@ -26,8 +26,10 @@ pub enum ContactModel {
 #[serde(default, deny_unknown_fields)]
 pub struct WallParams {
     /// Environment stiffness k_e [N/m] (Hunt–Crossley: [N/m^p]); unknown to the controller.
+    #[schemars(extend("x-ui" = {"min": 1000.0, "max": 10000000.0, "scale": "log"}))]
     pub stiffness: f64,
     /// Contact damping c [N·s/m].
+    #[schemars(extend("x-ui" = {"min": 0.0, "max": 500.0, "scale": "linear"}))]
     pub damping: f64,
     /// Contact law: ``"kelvin_voigt"`` (spring and damper) or ``"hunt_crossley"``.
     pub model: ContactModel,
@@ -40,6 +42,7 @@ pub struct WallParams {
     /// (touching, zero force).
     pub position: Option<f64>,
     /// Error of the controller's estimate x̂_e = x_e + position_error [m], along n.
+    #[schemars(extend("x-ui" = {"min": -0.02, "max": 0.02, "scale": "linear"}))]
     pub position_error: f64,
 }
 

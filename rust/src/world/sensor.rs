@@ -22,16 +22,20 @@ pub const MAX_LATENCY: usize = 100_000;
 #[serde(default, deny_unknown_fields)]
 pub struct SensorParams {
     /// Constant offset added to the reading [N].
+    #[schemars(extend("x-ui" = {"min": -5.0, "max": 5.0, "scale": "linear"}))]
     pub bias: f64,
     /// Standard deviation of white Gaussian noise [N].
+    #[schemars(extend("x-ui" = {"min": 0.0, "max": 5.0, "scale": "linear"}))]
     pub noise_std: f64,
     /// Quantisation step [N]; 0: none.
     pub resolution: f64,
     /// First-order low-pass cut-off f_c [Hz], at most the Nyquist frequency 1/(2·period)
     /// (a scenario with a higher one is rejected); ``None``: no filter.
+    #[schemars(extend("x-ui" = {"min": 1.0, "max": 500.0, "scale": "log"}))]
     pub cutoff: Option<f64>,
     /// Delay of the output in whole controller periods (0 to 100 000).
     #[serde(deserialize_with = "latency")]
+    #[schemars(extend("x-ui" = {"min": 0.0, "max": 50.0, "scale": "linear", "unit": "periods"}))]
     pub latency: usize,
 }
 

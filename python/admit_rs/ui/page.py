@@ -1,0 +1,673 @@
+"""The tuning page as a Bokeh document (SPEC §18): one per browser session.
+
+Every slider change sets an override by dotted path, writes the state into the URL and
+submits the new scenario to two coalescing workers (:mod:`admit_rs.ui.runs`): the run, whose
+trace replaces the plots' data in place, and the prediction (poles, margins, verdict).
+Results come back through ``add_next_tick_callback``, the one thread-safe door into a
+Bokeh document.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import logging
+import math
+from collections.abc import Callable, Mapping
+from functools import partial
+from typing import Any
+
+import numpy as np
+from bokeh.document import Document
+from bokeh.layouts import column, row
+from bokeh.models import ColumnDataSource, CustomJS, CustomJSTickFormatter, Range1d
+from bokeh.models.widgets.buttons import Button
+from bokeh.models.widgets.inputs import Checkbox, Select, TextAreaInput, TextInput
+from bokeh.models.widgets.markups import Div
+from bokeh.models.widgets.sliders import Slider
+from bokeh.plotting import figure
+
+from admit_rs import export
+from admit_rs.config import Scenario
+from admit_rs.errors import AdmitError
+from admit_rs.metrics import METRICS
+from admit_rs.ui import controls as ctl
+from admit_rs.ui import runs
+
+log = logging.getLogger("admit_rs.ui")
+
+REST_DELAY_MS = 40
+"""How long after a new trace the page's texts and the prediction follow it."""
+PLOT_WIDTH = 470
+PLOT_HEIGHT = 210
+COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f"]
+BASELINE = "#9a9a9a"
+
+_URL_JS = """
+const q = cb_obj.data.query[0];
+window.history.replaceState(null, "", window.location.pathname + q);
+link.value = window.location.href;
+"""
+_DOWNLOAD_JS = """
+if (!cb_obj.data.file[0]) { return; }
+const d = JSON.parse(cb_obj.data.file[0]);
+const blob = new Blob([d.text], {type: d.type});
+const a = document.createElement("a");
+a.href = URL.createObjectURL(blob);
+a.download = d.name;
+document.body.appendChild(a);
+a.click();
+setTimeout(() => { URL.revokeObjectURL(a.href); a.remove(); }, 1000);
+"""
+_COPY_JS = """
+const href = window.location.href;
+link.value = href;
+const done = (label) => {
+  btn.label = label;
+  setTimeout(() => { btn.label = "Copy link"; }, 2000);
+};
+if (navigator.clipboard && window.isSecureContext) {
+  navigator.clipboard.writeText(href).then(() => done("Link copied"),
+                                           () => done("Copy the link from the box"));
+} else {
+  done("Copy the link from the box");
+}
+"""
+
+
+TEMPLATE = """
+{% extends base %}
+{% block contents %}
+<style>
+  body { margin: 6px 10px; font-family: system-ui, sans-serif; }
+  .ar-grid { display: grid; grid-template-columns: 345px 960px 340px; column-gap: 10px; }
+</style>
+<div>{{ embed(roots.header) }}</div>
+<div>{{ embed(roots.status) }}</div>
+<div class="ar-grid">
+  <div>{{ embed(roots.controls) }}</div>
+  <div>{{ embed(roots.plots) }}</div>
+  <div>{{ embed(roots.plot_poles) }}{{ embed(roots.pole_text) }}{{ embed(roots.metrics) }}</div>
+</div>
+<div>{{ embed(roots.export) }}</div>
+{% endblock %}
+"""
+"""The page: header, status, then sliders | plots | poles, pole numbers and metrics."""
+
+
+def _slider_format(c: ctl.Control) -> CustomJSTickFormatter:
+    """Shows the field's value (not log10 of it) with the precision ``from_slider`` keeps."""
+    if c.scale == "log":
+        code = "return Number((10 ** tick).toPrecision(3)).toString();"
+    elif c.integer:
+        code = "return Math.round(tick).toString();"
+    else:
+        step = c.slider_step
+        digits = max(0, -math.floor(math.log10(step)) + 1) if step > 0 else 6
+        code = f"return Number(tick.toFixed({digits})).toString();"
+    return CustomJSTickFormatter(code=code)
+
+
+def _error_html(message: str) -> str:
+    return (
+        '<div style="background:#fdecea;border:1px solid #d93025;color:#8c1d18;'
+        'padding:6px 10px;border-radius:4px;white-space:pre-wrap;max-width:1000px">'
+        f"<b>Error:</b> {html.escape(message)}</div>"
+    )
+
+
+def _number(x: Any, digits: int = 4) -> str:
+    if x is None:
+        return "–"
+    if isinstance(x, bool):
+        return str(x)
+    if not isinstance(x, int | float) or not math.isfinite(x):
+        return "–"
+    return f"{x:.{digits}g}"
+
+
+class TuningPage:
+    """The state and the widgets of one session's page."""
+
+    def __init__(self, doc: Document, start_name: str | None, start: Scenario,
+                 query: Mapping[str, list[str]]) -> None:  # fmt: skip
+        self.doc = doc
+        self.generation = 0
+        self.applied_run = 0
+        self.applied_prediction = 0
+        self.overrides: dict[str, float | int | None] = {}
+        self.base_name: str | None = start_name
+        self.base: Scenario = start
+        self.current: Scenario | None = None
+        self.last_run: runs.RunView | None = None
+        self.sim_worker = runs.Coalescer(self._run_job, "admit-rs ui run")
+        self.predict_worker = runs.Coalescer(self._predict_job, "admit-rs ui predict")
+        self._build_widgets()
+        errors: list[str] = []
+        name = _first(query.get(ctl.BASE_KEY))
+        if name is not None:
+            try:
+                self.base, self.base_name = ctl.load_base(name), name
+            except (AdmitError, ValueError, TypeError) as e:
+                errors.append(str(e))
+        if not errors:
+            self.overrides, errors = ctl.parse_query(query, self.base)
+        self._set_base_widgets()
+        self._rebuild_controls()
+        if errors:
+            self._show_error("The link's state cannot be applied:\n" + "\n".join(errors)
+                             + "\nMove a slider to run the scenario without it.")  # fmt: skip
+            self.verdict.text = "<b>Simulated:</b> not run (see the error)"
+        else:
+            self._changed(write_url=False)
+        doc.on_session_destroyed(self._closed)
+
+    # -- widgets --------------------------------------------------------------------------
+
+    def _build_widgets(self) -> None:
+        names = ctl.base_names()
+        self._base_names = [n for n, _ in names]
+        options: list[Any] = [(n, label) for n, label in names]
+        self.picker = Select(title="Scenario", options=options, value=names[0][0], width=330,
+                             name="scenario")  # fmt: skip
+        self.picker.on_change("value", self._on_pick)
+        self.toml_path = TextInput(title="…or a TOML file", placeholder="path/to/scenario.toml",
+                                   width=260, name="toml_path")  # fmt: skip
+        self.toml_load = Button(label="Load", width=60, name="toml_load")
+        self.toml_load.on_click(self._on_load_toml)
+
+        self.link = TextInput(title="Link to this state", width=420, name="link")
+        self.copy = Button(label="Copy link", width=110, name="copy_link")
+        self.copy.js_on_click(CustomJS(args={"link": self.link, "btn": self.copy}, code=_COPY_JS))
+        # The URL and downloads go through data sources, not Divs: a Div's text change
+        # re-lays out the whole page (~25 ms here), a source's data does not.
+        self.url_state = ColumnDataSource(data={"query": [""]}, name="url_state")
+        self.url_state.js_on_change("data", CustomJS(args={"link": self.link}, code=_URL_JS))
+        self.doc.js_on_event("document_ready", CustomJS(args={"link": self.link},
+                             code="link.value = window.location.href;"))  # fmt: skip
+        self.download = ColumnDataSource(data={"file": [""]}, name="download")
+        self.download.js_on_change("data", CustomJS(code=_DOWNLOAD_JS))
+
+        self.pin = Button(label="Pin as baseline", width=130, name="pin")
+        self.pin.on_click(self._on_pin)
+        self.unpin = Button(label="Clear baseline", width=120, name="unpin")
+        self.unpin.on_click(self._on_unpin)
+        self.export_toml = Button(label="Export TOML", width=110, name="export_toml")
+        self.export_toml.on_click(partial(self._on_export, "toml"))
+        self.export_ros = Button(label="Export ROS 2 YAML", width=150, name="export_ros2")
+        self.export_ros.on_click(partial(self._on_export, "ros2"))
+        self.export_text = TextAreaInput(title="Export", rows=10, width=960, name="export",
+                                         visible=False)  # fmt: skip
+
+        self.verdict = Div(text="", width=1600, name="verdict")
+        self.error = Div(text="", width=960, name="error", visible=False)
+        self.progress = Div(text="", width=600, name="progress", visible=False)
+        self.cancel = Button(label="Cancel run", width=110, name="cancel", visible=False,
+                             button_type="warning")  # fmt: skip
+        self.cancel.on_click(self._on_cancel)
+        self.metrics = Div(text="", width=335, name="metrics")
+        self.pole_text = Div(text="", width=335, name="pole_text")
+        self.controls_box = column(name="controls", width=340)
+
+        self.trace = ColumnDataSource(data=_empty(), name="trace")
+        self.baseline = ColumnDataSource(data=_empty(), name="baseline")
+        self.limits = ColumnDataSource(data={"xs": [], "ys": [], "color": []}, name="limits")
+        self.poles = ColumnDataSource(data={"re": [], "im": [], "mag": []}, name="poles")
+        self.dominant = ColumnDataSource(data={"re": [], "im": []}, name="dominant")
+        self._build_plots()
+
+    def _time_plot(self, title: str, y_label: str, name: str, x_range: Any = None) -> Any:
+        kw: dict[str, Any] = {"x_range": x_range} if x_range is not None else {}
+        p = figure(title=title, width=PLOT_WIDTH, height=PLOT_HEIGHT, name=name,
+                   tools="pan,wheel_zoom,box_zoom,reset,save", x_axis_label="t [s]",
+                   y_axis_label=y_label, **kw)  # fmt: skip
+        p.toolbar.logo = None
+        return p
+
+    def _build_plots(self) -> None:
+        src, base = self.trace, self.baseline
+        f = self._time_plot("Force along n", "f [N]", "plot_force")
+        f.line("t", "f", source=base, color=BASELINE, line_dash="dashed",
+               legend_label="baseline f")  # fmt: skip
+        f.line("t", "f_measured", source=src, color=COLORS[1], alpha=0.7,
+               legend_label="f measured")  # fmt: skip
+        f.line("t", "f", source=src, color=COLORS[0], line_width=1.5, legend_label="f (true)")
+        f.line("t", "f_d", source=src, color="black", line_dash="dashed", legend_label="f_d")
+        x = f.x_range
+        pn = self._time_plot("Tip along n", "n·X [m]", "plot_normal", x)
+        pn.line("t", "pos_n", source=base, color=BASELINE, line_dash="dashed",
+                legend_label="baseline")  # fmt: skip
+        pn.line("t", "ref_n", source=src, color="black", line_dash="dashed",
+                legend_label="reference")  # fmt: skip
+        pn.line("t", "pos_n", source=src, color=COLORS[0], legend_label="tip")
+        pt = self._time_plot("Tip along t̂", "t̂·X [m]", "plot_tangent", x)
+        pt.line("t", "pos_t", source=base, color=BASELINE, line_dash="dashed",
+                legend_label="baseline")  # fmt: skip
+        pt.line("t", "ref_t", source=src, color="black", line_dash="dashed",
+                legend_label="reference")  # fmt: skip
+        pt.line("t", "pos_t", source=src, color=COLORS[0], legend_label="tip")
+        xa = self._time_plot("Filter output x_a", "x_a [m]", "plot_xa", x)
+        xa.line("t", "x_a", source=base, color=BASELINE, line_dash="dashed",
+                legend_label="baseline")  # fmt: skip
+        xa.line("t", "x_a", source=src, color=COLORS[2], legend_label="x_a")
+        self.torque_plot = self._time_plot("Joint torques (applied) and limits", "τ [N·m]",
+                                           "plot_torque", x)  # fmt: skip
+        self.torque_plot.multi_line("xs", "ys", source=self.limits, color="color",
+                                    line_dash="dotted", line_width=1.5)  # fmt: skip
+        self.torque_lines: list[Any] = []
+        for plot in (f, pn, pt, xa):
+            plot.legend.location = "bottom_right"
+            plot.legend.click_policy = "hide"
+            plot.legend.label_text_font_size = "8pt"
+            plot.legend.background_fill_alpha = 0.6
+        poles = figure(title="Predicted poles (z-plane)", width=330, height=330,
+                       x_range=Range1d(start=-1.15, end=1.15),
+                       y_range=Range1d(start=-1.15, end=1.15),
+                       match_aspect=True, tools="pan,wheel_zoom,box_zoom,reset",
+                       name="plot_poles")  # fmt: skip
+        poles.toolbar.logo = None
+        theta = np.linspace(0, 2 * np.pi, 361)
+        poles.line(np.cos(theta), np.sin(theta), color="black", line_width=1)
+        poles.scatter("re", "im", source=self.poles, size=7, color=COLORS[0], alpha=0.8)
+        poles.scatter("re", "im", source=self.dominant, size=14, marker="x",
+                      color=COLORS[3], line_width=2.5)  # fmt: skip
+        self.pole_plot = poles
+        self.plots = column(row(f, pn), row(pt, xa), row(self.torque_plot))
+
+    def add_roots(self) -> None:
+        """The page as separate Bokeh roots placed by :data:`TEMPLATE`: a change of text
+        (verdict, metrics) or of the sliders re-lays out only its own root, not the plots
+        (a Div's new text re-lays out its whole root: ~25 ms for one root holding all)."""
+
+        def pad() -> Div:
+            return Div(text="", height=12)
+
+        header = column(
+            row(Div(text="<h2 style='margin:4px 0'>admit_rs — tune by hand</h2>", width=300),
+                self.picker, self.toml_path, column(pad(), self.toml_load)),
+            row(column(pad(), self.pin), column(pad(), self.unpin),
+                self.link, column(pad(), self.copy),
+                column(pad(), self.export_toml),
+                column(pad(), self.export_ros)),
+            name="header",
+        )  # fmt: skip
+        self.plots.name = "plots"
+        status = column(self.verdict, self.error, row(self.progress, self.cancel),
+                        name="status")  # fmt: skip
+        # TEMPLATE places each root by its name.
+        for root in (header, status, self.controls_box, self.plots, self.pole_plot,
+                     self.pole_text, self.metrics, self.export_text):  # fmt: skip
+            self.doc.add_root(root)
+        # Not roots (every root must be placed in the page): held by the header instead.
+        header.tags = [self.url_state, self.download]
+        from jinja2 import Template
+
+        self.doc.template = Template(TEMPLATE)
+
+    # -- controls -------------------------------------------------------------------------
+
+    def _set_base_widgets(self) -> None:
+        if self.base_name in self._base_names:
+            self.picker.value = self.base_name
+        elif self.base_name is not None:
+            self.toml_path.value = self.base_name
+
+    def _rebuild_controls(self) -> None:
+        shown = self.base.replace(**self.overrides) if self.overrides else self.base
+        children: list[Any] = []
+        block = None
+        self.sliders: dict[str, Slider] = {}
+        for c in ctl.controls(shown):
+            if c.block != block:
+                block = c.block
+                children.append(Div(text=f"<b>{html.escape(block)}</b>", margin=(8, 5, 0, 5)))
+            children.append(self._control_widget(c))
+        self.controls_box.children = children
+
+    def _control_widget(self, c: ctl.Control) -> Any:
+        lo, hi = c.slider_range
+        value = c.to_slider(c.value if c.value is not None else (c.low if c.scale == "log"
+                                                                  else c.low))  # fmt: skip
+        title = c.title + (" (per joint: " + ", ".join(_number(v, 3) for v in c.per_joint)
+                           + ")" if c.per_joint else "")  # fmt: skip
+        slider = Slider(start=lo, end=hi, value=value, step=c.slider_step, title=title,
+                        format=_slider_format(c), width=300, name=c.path,
+                        disabled=c.value is None, show_value=c.value is not None,
+                        tags=[c.scale])  # fmt: skip
+        if c.value is None:
+            slider.title = f"{title} (off)"
+        slider.on_change("value", partial(self._on_slider, c))
+        self.sliders[c.path] = slider
+        if not c.nullable:
+            return slider
+        box = Checkbox(label="on", active=c.value is not None, width=40, name=c.path + ":on",
+                       margin=(22, 0, 0, 5))  # fmt: skip
+        box.on_change("active", partial(self._on_toggle, c, slider))
+        return row(box, slider)
+
+    def _on_slider(self, c: ctl.Control, attr: str, old: Any, new: Any) -> None:
+        self.overrides[c.path] = c.from_slider(float(new))
+        self._changed()
+
+    def _on_toggle(self, c: ctl.Control, slider: Slider, attr: str, old: Any, new: Any) -> None:
+        slider.disabled = not new
+        slider.show_value = bool(new)
+        slider.title = c.title if new else f"{c.title} (off)"
+        self.overrides[c.path] = c.from_slider(float(slider.value)) if new else None
+        self._changed()
+
+    def _on_pick(self, attr: str, old: Any, new: Any) -> None:
+        if new == self.base_name:
+            return
+        self._switch_base(str(new))
+
+    def _on_load_toml(self) -> None:
+        path = self.toml_path.value.strip()
+        if not path:
+            self._show_error("Type the path of a TOML scenario file first.")
+            return
+        self._switch_base(path)
+
+    def _switch_base(self, name: str) -> None:
+        try:
+            base = ctl.load_base(name)
+        except (AdmitError, ValueError, TypeError) as e:
+            self._show_error(str(e))
+            return
+        self.base, self.base_name, self.overrides = base, name, {}
+        self._rebuild_controls()
+        self._changed()
+
+    # -- state → work ---------------------------------------------------------------------
+
+    def _changed(self, write_url: bool = True) -> None:
+        """The state changed: check it, put it in the URL, submit it to both workers."""
+        try:
+            scenario = self.base.replace(**self.overrides) if self.overrides else self.base
+        except (AdmitError, ValueError, TypeError) as e:
+            self._show_error(str(e))
+            self.verdict.text = "<b>Simulated:</b> not run (see the error)"
+            return
+        self.current = scenario
+        self.url_state.data = {"query": [ctl.query_string(self.base_name, self.overrides)]}
+        self.generation += 1
+        self.sim_worker.submit(self.generation, scenario)
+
+    def _next_tick(self, fn: Callable[[], None]) -> None:
+        try:
+            self.doc.add_next_tick_callback(fn)
+        except Exception:  # the session is gone: nothing to show it in
+            log.debug("admit-rs ui: session closed before a result arrived")
+
+    def _run_job(self, job: runs.Job) -> None:
+        shown = False
+        try:
+            shown = self._run_and_show(job)
+        finally:
+            if not shown and (not job.stale() or job.cancelled):
+                self.predict_worker.submit(job.generation, job.scenario)
+
+    def _run_and_show(self, job: runs.Job) -> bool:
+        """Runs the job; True when its trace went to the page (which then starts the
+        prediction, see :meth:`_show_rest`)."""
+        def progress(done: float, total: float) -> None:
+            self._next_tick(partial(self._show_progress, job.generation, done, total))
+
+        try:
+            view = runs.run(job, progress)
+        except (AdmitError, ValueError, TypeError) as e:
+            self._next_tick(partial(self._show_run_error, job.generation, str(e)))
+            return False
+        except Exception as e:  # not the user's input: say so, keep the trace for the log
+            log.exception("admit-rs ui: the run failed")
+            self._next_tick(partial(self._show_run_error, job.generation,
+                                    f"internal error ({type(e).__name__}): {e}"))  # fmt: skip
+            return False
+        if view is None:
+            return False
+        view.plotted = runs.decimated(view.columns)
+        self._next_tick(partial(self._show_run, job, view))
+        return True
+
+    def _predict_job(self, job: runs.Job) -> None:
+        try:
+            pred = runs.predict(job.scenario)
+        except Exception as e:
+            log.exception("admit-rs ui: the prediction failed")
+            pred = runs.Prediction(None, None, f"internal error ({type(e).__name__}): {e}")
+        self._next_tick(partial(self._show_prediction, job.generation, pred))
+
+    # -- work → page (on the document's thread) -------------------------------------------
+
+    def _show_error(self, message: str) -> None:
+        self.error.text = _error_html(message)
+        self.error.visible = True
+
+    def _clear_error(self) -> None:
+        if self.error.visible:
+            self.error.visible = False
+            self.error.text = ""
+
+    def _show_progress(self, generation: int, done: float, total: float) -> None:
+        if generation < self.generation or generation <= self.applied_run:
+            return
+        pct = 100 * done / total if total > 0 else 0
+        self.progress.text = (
+            f"<b>Running:</b> {done:.1f} of {total:.1f} s ({pct:.0f} %) "
+            f'<progress value="{pct:.0f}" max="100" style="width:200px"></progress>'
+        )
+        self.progress.visible = True
+        self.cancel.visible = True
+
+    def _hide_progress(self) -> None:
+        self.progress.visible = False
+        self.cancel.visible = False
+
+    def _show_run_error(self, generation: int, message: str) -> None:
+        if generation < self.applied_run:
+            return
+        self.applied_run = generation
+        self._hide_progress()
+        self._show_error(message)
+        self.verdict.text = "<b>Simulated:</b> failed (see the error)" + self._predicted_html
+
+    def _show_run(self, job: runs.Job, view: runs.RunView) -> None:
+        """The new trace now; the words, the metrics and the prediction a moment later
+        (:data:`REST_DELAY_MS`), so that the browser's first work is the plots' redraw (on
+        two cores shared by server, browser and often more, every text re-layout and the
+        prediction's thread compete with it)."""
+        if job.generation < self.applied_run:
+            return
+        self._set_torque_lines(view.joints)
+        self.plotted = view.plotted if view.plotted is not None else view.columns
+        self.trace.data = self.plotted
+        self.doc.add_timeout_callback(partial(self._show_rest, job, view), REST_DELAY_MS)
+
+    def _show_rest(self, job: runs.Job, view: runs.RunView) -> None:
+        if not job.stale() or job.cancelled:
+            self.predict_worker.submit(job.generation, job.scenario)
+        if job.generation < self.applied_run:
+            return
+        generation = self.applied_run = job.generation
+        if generation == self.generation:
+            self._hide_progress()
+        self._clear_error()
+        self.last_run = view
+        xs, ys, color = [], [], []
+        if view.torque_limits is not None:
+            for j, lim in enumerate(view.torque_limits):
+                for sign in (1.0, -1.0):
+                    xs.append([0.0, view.duration])
+                    ys.append([sign * lim, sign * lim])
+                    color.append(COLORS[j % len(COLORS)])
+        if xs or self.limits.data["xs"]:
+            self.limits.data = {"xs": xs, "ys": ys, "color": color}
+        self._sim_html = self._simulated_html(view)
+        self.verdict.text = self._sim_html + self._predicted_html
+        self.metrics.text = self._metrics_html(view)
+
+    def _set_torque_lines(self, joints: int) -> None:
+        if len(self.torque_lines) == joints:
+            return
+        p = self.torque_plot
+        keep = [r for r in p.renderers if r not in self.torque_lines]
+        self.torque_lines = [
+            p.line("t", f"tau{j}", source=self.trace, color=COLORS[(j - 1) % len(COLORS)],
+                   legend_label=f"τ{j}")  # fmt: skip
+            for j in range(1, joints + 1)
+        ]
+        p.renderers = keep + self.torque_lines
+        p.legend.items = [it for it in p.legend.items
+                          if it.renderers and it.renderers[0] in self.torque_lines]  # fmt: skip
+        p.legend.location = "bottom_right"
+        p.legend.label_text_font_size = "8pt"
+        p.legend.background_fill_alpha = 0.6
+        p.legend.orientation = "horizontal"
+
+    _sim_html = ""
+    _predicted_html = ""
+    _exports = 0
+
+    @staticmethod
+    def _simulated_html(view: runs.RunView) -> str:
+        if not view.complete:
+            return ("<b>Simulated:</b> <span style='color:#8a6d00'>cancelled</span> "
+                    "(the plots show the run up to then; move a slider to run again)")  # fmt: skip
+        color = {True: "#137333", False: "#c5221f", None: "#8a6d00"}[view.stable]
+        return (f"<b>Simulated:</b> <span style='color:{color};font-weight:bold' "
+                f"class='verdict'>{html.escape(view.verdict)}</span>")  # fmt: skip
+
+    def _show_prediction(self, generation: int, pred: runs.Prediction) -> None:
+        if generation < self.applied_prediction:
+            return
+        self.applied_prediction = generation
+        self._predicted_html = self._prediction_html(pred)
+        self.verdict.text = (self._sim_html or "<b>Simulated:</b> running…") + self._predicted_html
+        if pred.poles is not None:
+            p = pred.poles
+            self.poles.data = {"re": p.real, "im": p.imag, "mag": np.abs(p)}
+            k = int(np.argmax(np.abs(p)))
+            self.dominant.data = {"re": [float(p[k].real)], "im": [float(p[k].imag)]}
+        else:
+            self.poles.data = {"re": [], "im": [], "mag": []}
+            self.dominant.data = {"re": [], "im": []}
+        self.pole_text.text = self._pole_html(pred)
+
+    @staticmethod
+    def _prediction_html(pred: runs.Prediction) -> str:
+        if pred.values is None:
+            return ("<br><b>Predicted:</b> not available: "
+                    f"{html.escape(pred.error or 'no linear model')}")  # fmt: skip
+        v = pred.values
+        stable = bool(v.get("stable"))
+        color = "#137333" if stable else "#c5221f"
+        margins = (
+            f"spectral radius ρ = {_number(v.get('spectral_radius'), 5)}; "
+            f"gain margin {_number(v.get('gain_margin'), 3)}×, "
+            f"phase margin {_number(v.get('phase_margin'), 3)}°, "
+            f"delay margin {_number(v.get('delay_margin'), 3)} samples"
+        )
+        return (f"<br><b>Predicted:</b> <span style='color:{color};font-weight:bold'>"
+                f"{html.escape(str(v.get('verdict', '')))}</span> ({margins})")  # fmt: skip
+
+    @staticmethod
+    def _pole_html(pred: runs.Prediction) -> str:
+        if pred.values is None:
+            return f"No linear model: {html.escape(pred.error or '')}"
+        v = pred.values
+        rows = [
+            ("dominant pole frequency", _number(v.get("dominant_frequency"), 4), "Hz"),
+            ("dominant pole damping ζ", _number(v.get("dominant_damping"), 3), ""),
+            ("spectral radius ρ", _number(v.get("spectral_radius"), 6), "(< 1: stable)"),
+            ("predicted overshoot", _number(v.get("overshoot_pct"), 3), "%"),
+            ("predicted settling time", _number(v.get("settling_time"), 3), "s"),
+            ("predicted force error", _number(v.get("force_ss_error"), 3), "N"),
+        ]
+        body = "".join(f"<tr><td>{a}</td><td style='text-align:right'>{b}</td><td>{c}</td></tr>"
+                       for a, b, c in rows)  # fmt: skip
+        extra = f"<br><i>{html.escape(pred.error)}</i>" if pred.error else ""
+        return f"<table style='font-size:90%'>{body}</table>{extra}"
+
+    @staticmethod
+    def _metrics_html(view: runs.RunView) -> str:
+        if not view.metrics:
+            return ""
+        rows = []
+        for name, value in view.metrics.items():
+            if name in ("stable", "diverged"):
+                continue
+            m = METRICS.get(name)
+            unit = m.unit if m is not None and not m.unit.startswith("bool") else ""
+            tip = html.escape(m.description, quote=True) if m is not None else ""
+            rows.append(f"<tr title='{tip}'><td>{name}</td><td style='text-align:right'>"
+                        f"{_number(value)}</td><td>{html.escape(unit)}</td></tr>")  # fmt: skip
+        return ("<b>Metrics of the run</b><table style='font-size:85%;line-height:1.15'>"
+                + "".join(rows) + "</table>")  # fmt: skip
+
+    # -- buttons --------------------------------------------------------------------------
+
+    def _on_pin(self) -> None:
+        if self.last_run is not None:
+            self.baseline.data = dict(self.plotted)
+
+    def _on_unpin(self) -> None:
+        self.baseline.data = _empty()
+
+    def _on_cancel(self) -> None:
+        if self.sim_worker.cancel():
+            self.progress.text = "<b>Cancelling…</b>"
+
+    def _on_export(self, what: str) -> None:
+        sc = self.current
+        if sc is None:
+            self._show_error("Nothing to export: the current state is not a valid scenario.")
+            return
+        try:
+            if what == "toml":
+                text, name, mime = export.toml(sc), "scenario.toml", "application/toml"
+            else:
+                import warnings
+
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always")
+                    text = export.ros2_admittance(sc, None)
+                notes = [f"# warning: {w.message}" for w in caught]
+                text = "\n".join(notes + [text]) if notes else text
+                name, mime = "admittance.yaml", "application/yaml"
+        except (AdmitError, ValueError, TypeError) as e:
+            self._show_error(f"Export as {'TOML' if what == 'toml' else 'ROS 2 YAML'}: {e}")
+            return
+        self._clear_error()
+        self.export_text.title = f"Export: {name}"
+        self.export_text.value = text
+        self.export_text.visible = True
+        self._exports += 1  # a new value each time: the same file twice is two downloads
+        self.download.data = {"file": [json.dumps({"name": name, "type": mime, "text": text,
+                                                   "n": self._exports})]}  # fmt: skip
+
+    def _closed(self, session_context: Any) -> None:
+        self.sim_worker.close()
+        self.predict_worker.close()
+
+
+def _empty() -> dict[str, list[float]]:
+    """A source with every column the time plots draw (but the torques), no samples."""
+    names = ("t", "f", "f_measured", "f_d", "pos_n", "ref_n", "pos_t", "ref_t", "x_a")
+    return {n: [] for n in names}
+
+
+def _first(values: list[str] | None) -> str | None:
+    return values[-1] if values else None
+
+
+def build(doc: Document, start_name: str | None, start: Scenario) -> None:
+    """Fills ``doc`` with the page for the session's request (its URL query)."""
+    query: dict[str, list[str]] = {}
+    ctx = doc.session_context
+    request = getattr(ctx, "request", None) if ctx is not None else None
+    if request is not None:
+        for key, values in request.arguments.items():
+            query[key] = [v.decode("utf-8", "replace") for v in values]
+    page = TuningPage(doc, start_name, start, query)
+    doc.title = "admit_rs tuning"
+    page.add_roots()

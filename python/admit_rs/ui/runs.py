@@ -1,0 +1,280 @@
+"""The page's work, off the server's event loop: a run and a prediction per state, each on
+its own worker thread (both release the GIL in Rust, so they use both cores), coalesced.
+
+:class:`Coalescer` keeps at most one job running and one waiting: a new state replaces the
+waiting one (the last value always wins; fast drags never queue stale runs), and a long run
+sees it between chunks (:class:`Job.stale`) and stops. Nothing here knows Bokeh.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from admit_rs import _core, analysis
+from admit_rs.config import Scenario, Wall
+from admit_rs.errors import AdmitError
+from admit_rs.simulation import Result, Simulation
+
+log = logging.getLogger("admit_rs.ui")
+
+FIRST_CHUNK = 1000
+"""Samples stepped before the run's length is estimated."""
+CHUNK_SECONDS = 0.1
+"""A long run is stepped in chunks of about this many seconds (progress, cancel)."""
+PROGRESS_AFTER = 0.3
+"""A run shows progress once it is estimated to take longer than this [s]."""
+
+
+@dataclass
+class Job:
+    """One state to compute. ``stale()`` is true once a newer state waits or the user
+    pressed cancel; ``cancelled`` tells the two apart."""
+
+    generation: int
+    scenario: Scenario
+    _coalescer: Coalescer | None = field(default=None, repr=False)
+    cancelled: bool = False
+
+    def stale(self) -> bool:
+        c = self._coalescer
+        return self.cancelled or (c is not None and c.newer_than(self.generation))
+
+
+class Coalescer:
+    """One worker thread; ``submit`` replaces any waiting job; ``work(job)`` runs on the
+    thread. Jobs run in submission order, so results arrive in order."""
+
+    def __init__(self, work: Callable[[Job], None], name: str) -> None:
+        self._work = work
+        self._name = name
+        self._lock = threading.Lock()
+        self._waiting: Job | None = None
+        self._running: Job | None = None
+        self._latest = 0
+        self._thread: threading.Thread | None = None
+        self._closed = False
+
+    def submit(self, generation: int, scenario: Scenario) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            self._latest = max(self._latest, generation)
+            self._waiting = Job(generation, scenario, self)
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._loop, name=self._name, daemon=True)
+                self._thread.start()
+
+    def newer_than(self, generation: int) -> bool:
+        return self._latest > generation
+
+    def cancel(self) -> bool:
+        """Cancels the running job (a long run stops at its next chunk); True if one ran."""
+        with self._lock:
+            job = self._running
+            if job is not None:
+                job.cancelled = True
+            return job is not None
+
+    def close(self) -> None:
+        with self._lock:
+            self._closed = True
+            self._waiting = None
+            if self._running is not None:
+                self._running.cancelled = True
+
+    def _loop(self) -> None:
+        while True:
+            with self._lock:
+                job, self._waiting = self._waiting, None
+                self._running = job
+                if job is None or self._closed:
+                    self._thread = None
+                    self._running = None
+                    return
+            try:
+                self._work(job)
+            except Exception:  # a bug in the page's code: logged, the worker lives on
+                log.exception("admit-rs ui: %s failed", self._name)
+            finally:
+                with self._lock:
+                    self._running = None
+
+
+# -- what a run shows ----------------------------------------------------------------------
+
+
+@dataclass
+class RunView:
+    """A run's columns as the plots draw them, and its words."""
+
+    columns: dict[str, npt.NDArray[np.float64]]
+    joints: int
+    metrics: dict[str, Any]
+    verdict: str
+    stable: bool | None
+    torque_limits: tuple[float, ...] | None
+    duration: float
+    complete: bool
+    """False when the run was cancelled: ``columns`` hold the samples up to then."""
+    plotted: dict[str, npt.NDArray[np.float64]] | None = None
+    """``columns`` at :func:`plot_indices` (what the browser draws), once computed."""
+
+
+def _directions(scenario: Scenario) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    wall = scenario.wall if scenario.wall is not None else Wall()
+    return wall.directions()
+
+
+def view_of(scenario: Scenario, trace: Any, joints: int) -> dict[str, npt.NDArray[np.float64]]:
+    """The plotted columns of a trace: t; f, f_measured, f_d; the tip and its reference
+    along n (``pos_n``, ``ref_n``) and along t̂ (``pos_t``, ``ref_t``); x_a; tau1..n."""
+    n, t = _directions(scenario)
+
+    def col(name: str) -> npt.NDArray[np.float64]:
+        return np.ascontiguousarray(trace[name].to_numpy(), dtype=np.float64)
+
+    xyz = [col("x"), col("y"), col("z")]
+    ref = [col("x_ref"), col("y_ref"), col("z_ref")]
+    out = {
+        "t": col("t"),
+        "f": col("f"),
+        "f_measured": col("f_measured"),
+        "f_d": col("f_d"),
+        "pos_n": n[0] * xyz[0] + n[1] * xyz[1] + n[2] * xyz[2],
+        "ref_n": n[0] * ref[0] + n[1] * ref[1] + n[2] * ref[2],
+        "pos_t": t[0] * xyz[0] + t[1] * xyz[1] + t[2] * xyz[2],
+        "ref_t": t[0] * ref[0] + t[1] * ref[1] + t[2] * ref[2],
+        "x_a": col("x_a"),
+    }
+    for j in range(1, joints + 1):
+        out[f"tau{j}"] = col(f"tau{j}")
+    return out
+
+
+PLOT_BUCKETS = 600
+"""Buckets of :func:`plot_indices`: more than the plots' inner width in pixels."""
+
+
+def plot_indices(columns: dict[str, npt.NDArray[np.float64]],
+                 buckets: int = PLOT_BUCKETS) -> npt.NDArray[np.int64]:  # fmt: skip
+    """The samples the plots draw: per bucket of consecutive samples, its first and last
+    and, for every column, the sample of its minimum and of its maximum. A line through
+    these is the full line at the plots' resolution (every peak kept, sample for sample),
+    with a few times fewer points for the browser to index and paint; every plotted point is
+    a sample of the run, unchanged."""
+    n = len(columns["t"])
+    if n <= 2 * buckets:
+        return np.arange(n, dtype=np.int64)
+    size = -(-n // buckets)
+    starts = np.arange(0, n, size, dtype=np.int64)
+    padded = len(starts) * size
+    picks = [starts, np.minimum(starts + size - 1, n - 1)]
+    for name, y in columns.items():
+        if name == "t":
+            continue
+        v = np.pad(np.nan_to_num(y, nan=0.0), (0, padded - n), mode="edge").reshape(-1, size)
+        picks.append(starts + np.argmin(v, axis=1))
+        picks.append(starts + np.argmax(v, axis=1))
+    return np.unique(np.minimum(np.concatenate(picks), n - 1))
+
+
+def decimated(columns: dict[str, npt.NDArray[np.float64]]) -> dict[str, npt.NDArray[np.float64]]:
+    """The columns at :func:`plot_indices`."""
+    idx = plot_indices(columns)
+    return {k: np.ascontiguousarray(v[idx]) for k, v in columns.items()}
+
+
+def joint_count(trace_columns: list[str]) -> int:
+    return sum(1 for c in trace_columns if c.startswith("tau") and c[3:].isdigit())
+
+
+def run(job: Job, progress: Callable[[float, float], None]) -> RunView | None:
+    """Steps ``job.scenario`` to its end (the same code as :func:`admit_rs.simulate`, bit
+    for bit); a long run is stepped in chunks of about :data:`CHUNK_SECONDS`, reporting
+    ``progress(done_s, total_s)`` and stopping early when the job goes stale: ``None`` if a
+    newer state waits, a partial view if the user cancelled. Parameter errors raise."""
+    sc = job.scenario
+    sim = Simulation(sc)
+    total = sc.samples
+    start = time.perf_counter()
+    taken = sim.step(min(FIRST_CHUNK, total))
+    shown = False
+    while not sim.done:
+        elapsed = time.perf_counter() - start
+        rate = taken / max(elapsed, 1e-6)  # samples per second
+        remaining = total - sim.sample
+        if not shown and remaining / rate + elapsed < PROGRESS_AFTER:
+            taken += sim.step(remaining)
+            continue
+        if job.stale():
+            if not job.cancelled:
+                return None
+            trace = sim.trace
+            joints = joint_count(trace.columns)
+            return RunView(view_of(sc, trace, joints), joints, {}, "cancelled", None,
+                           _limits(sc, joints), sc.duration, complete=False)  # fmt: skip
+        shown = True
+        progress(sim.time, sc.duration)
+        taken += sim.step(max(FIRST_CHUNK, int(rate * CHUNK_SECONDS)))
+    res = sim.result()
+    joints = joint_count(res.trace.columns)
+    return _view(res, joints)
+
+
+def _limits(sc: Scenario, joints: int) -> tuple[float, ...] | None:
+    lim = sc.actuator.torque_limit
+    if lim is None:
+        return None
+    values = tuple(float(v) for v in np.atleast_1d(np.asarray(lim, dtype=float)))
+    return values * joints if len(values) == 1 else values
+
+
+def _view(res: Result, joints: int) -> RunView:
+    sc = res.scenario
+    return RunView(
+        columns=view_of(sc, res.trace, joints), joints=joints, metrics=dict(res.metrics),
+        verdict=res.verdict, stable=res.stable, torque_limits=_limits(sc, joints),
+        duration=sc.duration, complete=True,
+    )  # fmt: skip
+
+
+# -- what the linear model predicts -------------------------------------------------------
+
+
+@dataclass
+class Prediction:
+    """``predict``'s numbers, the poles of the model they come from, or why there are none."""
+
+    values: dict[str, float | bool | str] | None
+    poles: npt.NDArray[np.complex128] | None
+    error: str | None = None
+
+
+def predict(scenario: Scenario) -> Prediction:
+    """:func:`admit_rs.analysis.predict` and the eigenvalues of the same linear model
+    (friction at the describing-function amplitude that ``predict`` used)."""
+    try:
+        values = analysis.predict(scenario)
+    except (AdmitError, ValueError, TypeError) as e:
+        return Prediction(None, None, str(e))
+    amp = float(values.get("friction_amplitude", 0.0))  # type: ignore[arg-type]
+    try:
+        model = analysis._with_friction(scenario, amp) if amp > 0 else scenario
+        raw = _core.linearize(model._to_core(), None)
+        poles = np.linalg.eigvals(np.asarray(raw["a"], dtype=float))
+    except (AdmitError, ValueError, np.linalg.LinAlgError) as e:
+        return Prediction(values, None, str(e))
+    return Prediction(values, poles.astype(np.complex128))
+
+
+def finite(x: Any) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
