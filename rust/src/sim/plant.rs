@@ -222,67 +222,23 @@ pub(crate) fn rk4_period<T: Real, S: Stages<T, N>, const N: usize>(
     let mut c1 = config;
     let mut stage = config;
     for _ in 0..substeps {
-        // v[i]: the velocity stage i starts from (q̇, q̇₂, q̇₃, q̇₄); a[i]: its acceleration.
-        let mut rk = Rk4Stages {
-            v: [qd; 4],
-            a: [qd; 4],
-        };
-        if <T as Real>::LANES == 1 {
-            // One run: the four stages inlined one after the other (the loop below costs
-            // 14 % more instructions on fig. 14, and one run's code fits the cache).
-            rk.stage(0, stages, &c1, &mut stage, &q, h, tau);
-            rk.stage(1, stages, &c1, &mut stage, &q, h, tau);
-            rk.stage(2, stages, &c1, &mut stage, &q, h, tau);
-            rk.stage(3, stages, &c1, &mut stage, &q, h, tau);
-        } else {
-            // Lanes: one copy of the arm's acceleration, not four. Inlined four times it
-            // made the lane loop 230 kB, and fig. 19 missed the instruction cache ~300
-            // times a period (cachegrind); as a loop, 6× fewer misses and 15 % less time.
-            for i in 0..4 {
-                rk.stage(i, stages, &c1, &mut stage, &q, h, tau);
-            }
-        }
-        let Rk4Stages { v, a } = rk;
-        let dq = (qd + (v[1] + v[2]) * two + v[3]) * (h / six);
+        let a1 = stages.acceleration(&c1, &qd, tau);
+        let (d2, qd2) = (qd * (h / two), qd + a1 * (h / two));
+        stages.shift(&c1, &d2, &(q + d2), &mut stage);
+        let a2 = stages.acceleration(&stage, &qd2, tau);
+        let (d3, qd3) = (qd2 * (h / two), qd + a2 * (h / two));
+        stages.shift(&c1, &d3, &(q + d3), &mut stage);
+        let a3 = stages.acceleration(&stage, &qd3, tau);
+        let (d4, qd4) = (qd3 * h, qd + a3 * h);
+        stages.shift(&c1, &d4, &(q + d4), &mut stage);
+        let a4 = stages.acceleration(&stage, &qd4, tau);
+        let dq = (qd + (qd2 + qd3) * two + qd4) * (h / six);
         q += dq;
         stages.shift(&c1, &dq, &q, &mut stage);
         c1 = stage;
-        qd += (a[0] + (a[1] + a[2]) * two + a[3]) * (h / six);
+        qd += (a1 + (a2 + a3) * two + a4) * (h / six);
     }
     (q, qd)
-}
-
-/// The four stages of one RK4 substep: the velocity each starts from and its acceleration.
-struct Rk4Stages<T: Real, const N: usize> {
-    v: [SVector<T, N>; 4],
-    a: [SVector<T, N>; 4],
-}
-
-impl<T: Real, const N: usize> Rk4Stages<T, N> {
-    /// Stage `i` of the substep from (q, v[0]) at `c1`: its acceleration at the
-    /// configuration the previous stage shifted `stage` to, then (for i < 3) the shift to
-    /// stage i + 1, q + c v[i] with c = h/2, h/2, h. Written once for both drivers above,
-    /// so they do the same operations in the same order (the same bits).
-    #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn stage<S: Stages<T, N>>(
-        &mut self,
-        i: usize,
-        stages: &S,
-        c1: &S::Config,
-        stage: &mut S::Config,
-        q: &SVector<T, N>,
-        h: T,
-        tau: &SVector<T, N>,
-    ) {
-        self.a[i] = stages.acceleration(if i == 0 { c1 } else { stage }, &self.v[i], tau);
-        if i < 3 {
-            let c = if i == 2 { h } else { h / T::splat(2.0) };
-            let d = self.v[i] * c;
-            self.v[i + 1] = self.v[0] + self.a[i] * c;
-            stages.shift(c1, &d, &(q + d), stage);
-        }
-    }
 }
 
 #[cfg(test)]
