@@ -120,6 +120,9 @@ pub fn frozen(config: &ScenarioConfig, at: Option<f64>) -> AnalysisResult<(Scena
     f.z_reference = hold(s);
     f.sensor.noise_std = 0.0;
     f.sensor.resolution = 0.0;
+    // The contact phase is linearised: after a guarded approach's switch (SPEC §16), which
+    // hands over bumplessly, the loop is the force loop alone.
+    f.approach = None;
     f.duration = (SETTLE_SAMPLES + 16) as f64 * config.period;
     Ok((f, force))
 }
@@ -272,6 +275,19 @@ fn caveats(config: &ScenarioConfig, lin: &Linearization) -> Vec<String> {
     ];
     if config.sensor.noise_std > 0.0 {
         out.push("sensor noise is off in the linear model".to_owned());
+    }
+    if let Some(a) = &config.approach {
+        out.push(format!(
+            "the contact phase is linearised: the guarded approach is assumed to have \
+             switched to force control (bumplessly, X_d and Ẋ_d continuous){}; the impact \
+             itself (approach speed, threshold, sensor lag) is not in the linear model",
+            if a.reanchor {
+                ", with the estimate re-anchored at the contact point (for Scheme 2 this \
+                 moves x_a, not the force loop)"
+            } else {
+                ""
+            }
+        ));
     }
     if config.sensor.resolution > 0.0 {
         out.push(
