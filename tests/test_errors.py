@@ -81,6 +81,7 @@ MISSPELLED = [
     (ar.Actuator, "torque_limt", "torque_limit"),
     (ar.UrdfArm, "tip_lnk", "tip_link"),
     (ar.Criteria, "force_limt", "force_limit"),
+    (ar.GuardedApproach, "threshhold", "threshold"),
 ]
 
 
@@ -154,7 +155,7 @@ def test_no_close_match_lists_the_valid_keywords():
         ar.Wall(zzz=1.0)
     assert str(info.value) == (
         "Wall: unknown keyword 'zzz'; valid: stiffness, damping, model, exponent, normal, "
-        "position, position_error"
+        "position, position_error, gap"
     )
     assert info.value.suggestions == []
 

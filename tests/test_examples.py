@@ -42,3 +42,33 @@ def test_arms_example(tmp_path):
     assert sweep["overshoot_pct"].is_sorted()  # overshoot grows with k_e, as in fig. 15
     assert (tmp_path / "arms.png").stat().st_size > 10_000
     assert (tmp_path / "arms.md").read_text() == (ROOT / "docs/arms/arms.md").read_text()
+
+
+def test_first_contact_example(tmp_path):
+    spec = importlib.util.spec_from_file_location(
+        "first_contact", ROOT / "examples" / "first_contact.py")
+    assert spec and spec.loader
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    tables = example.main(tmp_path, quick=True)
+    fig19 = {r["case"]: r for r in tables["fig19"].iter_rows(named=True)}
+    plain = fig19["fig. 19, no approach"]["impact_peak"]
+    guarded = fig19["fig. 19, GuardedApproach(reanchor=True)"]["impact_peak"]
+    assert plain > 35.0 and guarded < 0.55 * plain
+    # Scheme 2 has no spring toward x̂_e: re-anchoring changes nothing; Scheme 1's does.
+    assert guarded == fig19["fig. 19, GuardedApproach(reanchor=False)"]["impact_peak"]
+    s1 = [fig19[f"fig. 19 Scheme 1, GuardedApproach(reanchor={r})"]["impact_peak"]
+          for r in (True, False)]  # fmt: skip
+    assert s1[0] < s1[1]
+    tilted = {(r["inner loop"], r["filter"]): r["e_f last 2 s [N]"]
+              for r in tables["tilted"].iter_rows(named=True)}  # fmt: skip
+    closed = tilted[("closed form", "Scheme 2: b v tan θ / k_a")]
+    assert abs(tilted[("CT, contact compensation", "Scheme 2")] / closed - 1) < 0.01
+    assert abs(tilted[("CT, contact compensation", "adaptive σ = 0.005")]) < 1e-3
+    # The map: faster approaches hit harder at every stiffness.
+    by_k = tables["stiffness"]
+    for ke in by_k["wall.stiffness"].unique():
+        peaks = by_k.filter(by_k["wall.stiffness"] == ke).sort("approach.speed")["impact_peak"]
+        assert peaks[-1] > peaks[1]
+    assert 10.0 < tables["m_eff"]["m_eff"][0] < 30.0
+    assert (tmp_path / "first_contact.png").stat().st_size > 10_000

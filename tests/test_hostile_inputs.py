@@ -49,6 +49,11 @@ WORKER = f"URDF_PATH = {URDF_PATH!r}\n" + textwrap.dedent(
             admittance=ar.ImpedanceReference(), duration=0.3
         ),
         "urdf": ar.paper.scenario("fig14").replace(robot=UR5, duration=0.3),
+        "first_contact": ar.paper.scenario("fig14").replace(
+            wall=ar.Wall(gap=0.001, normal=(1, 0, 0.05)), wall_estimate=ar.Wall(),
+            admittance=ar.AdmittanceFilter.adaptive(), approach=ar.GuardedApproach(),
+            duration=0.3,
+        ),
     }
 
     def apply(sc, path, value):
@@ -84,6 +89,8 @@ WORKER = f"URDF_PATH = {URDF_PATH!r}\n" + textwrap.dedent(
 def numeric_paths(sc):
     out = []
     for path in ar.parameter_paths(sc):
+        if path in ar.config._UNIONS:
+            continue  # a block slot left at None (wall_estimate, approach): not a number
         node = sc
         for part in path.split("."):
             node = getattr(node, part)
@@ -144,6 +151,11 @@ def test_every_numeric_field_survives_hostile_values():
             robot=ar.UrdfArm(URDF_PATH, "tool0", q0=(0.0, -1.5708, 1.5708, -1.5708, -1.5708, 0.0),
                              viscous_friction=1.0, coulomb_friction=2.0)
         ),
+        # Free space, a tilted true wall under the estimate, the adaptive filter (SPEC §16).
+        "first_contact": ar.paper.scenario("fig14").replace(
+            wall=ar.Wall(gap=0.001, normal=(1, 0, 0.05)), wall_estimate=ar.Wall(),
+            admittance=ar.AdmittanceFilter.adaptive(), approach=ar.GuardedApproach(),
+        ),
     }
     cases = [
         (base, path, value)
@@ -156,7 +168,10 @@ def test_every_numeric_field_survives_hostile_values():
     assert {"sensor.noise_std", "sensor.latency", "actuator.rate_limit", "actuator.delay",
             "wall.damping", "wall.exponent", "wall.normal", "seed",
             "admittance.assumed_stiffness", "robot.gravity", "robot.friction_smoothing",
-            "robot.coulomb_friction", "robot.q0"} <= paths
+            "robot.coulomb_friction", "robot.q0", "wall.gap", "admittance.sigma",
+            "wall_estimate.normal", "wall_estimate.position_error", "wall_estimate.gap",
+            "approach.speed", "approach.contact_speed", "approach.slowdown_distance",
+            "approach.threshold"} <= paths
     failures = []
     worker = Worker()
     warmed = False

@@ -54,6 +54,10 @@ def _agree(lane: float | None, alone: float | None, scale: float = 0.0) -> bool:
 _FORCE_SCALE = {"force_ss_error": 10.0, "force_rms_error": 10.0, "force_peak": 10.0}
 
 
+def _nan(v: float | None) -> bool:
+    return v is None or math.isnan(v)
+
+
 def _same_sample(lane: float | None, alone: float | None) -> bool:
     """Both ran to the end (the table holds NaN, the result None), or diverged at one time."""
     if alone is None:
@@ -258,6 +262,24 @@ def test_urdf_stages_in_lanes_agree_with_simulate(arm_name):
                     # 7e-13 N is a touch and a bounce in one path and nothing in the other
                     # (docs/sweeps.md, "What lanes promise").
                     assert abs(row[m] - alone.metrics[m]) <= 1, (name, row["run_id"], m)
+                    continue
+                if m in ("first_contact_time", "impact_peak") and (
+                    _nan(row[m]) != _nan(alone.metrics[m])
+                ):
+                    # The same graze: a touch of < 1e-9 N in one path only (the wall through
+                    # X0, the lanes' tip 1e-17 m inside it), none in the other.
+                    assert min(row["force_peak"], alone.metrics["force_peak"]) <= 1e-9, (
+                        name, row["run_id"], m)
+                    continue
+                graze = 0.0 in (row["first_contact_time"], alone.metrics["first_contact_time"])
+                if m in ("first_contact_time", "impact_peak") and graze:
+                    # The wall passes through X0: one path's tip is 1e-17 m inside it at
+                    # sample 0 (a graze of 1e-13 N, first contact at t = 0), the other's
+                    # touches at sample 1 or only when the arm really reaches the wall.
+                    # impact_peak is measured from that first contact.
+                    continue
+                if m == "first_contact_time":
+                    assert row[m] == alone.metrics[m], (name, row["run_id"], m)
                     continue
                 assert _agree(row[m], alone.metrics[m], scale), (name, row["run_id"], m)
                 a, b = row[m], alone.metrics[m]

@@ -35,7 +35,7 @@ def schema() -> dict[str, dict[str, Any]]:
     with ``description`` (the field docs), ``type`` and, where the block has a Rust
     ``Default``, ``default``. Keyed by the blocks' kind tags (three_link, urdf, wall, sensor,
     actuator, model, computed_torque, model_free, time_delay, admittance, impedance, step,
-    sine, sampled) and ``scenario``."""
+    sine, sampled, criteria, approach) and ``scenario``."""
 
 def check_block(kind: str, params: dict[str, Any]) -> None:
     """Validate one block (kind: robot, wall, controller, admittance, signal, model, sensor,
@@ -93,7 +93,8 @@ def filter_discretize(
 def filter_response(
     params: dict[str, Any], period: float, force_error: list[float]
 ) -> dict[str, npt.NDArray[np.float64]]:
-    """Run the discrete filter: ``x_a``, ``xa_dot``, ``xa_ddot`` per sample."""
+    """Run the discrete filter (adaptive when ``sigma`` > 0): ``x_a``, ``xa_dot``,
+    ``xa_ddot`` per sample."""
 
 def simulate_batch(
     scenarios: list[dict[str, Any]],

@@ -457,12 +457,14 @@ class TuneResult:
     (the simulated one by the scenario's ``criteria``, null if not assessed) with its
     ``verdict``, ``overshoot_pct``, ``settling_time``; and the scenario as given, its motion
     reference included: ``stable_with_motion``, ``verdict_with_motion``,
-    ``overshoot_pct_with_motion``."""
+    ``overshoot_pct_with_motion``; the first-contact figures of both, ``impact_peak``,
+    ``bounces``, ``impact_peak_with_motion``, ``bounces_with_motion``."""
     worst_settling_time: float
     """Predicted worst-case settling time over the box [s] (the search's objective)."""
     verified: bool
-    """Every verification run is stable, with the motion held and with it, and the runs
-    with the motion held are within the overshoot limit."""
+    """Every verification run is stable, with the motion held and with it, the runs with
+    the motion held are within the overshoot limit, and every run within ``max_impact_peak``
+    and ``max_bounces`` when they are set."""
     max_overshoot_pct: float
     stability_margin: float
     evaluated: int
@@ -471,6 +473,10 @@ class TuneResult:
     """The tightest overshoot limit the predictions had to meet in the last round."""
     rounds: int = 1
     """Search rounds (1 + corrections after a failed verification)."""
+    max_impact_peak: float | None = None
+    """The bound on the simulated ``impact_peak`` [N] (None: not bounded)."""
+    max_bounces: int | None = None
+    """The bound on the simulated ``bounces`` (None: not bounded)."""
 
     def worst(self, name: str) -> tuple[float, float]:
         """(predicted, simulated) worst value of ``overshoot_pct`` or ``settling_time`` over
@@ -590,6 +596,8 @@ def tune(
     verify_duration: float | None = None,
     threads: int | None = None,
     corrections: int = 3,
+    max_impact_peak: float | None = None,
+    max_bounces: int | None = None,
 ) -> TuneResult:
     """Gains that minimise the worst-case predicted settling time over the ``over`` box
     while every point of it is predicted stable with a margin (ρ ≤ 1 − ``stability_margin``)
@@ -609,8 +617,11 @@ def tune(
     nearest grid points as a tighter limit there (the margin doubled after an unstable
     run) and the search repeated, at most ``corrections`` times;
     ``predicted_overshoot_limit`` (the tightest limit used) and ``rounds`` say what was
-    needed. Raises :class:`AnalysisError` if no candidate
-    qualifies.
+    needed. ``max_impact_peak`` [N] and ``max_bounces`` bound the first contact (SPEC §16):
+    the linear model cannot predict an impact, so they are judged on the verification runs
+    (held and with motion); an impact above its bound is carried back as an overshoot limit
+    100 (impact_peak − max_impact_peak) / f_d tighter at the nearest grid points, as an
+    overshoot excess is. Raises :class:`AnalysisError` if no candidate qualifies.
 
     Example (docs/analysis.md): ``ar.analysis.tune(sc, vary={"admittance.b": (100, 3000),
     "admittance.ka": (0.2, 5)}, over={"wall.stiffness": (1e4, 1e5)}, max_overshoot_pct=10)``.
@@ -620,6 +631,13 @@ def tune(
     if not (isinstance(max_overshoot_pct, int | float) and math.isfinite(max_overshoot_pct)):
         raise ParameterError(f"max_overshoot_pct = {max_overshoot_pct!r} is invalid: must be "
                              "a finite number")  # fmt: skip
+    for name, bound in (("max_impact_peak", max_impact_peak), ("max_bounces", max_bounces)):
+        if bound is not None and not (
+            isinstance(bound, int | float) and not isinstance(bound, bool)
+            and math.isfinite(bound) and bound >= 0
+        ):
+            raise ParameterError(f"{name} = {bound!r} is invalid: must be a finite number "
+                                 ">= 0 or None")  # fmt: skip
     vbox = _box(scenario, vary, "vary")
     obox = _box(scenario, over, "over")
     if set(vbox) & set(obox):
@@ -653,13 +671,19 @@ def tune(
         verification = (_verify(scenario, gains, obox, verify_duration, threads) if verify
                         else pl.DataFrame())  # fmt: skip
         # Null (not assessed) counts as not stable.
+        within = _within_contact_bounds(verification, max_impact_peak, max_bounces, "")
         held = bool(
             verify
             and verification.height > 0
             and verification["stable"].fill_null(False).all()
             and (verification["overshoot_pct"] <= max_overshoot_pct).all()
+            and within
         )
-        verified = held and bool(verification["stable_with_motion"].fill_null(False).all())
+        verified = held and bool(
+            verification["stable_with_motion"].fill_null(False).all()
+            and _within_contact_bounds(verification, max_impact_peak, max_bounces,
+                                       "_with_motion")
+        )  # fmt: skip
         # The corrections below act on the held step; the motion's verdict cannot be
         # corrected by an overshoot limit, so a held pass ends the search.
         if not verify or held or rounds > corrections:
@@ -669,6 +693,13 @@ def tune(
         # grid points (plus 0.5 %), double the margin if a run was unstable, search again.
         seen = (verification["overshoot_pct"] - verification["predicted_overshoot_pct"])
         near = _nearest(obox, over_grid, verification.select(list(obox)).rows(named=True))
+        if max_impact_peak is not None:
+            # An impact above its bound, as the overshoot it would take to stay below it.
+            fd = _final_force(scenario)
+            impact = 100.0 * (verification["impact_peak"] - max_impact_peak) / fd
+            seen = pl.Series([max(a, b) for a, b in zip(seen.fill_nan(-math.inf),
+                                                         impact.fill_nan(-math.inf),
+                                                         strict=True)])  # fmt: skip
         for g, v in enumerate(near):
             excess = float(seen[v])
             if math.isfinite(excess):
@@ -687,7 +718,29 @@ def tune(
         evaluated=evaluated,
         predicted_overshoot_limit=limit,
         rounds=rounds,
+        max_impact_peak=max_impact_peak,
+        max_bounces=max_bounces,
     )
+
+
+def _within_contact_bounds(
+    verification: pl.DataFrame, max_impact: float | None, max_bounces: int | None, suffix: str
+) -> bool:
+    """Every verification run's impact peak and bounces within their bounds (if set)."""
+    if verification.height == 0:
+        return max_impact is None and max_bounces is None
+    ok = True
+    if max_impact is not None:
+        ok &= bool((verification[f"impact_peak{suffix}"].fill_nan(math.inf) <= max_impact).all())
+    if max_bounces is not None:
+        ok &= bool((verification[f"bounces{suffix}"].fill_nan(math.inf) <= max_bounces).all())
+    return ok
+
+
+def _final_force(scenario: Scenario) -> float:
+    """|f_d| at the end of the run (the scale of an overshoot in %), at least 1e-12 N."""
+    end = scenario.force_reference(scenario.duration)
+    return max(abs(float(np.asarray(end))), 1e-12)
 
 
 def _nearest(
@@ -796,4 +849,7 @@ def _verify(
     columns["stable_with_motion"] = pl.Series(moving["stable"], dtype=pl.Boolean)
     columns["verdict_with_motion"] = pl.Series(moving["verdict"], dtype=pl.String)
     columns["overshoot_pct_with_motion"] = moving["metrics"]["overshoot_pct"]
+    for name in ("impact_peak", "bounces"):
+        columns[name] = sim["metrics"][name]
+        columns[f"{name}_with_motion"] = moving["metrics"][name]
     return pl.DataFrame(columns)

@@ -496,6 +496,9 @@ class Wall(_Block):
     (touching, zero force)."""
     position_error: float = 0.0
     """Error of the controller's estimate x̂_e = x_e + position_error [m], along n."""
+    gap: float = 0.0
+    """Free space before contact [m]: the true surface starts ``gap`` beyond ``position``
+    (or the tip at q0) along n. 0: touching at zero force."""
 
     _check: ClassVar[str] = "wall"
 
@@ -750,7 +753,7 @@ class AdmittanceFilter(_Block):
     Example:
         >>> import admit_rs as ar
         >>> ar.AdmittanceFilter.scheme2(b=400, ka=0.1)
-        AdmittanceFilter(m=1.0, b=400, k=0.0, ka=0.1)
+        AdmittanceFilter(m=1.0, b=400, k=0.0, ka=0.1, sigma=0.0)
     """
 
     m: float = 1.0
@@ -761,6 +764,9 @@ class AdmittanceFilter(_Block):
     """Stiffness [N/m]; 0 is Scheme 2."""
     ka: float = 1.0
     """Filter gain k_a of eqs. (30)/(38): the filter input is k_a e_f [dimensionless]."""
+    sigma: float = 0.0
+    """Adaptation gain σ of the adaptive force-error term (Jung, Hsia & Bonitz 2004):
+    ψ_{k+1} = ψ_k + σ e_f,k is added to e_f [per sample]; 0 is the plain filter."""
 
     _kind: ClassVar[str] = "admittance"
     _check: ClassVar[str] = "admittance"
@@ -776,6 +782,23 @@ class AdmittanceFilter(_Block):
     def scheme2(cls, *, b: float = 800.0, ka: float = 0.1, m: float = 1.0) -> AdmittanceFilter:
         """Scheme 2, eq. (38): k = 0; no steady-state force error."""
         return cls(m=m, b=b, k=0.0, ka=ka)
+
+    @classmethod
+    def adaptive(
+        cls, *, b: float = 800.0, sigma: float = 0.005, ka: float = 1.0, m: float = 1.0
+    ) -> AdmittanceFilter:
+        """Scheme 2 with the adaptive force-error term of Jung, Hsia & Bonitz (2004) (SPEC
+        §16): m ẍ_a + b ẋ_a = k_a (e_f + ψ), ψ_{k+1} = ψ_k + σ e_f,k. It tracks a surface at an
+        unknown position, or receding at a constant rate, with zero steady force error, where
+        Scheme 2 keeps b v / k_a. The loop is critically damped near σ = k_a k_e T / (4 b)
+        (0.0094 for fig. 14's k_a = 1, k_e = 3e4, b = 800); docs/first_contact.md.
+
+        Example:
+            >>> import admit_rs as ar
+            >>> ar.AdmittanceFilter.adaptive(b=800, sigma=0.005)
+            AdmittanceFilter(m=1.0, b=800, k=0.0, ka=1.0, sigma=0.005)
+        """
+        return cls(m=m, b=b, k=0.0, ka=ka, sigma=sigma)
 
     def discretize(self, period: float) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """The exact ZOH pair (Ad, Bd) for the state [x_a, ẋ_a] and period T."""
@@ -888,25 +911,30 @@ class Criteria(_Block):
 
     A diverged run is unstable. Otherwise every limit that is set is checked and each one
     that fails is named in the verdict with its value and limit; a force-controlled run
-    whose assessed window (t ≥ 1 s) is shorter than ``min_assessed`` is "not assessed"
+    whose assessed window (from 1 s into the contact phase: t ≥ 1 s for a run that starts
+    touching, first contact + 1 s for one that crosses free space) is shorter than
+    ``min_assessed`` is "not assessed"
     (``stable`` is ``None``, null in tables). Position-only runs are judged on divergence
     and, if set, ``max_path_error`` and ``max_torque_saturation``.
 
     Example:
         >>> import admit_rs as ar
         >>> sc = ar.paper.scenario("fig14").replace(**{"criteria.force_limit": 11.0})
-        >>> ar.simulate(sc).verdict
-        'unstable: force peak 12.58 N above force_limit 11 N'
+        >>> print(ar.simulate(sc).verdict.replace(" (", "\\n("))
+        unstable: impact peak 12.57 N
+        (within 0.5 s of first contact at t = 0.001 s) above force_limit 11 N
+        (force peak 12.58 N later)
     """
 
     max_force_oscillation: float = 0.1
-    """Largest force_oscillation (std(f − f_d) over the last 2 s / mean |f_d|) of a stable
-    force-controlled run [fraction of f_d]."""
+    """Largest force_oscillation (std(f − f_d) over the last 2 s of the contact phase /
+    mean |f_d|) of a stable force-controlled run [fraction of f_d]."""
     max_contact_loss: float = 0.05
-    """Largest contact_loss (fraction of samples with f = 0 after t = 1 s) of a stable
-    force-controlled run [fraction]."""
+    """Largest contact_loss (fraction of samples with f = 0 from first contact + 1 s; t ≥ 1 s
+    for a run that starts touching) of a stable force-controlled run [fraction]."""
     force_limit: float | None = None
-    """Largest contact force anywhere in the run (force_peak) [N]; ``None``: not judged."""
+    """Largest contact force anywhere in the run (force_peak, the impact peak included) [N];
+    ``None``: not judged."""
     max_bounces: int | None = None
     """Largest number of bounces (contact lost after first contact) [count]; ``None``: not
     judged."""
@@ -916,17 +944,54 @@ class Criteria(_Block):
     """Largest torque_saturation (fraction of samples with a joint at its torque limit)
     [fraction]; ``None``: not judged."""
     min_assessed: float = 1.0
-    """Shortest assessed window (assessed_time, from t = 1 s to the end) a force-controlled
-    run needs for a verdict [s]; shorter runs are "not assessed"."""
+    """Shortest assessed window (assessed_time, from first contact + 1 s to the end) a
+    force-controlled run needs for a verdict [s]; shorter runs are "not assessed"."""
 
     _check: ClassVar[str] = "criteria"
+
+
+@dataclass(frozen=True, kw_only=True)
+class GuardedApproach(_Block):
+    """A guarded approach (SPEC §16): position control along the estimated normal n̂ from
+    the start at ``speed``, at ``contact_speed`` within ``slowdown_distance`` of the estimated
+    surface (and beyond it), until the **measured** normal force exceeds ``threshold`` (so
+    sensor noise, low-pass and latency delay the switch); then force control takes over
+    bumplessly (X_d and Ẋ_d continue), with ``reanchor`` the estimated surface moved to the
+    tip's measured position there. The discrete equations are in docs/first_contact.md.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> fig19 = ar.paper.scenario("fig19").replace(duration=1.0)
+        >>> plain = ar.simulate(fig19).metrics["impact_peak"]
+        >>> guarded = ar.simulate(fig19.replace(approach=ar.GuardedApproach()))
+        >>> round(plain, 1), round(guarded.metrics["impact_peak"], 1)
+        (36.0, 18.6)
+    """
+
+    speed: float = 0.05
+    """Approach speed along the estimated normal n̂ in free space [m/s]."""
+    contact_speed: float = 0.01
+    """Speed within slowdown_distance of the estimated surface, and beyond it [m/s]."""
+    slowdown_distance: float = 0.005
+    """Distance before the estimated surface at which the approach slows to contact_speed
+    [m]."""
+    threshold: float = 1.0
+    """Measured normal force above which contact is detected and force control takes over
+    [N]."""
+    reanchor: bool = True
+    """Move the estimated surface to the tip's measured position along n̂ where contact was
+    detected."""
+
+    _check: ClassVar[str] = "approach"
 
 
 _UNIONS: dict[str, tuple[type, ...]] = {
     "robot": (Robot, UrdfArm),
     "wall": (Wall, type(None)),
+    "wall_estimate": (Wall, type(None)),
     "controller": (ComputedTorque, ModelFree, TimeDelayControl),
     "admittance": (AdmittanceFilter, ImpedanceReference, type(None)),
+    "approach": (GuardedApproach, type(None)),
     "force_reference": (Step, Sine, Sampled),
     "z_reference": (Step, Sine, Sampled),
     "sensor": (ForceSensor,),
@@ -950,12 +1015,19 @@ class Scenario(_Block):
     """The arm (plant): the paper's three-link arm or a URDF arm."""
     wall: Wall | None = field(default_factory=Wall)
     """The environment; ``None``: free space."""
+    wall_estimate: Wall | None = None
+    """The controller's belief about the surface (SPEC §15): force along its normal n̂,
+    motion along its tangent, x̂_e its position + position_error; its stiffness and damping
+    are not read. ``None``: the true wall offset by its position_error."""
     controller: Controller = field(default_factory=TimeDelayControl)
     """The inner position loop: ComputedTorque, ModelFree or TimeDelayControl."""
     admittance: ForceControl | None = field(
         default_factory=lambda: AdmittanceFilter.scheme2(b=800.0, ka=1.0)
     )
     """The outer force loop; ``None`` is position-only control (x held at X0 x)."""
+    approach: GuardedApproach | None = None
+    """A guarded approach (SPEC §16) before force control takes over; ``None``: force
+    control from t = 0."""
     force_reference: Signal = field(default_factory=lambda: Step(value=10.0))
     """Desired contact force f_d(t) [N]."""
     z_reference: Signal = field(default_factory=lambda: Sine(amplitude=0.05))

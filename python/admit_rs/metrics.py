@@ -8,7 +8,7 @@ Example:
     >>> import admit_rs as ar
     >>> m = ar.METRICS["contact_loss"]
     >>> m.unit, m.window
-    ('fraction (0–1)', 't ≥ 1 s')
+    ('fraction (0–1)', 'from first contact + 1 s (t ≥ 1 s for a run that starts touching)')
     >>> ar.METRICS["z_rms_error"].label
     'z_rms_error [m]'
 """
@@ -48,15 +48,17 @@ class Metric:
 
 
 _WHOLE = "whole run"
-_LAST = "last 2 s (t ≥ 1 s)"
+_LAST = "last 2 s, from first contact + 1 s (t ≥ 1 s for a run that starts touching)"
+_LATE = "from first contact + 1 s (t ≥ 1 s for a run that starts touching)"
 _STEP = "runs whose f_d is a Step"
 
 METRICS: Mapping[str, Metric] = MappingProxyType({
     m.name: m
     for m in [
         Metric("force_ss_error", "N", "mean(f_d − f): the force offset left at the end",
-               "last 2 s", "≈ f_d − SteadyStateValue"),
-        Metric("force_rms_error", "N", "RMS of f_d − f", "t ≥ 1 s", "–"),
+               "last 2 s (no earlier than first contact + 1 s for a run that starts apart)",
+               "≈ f_d − SteadyStateValue"),
+        Metric("force_rms_error", "N", "RMS of f_d − f", _LATE, "–"),
         Metric("force_peak", "N", "max f, the largest contact force (also reported for a run "
                "that diverged)", _WHOLE, "Peak (max |f|)"),
         Metric("overshoot_pct", "%", "100 (force_peak − f_d,final) / f_d,final. Negative when f "
@@ -94,7 +96,8 @@ METRICS: Mapping[str, Metric] = MappingProxyType({
                "motion the task asks for); in position-only runs the whole error |X_d − X|. "
                "What Criteria.max_path_error judges", _WHOLE, "–", "every run"),
         Metric("contact_loss", "fraction (0–1)", "fraction of samples with f = 0 (a fraction, "
-               "not a percentage: 0.36 means 36 % of the samples)", "t ≥ 1 s", "–"),
+               "not a percentage: 0.36 means 36 % of the samples). The approach through free space "
+               "before first contact does not count", _LATE, "–"),
         Metric("force_oscillation", "fraction (0–1)", "std(f − f_d) / mean |f_d|: the force's "
                "spread about its reference relative to the reference. With a constant f_d in the "
                "window this is std(f) / |final f_d|; measuring the spread about f_d keeps a run "
@@ -103,9 +106,16 @@ METRICS: Mapping[str, Metric] = MappingProxyType({
         Metric("bounces", "count", "number of times contact is lost (f > 0 followed by f = "
                "0) after first contact. Tells bouncing (many) from ripple in contact (0)",
                _WHOLE, "–"),
-        Metric("assessed_time", "s", "span of the window the force criteria judge, from t = "
-               "1 s to the end of the run; a run with less than Criteria.min_assessed is "
-               "\"not assessed\"", "t ≥ 1 s", "–"),
+        Metric("first_contact_time", "s", "time of the first sample with f > 0; NaN if the "
+               "tool never touches. The contact phase starts here for a run that starts apart "
+               "(Wall.gap > 0, or a wall placed beyond the tip)", _WHOLE, "–"),
+        Metric("impact_peak", "N", "max f within 0.5 s after first contact (also reported for "
+               "a run that diverged); NaN if the tool never touches. For a run that starts "
+               "touching this is the step's first peak", "0.5 s from first contact", "–"),
+        Metric("assessed_time", "s", "span of the window the force criteria judge, from 1 s "
+               "into the contact phase (t = 1 s for a run that starts touching, first contact "
+               "+ 1 s for one that starts apart) to the end of the run; a run with less than "
+               "Criteria.min_assessed is \"not assessed\"", _LATE, "–"),
         Metric("torque_saturation", "fraction (0–1)", "fraction of samples with any joint's "
                "applied torque at the actuator's torque_limit (0 without a limit)", _WHOLE, "–",
                "every run"),

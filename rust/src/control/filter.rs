@@ -1,6 +1,28 @@
-//! The outer force loop: admittance filters (eqs. 30 and 38) and the impedance reference of
-//! eq. (20) as a baseline (SPEC §5). Each turns the force error (or the desired force) into
-//! the position modification x_a with its rate and acceleration for feed-forward.
+//! The outer force loop: admittance filters (eqs. 30 and 38), the adaptive admittance of
+//! Jung, Hsia & Bonitz (2004) (SPEC §16) and the impedance reference of eq. (20) as a
+//! baseline (SPEC §5). Each turns the force error (or the desired force) into the position
+//! modification x_a with its rate and acceleration for feed-forward.
+//!
+//! **Adaptive admittance** (`sigma` > 0). Jung, Hsia & Bonitz write Scheme 2 with an
+//! adaptive velocity offset Φ, m ë + b (ė + Φ) = e_f, Φ(t) = Φ(t − T) + σ e_f(t − T) / b
+//! (T the sample time; Duan et al. 2018 use the same update). With this library's gain k_a
+//! and signs (x_a grows with e_f = f_d − f) the same law, written with ψ = b Φ / k_a in
+//! newtons (no division by b), is
+//!
+//! ```text
+//!   m ẍ_a + b ẋ_a + k x_a = k_a (e_f + ψ)          (ψ held over the period)
+//!   [x_a, ẋ_a]_{k+1} = Ad [x_a, ẋ_a]_k + Bd (e_f,k + ψ_k)   (the same exact ZOH pair)
+//!   ψ_{k+1} = ψ_k + σ e_f,k                          (ψ_0 = 0)
+//!   ẍ_a,k = (k_a (e_f,k + ψ_k) − b ẋ_a,k − k x_a,k) / m   (feed-forward, current sample)
+//! ```
+//!
+//! ψ is a discrete integral of the force error: at a steady state e_f = 0 and
+//! b ẋ_a + k x_a = k_a ψ, so a surface receding at a constant rate v (ẋ_a = v, k = 0) is
+//! tracked with zero force error (ψ → b v / k_a), where Scheme 2 keeps e_f = b v / k_a.
+//! With an ideal inner loop and k = 0 the force loop's characteristic polynomial is
+//! s² + (k_a k_e / b) s + σ k_a k_e / (b T) (m and the sampling neglected): critically
+//! damped at σ_c = k_a k_e T / (4 b) (0.0094 for k_a = 1, k_e = 3e4, b = 800, T = 1 ms),
+//! oscillatory above.
 
 use nalgebra::{Matrix2, Matrix3, Vector2};
 use schemars::JsonSchema;
@@ -30,6 +52,8 @@ pub struct AdmittanceParams {
     /// Filter gain k_a of eqs. (30)/(38): the filter input is k_a e_f [dimensionless].
     #[schemars(extend("x-ui" = {"min": 0.01, "max": 10.0, "scale": "log"}))]
     pub ka: f64,
+    /// Adaptation gain σ of the adaptive force-error term (Jung, Hsia & Bonitz 2004): ψ_{k+1} = ψ_k + σ e_f,k is added to e_f [per sample]; 0 is the plain filter.
+    pub sigma: f64,
 }
 
 impl Default for AdmittanceParams {
@@ -41,7 +65,13 @@ impl Default for AdmittanceParams {
 impl AdmittanceParams {
     /// Scheme 1, eq. (30): force tracking impedance with stiffness; keeps an offset.
     pub fn scheme1(b: f64, k: f64, ka: f64) -> Self {
-        Self { m: 1.0, b, k, ka }
+        Self {
+            m: 1.0,
+            b,
+            k,
+            ka,
+            sigma: 0.0,
+        }
     }
 
     /// Scheme 2, eq. (38): k = 0, infinite compliance; no steady-state force error.
@@ -51,6 +81,15 @@ impl AdmittanceParams {
             b,
             k: 0.0,
             ka,
+            sigma: 0.0,
+        }
+    }
+
+    /// Scheme 2 with the adaptive force-error term (SPEC §16; see the module docs).
+    pub fn adaptive(b: f64, ka: f64, sigma: f64) -> Self {
+        Self {
+            sigma,
+            ..Self::scheme2(b, ka)
         }
     }
 
@@ -58,7 +97,13 @@ impl AdmittanceParams {
         check::positive("m", self.m)?;
         check::non_negative("b", self.b)?;
         check::non_negative("k", self.k)?;
-        check::non_negative("ka", self.ka)
+        check::non_negative("ka", self.ka)?;
+        // σ is a per-sample integral gain on a force: beyond 1 it adds more than the
+        // error itself every sample, which no sample rate makes a filter.
+        if !(self.sigma.is_finite() && (0.0..=1.0).contains(&self.sigma)) {
+            return Err(Error::parameter("sigma", self.sigma, "from 0 to 1"));
+        }
+        Ok(())
     }
 
     /// Checks that the filter can be discretised at `period`: the rates b/m, k/m and k_a/m
@@ -183,6 +228,15 @@ impl<T: Real> AdmittanceFilter<T> {
         self.state = Vector2::zeros();
     }
 
+    /// Lanes in `mask` take the state (x_a, ẋ_a).
+    #[inline(always)]
+    fn start(&mut self, mask: T::SimdBool, x_a: T, xa_dot: T) {
+        self.state = Vector2::new(
+            x_a.select(mask, self.state[0]),
+            xa_dot.select(mask, self.state[1]),
+        );
+    }
+
     /// Output at t_k, then advance to t_{k+1}. The filter is strictly proper: x_a,k and
     /// ẋ_a,k depend on e_f up to k−1; the feed-forward ẍ_a,k uses the current sample.
     #[inline(always)]
@@ -196,6 +250,57 @@ impl<T: Real> AdmittanceFilter<T> {
         };
         // [x_a, ẋ_a]_{k+1} = Ad [x_a, ẋ_a]_k + Bd e_f,k
         self.state = self.ad * self.state + self.bd * force_error;
+        out
+    }
+}
+
+/// The adaptive admittance filter (SPEC §16; equations in the module docs): the plain
+/// filter fed e_f + ψ, with ψ the discrete integral of e_f at gain σ.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AdaptiveFilter<T: Real = f64> {
+    filter: AdmittanceFilter<T>,
+    sigma: T,
+    /// ψ [N].
+    psi: T,
+}
+
+impl AdaptiveFilter {
+    pub fn new(params: AdmittanceParams, period: f64) -> Self {
+        Self {
+            filter: AdmittanceFilter::new(params, period),
+            sigma: params.sigma,
+            psi: 0.0,
+        }
+    }
+}
+
+impl AdaptiveFilter<F64x4> {
+    pub fn pack(f: [&AdaptiveFilter; LANES]) -> Self {
+        Self {
+            filter: AdmittanceFilter::pack(f.map(|f| &f.filter)),
+            sigma: F64x4::from_lanes(|i| f[i].sigma),
+            psi: F64x4::from_lanes(|i| f[i].psi),
+        }
+    }
+
+    pub fn put_lane(&mut self, l: usize, f: &AdaptiveFilter) {
+        self.filter.put_lane(l, &f.filter);
+        put(&mut self.sigma, l, f.sigma);
+        put(&mut self.psi, l, f.psi);
+    }
+}
+
+impl<T: Real> AdaptiveFilter<T> {
+    pub fn reset(&mut self) {
+        self.filter.reset();
+        self.psi = T::zero();
+    }
+
+    /// Output at t_k, then advance: the filter fed e_f,k + ψ_k, then ψ_{k+1} = ψ_k + σ e_f,k.
+    #[inline(always)]
+    pub fn step(&mut self, force_error: T) -> Sample<T> {
+        let out = self.filter.step(force_error + self.psi);
+        self.psi += self.sigma * force_error;
         out
     }
 }
@@ -244,7 +349,11 @@ impl ForceControlParams {
 #[derive(Debug, Clone, PartialEq)]
 pub enum ForceControl<T: Real = f64> {
     Admittance(AdmittanceFilter<T>),
-    Impedance { effective_stiffness: T },
+    /// An admittance filter with σ > 0.
+    Adaptive(AdaptiveFilter<T>),
+    Impedance {
+        effective_stiffness: T,
+    },
 }
 
 /// The outer loop's kind: what runs must share for their outer loops to advance in one lane
@@ -253,6 +362,8 @@ pub enum ForceControl<T: Real = f64> {
 pub enum ForceControlKey {
     /// Eqs. (21)–(38), any scheme.
     Admittance,
+    /// The same with the adaptive force-error term (one more state, ψ).
+    Adaptive,
     /// Eq. (20).
     Impedance,
 }
@@ -261,6 +372,7 @@ impl<T: Real> ForceControl<T> {
     pub fn lane_key(&self) -> ForceControlKey {
         match self {
             ForceControl::Admittance(_) => ForceControlKey::Admittance,
+            ForceControl::Adaptive(_) => ForceControlKey::Adaptive,
             ForceControl::Impedance { .. } => ForceControlKey::Impedance,
         }
     }
@@ -272,6 +384,11 @@ impl ForceControl<F64x4> {
         match f {
             [ForceControl::Admittance(a0), ForceControl::Admittance(a1), ForceControl::Admittance(a2), ForceControl::Admittance(a3)] => {
                 Some(ForceControl::Admittance(AdmittanceFilter::pack([
+                    a0, a1, a2, a3,
+                ])))
+            }
+            [ForceControl::Adaptive(a0), ForceControl::Adaptive(a1), ForceControl::Adaptive(a2), ForceControl::Adaptive(a3)] => {
+                Some(ForceControl::Adaptive(AdaptiveFilter::pack([
                     a0, a1, a2, a3,
                 ])))
             }
@@ -298,6 +415,7 @@ impl ForceControl<F64x4> {
     pub fn put_lane(&mut self, l: usize, f: &ForceControl) -> bool {
         match (self, f) {
             (ForceControl::Admittance(a), ForceControl::Admittance(b)) => a.put_lane(l, b),
+            (ForceControl::Adaptive(a), ForceControl::Adaptive(b)) => a.put_lane(l, b),
             (
                 ForceControl::Impedance {
                     effective_stiffness: a,
@@ -315,6 +433,10 @@ impl ForceControl<F64x4> {
 impl ForceControl {
     pub fn new(p: &ForceControlParams, period: f64) -> Self {
         match p {
+            // σ = 0 keeps the plain filter's code, and its bits.
+            ForceControlParams::Admittance(a) if a.sigma > 0.0 => {
+                ForceControl::Adaptive(AdaptiveFilter::new(*a, period))
+            }
             ForceControlParams::Admittance(a) => {
                 ForceControl::Admittance(AdmittanceFilter::new(*a, period))
             }
@@ -328,13 +450,19 @@ impl ForceControl {
     pub fn state_labels(&self) -> &'static [&'static str] {
         match self {
             ForceControl::Admittance(_) => &["x_a", "xa_dot"],
+            ForceControl::Adaptive(_) => &["x_a", "xa_dot", "psi"],
             ForceControl::Impedance { .. } => &[],
         }
     }
 
     pub fn state(&self, out: &mut Vec<f64>) {
-        if let ForceControl::Admittance(f) = self {
-            out.extend_from_slice(f.state.as_slice());
+        match self {
+            ForceControl::Admittance(f) => out.extend_from_slice(f.state.as_slice()),
+            ForceControl::Adaptive(a) => {
+                out.extend_from_slice(a.filter.state.as_slice());
+                out.push(a.psi);
+            }
+            ForceControl::Impedance { .. } => {}
         }
     }
 
@@ -345,15 +473,37 @@ impl ForceControl {
                 f.state = Vector2::new(values[0], values[1]);
                 2
             }
+            ForceControl::Adaptive(a) => {
+                a.filter.state = Vector2::new(values[0], values[1]);
+                a.psi = values[2];
+                3
+            }
             ForceControl::Impedance { .. } => 0,
         }
     }
 }
 
 impl<T: Real> ForceControl<T> {
+    /// Lanes in `mask` start from x_a, ẋ_a (and ψ = 0): the bumpless switch of a guarded
+    /// approach (`control::approach`). The eq. 20 reference has no state to start
+    /// (`ScenarioConfig::validate` refuses an approach with it).
+    #[inline(always)]
+    pub fn start(&mut self, mask: T::SimdBool, x_a: T, xa_dot: T) {
+        match self {
+            ForceControl::Admittance(f) => f.start(mask, x_a, xa_dot),
+            ForceControl::Adaptive(a) => {
+                a.filter.start(mask, x_a, xa_dot);
+                a.psi = T::zero().select(mask, a.psi);
+            }
+            ForceControl::Impedance { .. } => {}
+        }
+    }
+
     pub fn reset(&mut self) {
-        if let ForceControl::Admittance(f) = self {
-            f.reset();
+        match self {
+            ForceControl::Admittance(f) => f.reset(),
+            ForceControl::Adaptive(a) => a.reset(),
+            ForceControl::Impedance { .. } => {}
         }
     }
 
@@ -363,6 +513,7 @@ impl<T: Real> ForceControl<T> {
     pub fn step(&mut self, desired: &Sample<T>, measured: T) -> Sample<T> {
         match self {
             ForceControl::Admittance(f) => f.step(desired.value - measured),
+            ForceControl::Adaptive(a) => a.step(desired.value - measured),
             ForceControl::Impedance {
                 effective_stiffness: k,
             } => Sample {
@@ -393,7 +544,16 @@ mod tests {
     #[test]
     fn step_response_is_exact_at_samples() {
         let (m, b, k, ka, ef) = (1.0, 800.0, 400.0, 0.1, 10.0);
-        let mut f: AdmittanceFilter = AdmittanceFilter::new(AdmittanceParams { m, b, k, ka }, 1e-3);
+        let mut f: AdmittanceFilter = AdmittanceFilter::new(
+            AdmittanceParams {
+                m,
+                b,
+                k,
+                ka,
+                sigma: 0.0,
+            },
+            1e-3,
+        );
         let disc = (b * b - 4.0 * m * k).sqrt();
         let (p1, p2) = ((-b + disc) / (2.0 * m), (-b - disc) / (2.0 * m));
         let fin = ka * ef / k;
@@ -492,7 +652,7 @@ mod tests {
     /// for bit (the ZOH matrices are each run's own, discretised once in f64).
     #[test]
     fn lanes_step_as_four_scalar_filters() {
-        use crate::scalar::{lane, F64x4};
+        use crate::scalar::F64x4;
         let params = [
             AdmittanceParams::scheme2(800.0, 0.1),
             AdmittanceParams::scheme1(800.0, 400.0, 0.1),
@@ -501,9 +661,41 @@ mod tests {
                 b: 300.0,
                 k: 50.0,
                 ka: 1.5,
+                sigma: 0.0,
             },
             AdmittanceParams::scheme2(1500.0, 0.02),
         ];
+        check_lanes(params);
+        // The adaptive kind (σ > 0), four of them with their own gains.
+        check_lanes(std::array::from_fn(|i| AdmittanceParams {
+            sigma: 0.002 * (1 + i) as f64,
+            ..params[i]
+        }));
+        // Kinds do not mix in one pack.
+        let scalar: Vec<ForceControl> = params
+            .iter()
+            .map(|p| ForceControl::new(&ForceControlParams::Admittance(*p), 1e-3))
+            .collect();
+        let adaptive = ForceControl::new(
+            &ForceControlParams::Admittance(AdmittanceParams::adaptive(800.0, 1.0, 0.01)),
+            1e-3,
+        );
+        assert_eq!(adaptive.lane_key(), ForceControlKey::Adaptive);
+        assert!(
+            ForceControl::<F64x4>::pack([&scalar[0], &adaptive, &scalar[2], &scalar[3]]).is_none()
+        );
+        let imp = ForceControl::new(
+            &ForceControlParams::Impedance(ImpedanceParams {
+                k: 1e4,
+                assumed_stiffness: 3e4,
+            }),
+            1e-3,
+        );
+        assert!(ForceControl::<F64x4>::pack([&scalar[0], &imp, &scalar[2], &scalar[3]]).is_none());
+    }
+
+    fn check_lanes(params: [AdmittanceParams; 4]) {
+        use crate::scalar::{lane, F64x4};
         let mut scalar: Vec<ForceControl> = params
             .iter()
             .map(|p| ForceControl::new(&ForceControlParams::Admittance(*p), 1e-3))
@@ -524,14 +716,37 @@ mod tests {
                 assert_eq!(lane(out.accel, i).to_bits(), e.accel.to_bits());
             }
         }
-        // Kinds do not mix in one pack.
-        let imp = ForceControl::new(
-            &ForceControlParams::Impedance(ImpedanceParams {
-                k: 1e4,
-                assumed_stiffness: 3e4,
-            }),
+    }
+
+    /// The adaptive term is the discrete integral ψ_{k+1} = ψ_k + σ e_f,k added to the
+    /// filter's input: a constant error e gives the plain filter's response to e (1 + σ k)
+    /// at sample k (ψ_k = σ k e), and the feed-forward reads e_f,k + ψ_k.
+    #[test]
+    fn adaptive_term_integrates_the_error() {
+        let (b, ka, sigma, e) = (800.0, 1.0, 0.01, 2.0);
+        let mut adaptive = ForceControl::new(
+            &ForceControlParams::Admittance(AdmittanceParams::adaptive(b, ka, sigma)),
             1e-3,
         );
-        assert!(ForceControl::<F64x4>::pack([&scalar[0], &imp, &scalar[2], &scalar[3]]).is_none());
+        let mut plain = AdmittanceFilter::new(AdmittanceParams::scheme2(b, ka), 1e-3);
+        let fd = |v: f64| Sample {
+            value: v,
+            ..Sample::default()
+        };
+        for k in 0..50 {
+            let a = adaptive.step(&fd(e), 0.0);
+            let p = plain.step(e * (1.0 + sigma * k as f64));
+            assert!((a.value - p.value).abs() < 1e-18, "{k}");
+            assert!((a.rate - p.rate).abs() < 1e-15, "{k}");
+            assert!((a.accel - p.accel).abs() < 1e-12, "{k}");
+        }
+        let mut state = vec![];
+        adaptive.state(&mut state);
+        assert!((state[2] - 50.0 * sigma * e).abs() < 1e-12);
+        assert_eq!(adaptive.state_labels(), &["x_a", "xa_dot", "psi"]);
+        let bad = AdmittanceParams::adaptive(b, ka, -0.1)
+            .validate()
+            .unwrap_err();
+        assert!(bad.to_string().starts_with("sigma = -0.1"), "{bad}");
     }
 }

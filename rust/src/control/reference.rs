@@ -14,6 +14,18 @@ pub struct Sample<T: Real = f64> {
     pub accel: T,
 }
 
+impl<T: Real> Sample<T> {
+    /// `self` in the lanes of `mask`, `other` elsewhere.
+    #[inline(always)]
+    pub fn select(&self, mask: T::SimdBool, other: &Self) -> Self {
+        Self {
+            value: self.value.select(mask, other.value),
+            rate: self.rate.select(mask, other.rate),
+            accel: self.accel.select(mask, other.accel),
+        }
+    }
+}
+
 impl Sample<F64x4> {
     /// Four lanes' samples (each lane's signal evaluated at its own time).
     #[inline]

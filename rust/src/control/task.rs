@@ -18,6 +18,19 @@ pub struct Desired<T: Real = f64> {
     pub acceleration: Vector3<T>,
 }
 
+impl<T: Real> Desired<T> {
+    /// `self` in the lanes of `mask`, `other` elsewhere.
+    #[inline(always)]
+    pub fn select(&self, mask: T::SimdBool, other: &Self) -> Self {
+        let pick = |a: &Vector3<T>, b: &Vector3<T>| a.zip_map(b, |x, y| x.select(mask, y));
+        Self {
+            position: pick(&self.position, &other.position),
+            velocity: pick(&self.velocity, &other.velocity),
+            acceleration: pick(&self.acceleration, &other.acceleration),
+        }
+    }
+}
+
 /// The directions of one task and the fixed part of its reference: one run's (`f64`), or
 /// four runs' in lanes.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -33,6 +46,9 @@ pub struct TaskFrame<T: Real = f64> {
     in_plane: Vector3<T>,
     /// The controller's estimate x̂_e of the wall along n.
     pub wall_estimate: T,
+    /// N·n̂: the part of the true normal force along the controlled direction n̂, what a
+    /// sensor axis along n̂ reads (1 when the estimate's normal is the true one).
+    pub force_projection: T,
 }
 
 impl TaskFrame<F64x4> {
@@ -44,6 +60,7 @@ impl TaskFrame<F64x4> {
             start: pack_vector(f.map(|f| &f.start)),
             in_plane: pack_vector(f.map(|f| &f.in_plane)),
             wall_estimate: F64x4::from_lanes(|i| f[i].wall_estimate),
+            force_projection: F64x4::from_lanes(|i| f[i].force_projection),
         }
     }
 
@@ -54,6 +71,7 @@ impl TaskFrame<F64x4> {
         put_vector(&mut self.start, l, &f.start);
         put_vector(&mut self.in_plane, l, &f.in_plane);
         put(&mut self.wall_estimate, l, f.wall_estimate);
+        put(&mut self.force_projection, l, f.force_projection);
     }
 }
 
@@ -73,6 +91,20 @@ impl TaskFrame {
             start,
             in_plane: start - normal * normal.dot(&start),
             wall_estimate,
+            force_projection: 1.0,
+        }
+    }
+
+    /// The frame of an estimated plane (n̂, x̂_e) over a true surface of normal `true_normal`.
+    pub fn estimated(
+        normal: TaskVector,
+        start: TaskVector,
+        wall_estimate: f64,
+        true_normal: &TaskVector,
+    ) -> Self {
+        Self {
+            force_projection: true_normal.dot(&normal),
+            ..Self::new(normal, start, wall_estimate)
         }
     }
 

@@ -8,7 +8,8 @@ use pyo3::types::PyDict;
 
 use super::errors::to_py_err;
 use super::params::admittance_params;
-use crate::control::filter::{AdmittanceFilter, AdmittanceParams};
+use crate::control::filter::{AdmittanceParams, ForceControl, ForceControlParams};
+use crate::control::reference::Sample;
 
 fn checked_admittance(params: &Bound<'_, PyAny>, period: f64) -> PyResult<AdmittanceParams> {
     let py = params.py();
@@ -33,7 +34,8 @@ pub(super) fn filter_discretize<'py>(
     Ok((ad, PyArray1::from_slice(py, bd.as_slice())))
 }
 
-/// Runs the discrete filter on a force-error sequence: returns (x_a, ẋ_a, ẍ_a) per sample.
+/// Runs the discrete filter (adaptive when σ > 0) on a force-error sequence: returns
+/// (x_a, ẋ_a, ẍ_a) per sample.
 #[pyfunction]
 pub(super) fn filter_response<'py>(
     params: &Bound<'py, PyAny>,
@@ -41,7 +43,8 @@ pub(super) fn filter_response<'py>(
     force_error: Vec<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let py = params.py();
-    let mut filter = AdmittanceFilter::new(checked_admittance(params, period)?, period);
+    let p = ForceControlParams::Admittance(checked_admittance(params, period)?);
+    let mut filter = ForceControl::new(&p, period);
     let n = force_error.len();
     let (mut xa, mut xa_dot, mut xa_ddot) = (
         Vec::with_capacity(n),
@@ -49,7 +52,12 @@ pub(super) fn filter_response<'py>(
         Vec::with_capacity(n),
     );
     for e in force_error {
-        let s = filter.step(e);
+        // e_f = f_d − f with f_d = e and f = 0: exactly e.
+        let desired = Sample {
+            value: e,
+            ..Sample::default()
+        };
+        let s = filter.step(&desired, 0.0);
         xa.push(s.value);
         xa_dot.push(s.rate);
         xa_ddot.push(s.accel);

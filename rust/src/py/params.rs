@@ -243,6 +243,7 @@ pub(super) fn check_block(kind: &str, params: &Bound<'_, PyAny>) -> PyResult<()>
         "signal" => decode::<Signal>(params, "")?.validate(),
         "model" => decode::<crate::control::params::ModelError>(params, "")?.validate(),
         "criteria" => decode::<crate::sim::criteria::CriteriaParams>(params, "")?.validate(),
+        "approach" => decode::<crate::control::approach::ApproachParams>(params, "")?.validate(),
         other => {
             return Err(PyValueError::new_err(format!(
                 "unknown block kind '{other}'"

@@ -12,6 +12,7 @@ use schemars::{JsonSchema, Schema};
 use serde::Serialize;
 use serde_json::{Map, Value};
 
+use crate::control::approach::ApproachParams;
 use crate::control::filter::{AdmittanceParams, ImpedanceParams};
 use crate::control::params::{
     ComputedTorqueParams, ModelError, ModelFreeBlock, ModelFreeParams, TimeDelayBlock,
@@ -83,7 +84,7 @@ fn variants(schema: &Schema) -> Map<String, Value> {
 /// comments, `type`, `default` where the block has a `Default`), keyed as the Python blocks
 /// are tagged: `three_link`, `urdf`, `wall`, `sensor`, `actuator`, `model`,
 /// `computed_torque`, `model_free`, `time_delay`, `admittance`, `impedance`, `step`, `sine`,
-/// `sampled`, `criteria` and `scenario`.
+/// `sampled`, `criteria`, `approach` and `scenario`.
 pub fn schemas() -> Value {
     let mut out = Map::new();
     out.insert("three_link".into(), schema_value::<RobotParams>());
@@ -102,6 +103,7 @@ pub fn schemas() -> Value {
     out.insert("impedance".into(), schema_value::<ImpedanceParams>());
     out.extend(variants(&schemars::schema_for!(Signal)));
     out.insert("criteria".into(), schema_value::<CriteriaParams>());
+    out.insert("approach".into(), schema_value::<ApproachParams>());
     out.insert("scenario".into(), schema_value::<ScenarioConfig>());
     Value::Object(out)
 }
@@ -129,6 +131,7 @@ pub fn defaults() -> Value {
     out.insert("time_delay".into(), to_value(&TimeDelayParams::default()));
     out.insert("admittance".into(), to_value(&AdmittanceParams::default()));
     out.insert("criteria".into(), to_value(&CriteriaParams::default()));
+    out.insert("approach".into(), to_value(&ApproachParams::default()));
     out.insert("scenario".into(), to_value(&ScenarioConfig::default()));
     Value::Object(out)
 }

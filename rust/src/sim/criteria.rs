@@ -11,11 +11,11 @@ use crate::sim::outcome::Outcome;
 )]
 #[serde(default, deny_unknown_fields)]
 pub struct CriteriaParams {
-    /// Largest force_oscillation (std(f − f_d) over the last 2 s / mean |f_d|) of a stable force-controlled run [fraction of f_d].
+    /// Largest force_oscillation (std(f − f_d) over the last 2 s of the contact phase / mean |f_d|) of a stable force-controlled run [fraction of f_d].
     pub max_force_oscillation: f64,
-    /// Largest contact_loss (fraction of samples with f = 0 after t = 1 s) of a stable force-controlled run [fraction].
+    /// Largest contact_loss (fraction of samples with f = 0 from first contact + 1 s; t ≥ 1 s for a run that starts touching) of a stable force-controlled run [fraction].
     pub max_contact_loss: f64,
-    /// Largest contact force anywhere in the run (force_peak) [N]; ``None``: not judged.
+    /// Largest contact force anywhere in the run (force_peak, the impact peak included) [N]; ``None``: not judged.
     pub force_limit: Option<f64>,
     /// Largest number of bounces (contact lost after first contact) [count]; ``None``: not judged.
     pub max_bounces: Option<f64>,
@@ -23,7 +23,7 @@ pub struct CriteriaParams {
     pub max_path_error: Option<f64>,
     /// Largest torque_saturation (fraction of samples with a joint at its torque limit) [fraction]; ``None``: not judged.
     pub max_torque_saturation: Option<f64>,
-    /// Shortest assessed window (assessed_time, from t = 1 s to the end) a force-controlled run needs for a verdict [s]; shorter runs are "not assessed".
+    /// Shortest assessed window (assessed_time, from first contact + 1 s to the end) a force-controlled run needs for a verdict [s]; shorter runs are "not assessed".
     pub min_assessed: f64,
 }
 
@@ -76,6 +76,10 @@ pub struct Figures {
     pub contact_loss: f64,
     pub force_oscillation: f64,
     pub bounces: f64,
+    pub first_contact_time: f64,
+    pub impact_peak: f64,
+    /// When the contact phase starts (0: the run starts touching or never touches).
+    pub contact_start: f64,
     pub assessed_time: f64,
     pub path_rms_error: f64,
     pub torque_saturation: f64,
@@ -149,14 +153,32 @@ pub fn judge(
     let exceeds = |v: f64, limit: f64| v.is_finite() && v > limit;
     if force_control {
         let (loss, osc) = (m.contact_loss, m.force_oscillation);
+        // The windows start 1 s into the contact phase (SPEC §16).
+        let after = if m.contact_start > 0.0 {
+            format!(
+                "after t = {} s (first contact at {} s + 1 s)",
+                short(m.contact_start + 1.0),
+                short(m.contact_start)
+            )
+        } else {
+            "after t = 1 s".to_owned()
+        };
         if exceeds(loss, criteria.max_contact_loss) {
-            failed.push(format!(
-                "loss of contact: f = 0 in {} of samples after t = 1 s, {} bounces \
-                 (max_contact_loss {})",
-                pct(loss),
-                short(m.bounces),
-                pct(criteria.max_contact_loss)
-            ));
+            if m.first_contact_time.is_nan() {
+                failed.push(format!(
+                    "no contact: f = 0 throughout, the tool never touched the surface \
+                     (max_contact_loss {})",
+                    pct(criteria.max_contact_loss)
+                ));
+            } else {
+                failed.push(format!(
+                    "loss of contact: f = 0 in {} of samples {after}, {} bounces \
+                     (max_contact_loss {})",
+                    pct(loss),
+                    short(m.bounces),
+                    pct(criteria.max_contact_loss)
+                ));
+            }
         }
         if exceeds(osc, criteria.max_force_oscillation) {
             // Ripple in contact (friction, motion) reads differently from bouncing.
@@ -172,12 +194,26 @@ pub fn judge(
             ));
         }
         if let Some(limit) = criteria.force_limit {
-            if exceeds(m.force_peak, limit) {
-                failed.push(format!(
+            // The impact (0.5 s from first contact) is named: it is what a guarded
+            // approach or a slower one changes, unlike a later peak.
+            let impact = format!(
+                "impact peak {} N (within 0.5 s of first contact at t = {} s)",
+                short(m.impact_peak),
+                short(m.first_contact_time)
+            );
+            match (exceeds(m.impact_peak, limit), exceeds(m.force_peak, limit)) {
+                (true, _) if m.force_peak > m.impact_peak => failed.push(format!(
+                    "{impact} above force_limit {} N (force peak {} N later)",
+                    short(limit),
+                    short(m.force_peak)
+                )),
+                (true, _) => failed.push(format!("{impact} above force_limit {} N", short(limit))),
+                (false, true) => failed.push(format!(
                     "force peak {} N above force_limit {} N",
                     short(m.force_peak),
                     short(limit)
-                ));
+                )),
+                (false, false) => {}
             }
         }
         if let Some(limit) = criteria.max_bounces {
@@ -191,7 +227,7 @@ pub fn judge(
         }
         if !(m.assessed_time >= criteria.min_assessed && m.assessed_time > 0.0) {
             unjudged.push(format!(
-                "only {} s of the run after t = 1 s, min_assessed is {} s",
+                "only {} s of the run {after}, min_assessed is {} s",
                 short(m.assessed_time.max(0.0)),
                 short(criteria.min_assessed)
             ));

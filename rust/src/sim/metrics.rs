@@ -11,8 +11,15 @@ use crate::sim::trace::{Row, Trace};
 
 /// The steady-state window: the last 2 s.
 pub const STEADY_STATE_WINDOW: f64 = 2.0;
-/// Transients before this time are left out of `force_rms_error` and `contact_loss`.
+/// Transients before this time after the contact phase starts are left out of
+/// `force_rms_error`, `contact_loss` and the steady-state windows (SPEC §16).
 pub const TRANSIENT_END: f64 = 1.0;
+/// `impact_peak` is the largest force within this time after first contact [s] (SPEC §16).
+pub const IMPACT_WINDOW: f64 = 0.5;
+/// A run starts touching if its penetration at sample 0 is above −this [m]: the paper's
+/// wall passes through X0, and X0 computed by another path (the lanes' kinematics) may put
+/// it a few ulp (1e-16 m) away; a real gap is micrometres or more.
+pub const TOUCHING_TOLERANCE: f64 = 1e-9;
 /// Settling band, as a fraction of f_d.
 pub const SETTLING_BAND: f64 = 0.02;
 
@@ -62,9 +69,16 @@ pub struct Metrics {
     pub joint_limit_violation: f64,
     /// f > 0 → f = 0 transitions after first contact (force-controlled runs).
     pub bounces: f64,
-    /// Span of the window the force criteria judge, from t = 1 s to the end [s] (NaN for
-    /// position-only runs).
+    /// Time of the first sample with f > 0 [s]; NaN if the tool never touches.
+    pub first_contact_time: f64,
+    /// max f within 0.5 s after first contact [N]; NaN if the tool never touches.
+    pub impact_peak: f64,
+    /// Span of the window the force criteria judge, from the contact phase's start + 1 s to
+    /// the end [s] (NaN for position-only runs).
     pub assessed_time: f64,
+    /// Start of the contact phase [s]: 0 for a run that starts touching (or never touches),
+    /// else `first_contact_time`. The windows start 1 s after it.
+    pub contact_start: f64,
     /// The run stopped early (non-finite state or the velocity limit).
     pub diverged: bool,
     /// Judged by `criteria` (SPEC §17, [`judge`]); `None`: not assessed.
@@ -76,7 +90,7 @@ pub struct Metrics {
 }
 
 /// Metric names in the order of `Metrics::values`.
-pub const METRIC_NAMES: [&str; 19] = [
+pub const METRIC_NAMES: [&str; 21] = [
     "force_ss_error",
     "force_rms_error",
     "force_peak",
@@ -93,6 +107,8 @@ pub const METRIC_NAMES: [&str; 19] = [
     "contact_loss",
     "force_oscillation",
     "bounces",
+    "first_contact_time",
+    "impact_peak",
     "assessed_time",
     "torque_saturation",
     "joint_limit_violation",
@@ -117,6 +133,8 @@ impl Metrics {
             self.contact_loss,
             self.force_oscillation,
             self.bounces,
+            self.first_contact_time,
+            self.impact_peak,
             self.assessed_time,
             self.torque_saturation,
             self.joint_limit_violation,
@@ -135,6 +153,9 @@ impl Metrics {
             contact_loss: self.contact_loss,
             force_oscillation: self.force_oscillation,
             bounces: self.bounces,
+            first_contact_time: self.first_contact_time,
+            impact_peak: self.impact_peak,
+            contact_start: self.contact_start,
             assessed_time: self.assessed_time,
             path_rms_error: self.path_rms_error,
             torque_saturation: self.torque_saturation,
@@ -250,9 +271,13 @@ impl Spread {
     }
 }
 
-/// Every metric of §7/§10, accumulated one sample at a time while the run advances, so a
-/// run needs no trace to be judged. The windows are fixed up front: a run that completes
-/// ends at t = (N − 1)·T, and a diverged run reports no windowed metric.
+/// Every metric of §7/§10/§16, accumulated one sample at a time while the run advances, so a
+/// run needs no trace to be judged. A run that completes ends at t = (N − 1)·T, and a
+/// diverged run reports no windowed metric. The windows start 1 s into the contact phase
+/// (SPEC §16): at t = 1 s for a run that starts touching (δ ≥ −1 nm at sample 0), else 1 s after
+/// first contact. Before first contact f = 0, so a run that starts apart re-anchors its
+/// windows at first contact by dropping what they held (samples before it, all outside the
+/// new windows); one that never touches keeps today's windows (contact lost throughout).
 #[derive(Debug, Clone)]
 pub struct OnlineMetrics {
     period: f64,
@@ -264,12 +289,22 @@ pub struct OnlineMetrics {
     torque_limit: Option<Vec<f64>>,
     /// The arm's joint position limits (lower, upper), when it has them.
     position_limits: Option<(Vec<f64>, Vec<f64>)>,
-    /// First sample of the last 2 s.
+    /// First sample of the last 2 s of the run, and of the steady-state window (the later of
+    /// it and `late_start`, once re-anchored at first contact).
+    fixed_steady_start: usize,
     steady_start: usize,
-    /// First sample after the transient (t ≥ 1 s).
+    /// First sample after the transient (1 s into the contact phase).
     late_start: usize,
     /// First sample of the oscillation window: the later of the two.
     window_start: usize,
+    /// Samples in 1 s (the transient) and in the impact window.
+    transient_samples: usize,
+    impact_samples: usize,
+    /// Sample 0 touched the surface (δ_0 ≥ 0): the contact phase starts at t = 0.
+    starts_touching: bool,
+    /// The first sample with f > 0, and the largest f within the impact window after it.
+    first_contact: Option<usize>,
+    impact_peak: f64,
     // Running values.
     samples: usize,
     force_peak: f64,
@@ -317,6 +352,11 @@ impl OnlineMetrics {
         let steady_start = first_index_at(end - STEADY_STATE_WINDOW, period);
         let late_start = first_index_at(TRANSIENT_END, period);
         Self {
+            transient_samples: late_start,
+            impact_samples: first_index_at(IMPACT_WINDOW, period),
+            starts_touching: false,
+            first_contact: None,
+            impact_peak: f64::NAN,
             period,
             force_control: config.admittance.is_some(),
             step: match config.force_reference {
@@ -327,6 +367,7 @@ impl OnlineMetrics {
             tangent: frame.tangent,
             torque_limit: config.actuator.torque_limit.clone(),
             position_limits: None,
+            fixed_steady_start: steady_start,
             steady_start,
             late_start,
             window_start: steady_start.max(late_start),
@@ -356,8 +397,14 @@ impl OnlineMetrics {
         self.position_limits = Some((lower.to_vec(), upper.to_vec()));
     }
 
-    /// Back to no samples.
+    /// Back to no samples (and the windows anchored at t = 0).
     pub fn reset(&mut self) {
+        self.late_start = self.transient_samples;
+        self.steady_start = self.fixed_steady_start;
+        self.window_start = self.steady_start.max(self.late_start);
+        self.starts_touching = false;
+        self.first_contact = None;
+        self.impact_peak = f64::NAN;
         self.samples = 0;
         self.force_peak = f64::NEG_INFINITY;
         self.saturated = 0;
@@ -408,11 +455,27 @@ impl OnlineMetrics {
         self.path.push((e - self.normal * e_n).norm());
         let (f, f_d) = (row.f, row.f_d);
         self.force_peak = self.force_peak.max(f);
+        if k == 0 {
+            // NaN (no surface) is not touching.
+            self.starts_touching = row.penetration >= -TOUCHING_TOLERANCE;
+        }
         if f > 0.0 {
+            if self.first_contact.is_none() {
+                self.first_contact = Some(k);
+                self.impact_peak = f;
+                if !self.starts_touching {
+                    self.anchor_windows(k);
+                }
+            }
             self.touching = true;
         } else if self.touching {
             self.touching = false;
             self.bounces += 1;
+        }
+        if let Some(c) = self.first_contact {
+            if k - c <= self.impact_samples {
+                self.impact_peak = self.impact_peak.max(f);
+            }
         }
         if k >= self.steady_start {
             self.steady_error_sum += f_d - f;
@@ -445,6 +508,19 @@ impl OnlineMetrics {
                 other => other,
             };
         }
+    }
+
+    /// Starts the windows 1 s after first contact at sample `c` (a run that started apart).
+    /// What they held came from samples before `c`: dropped.
+    #[cold]
+    fn anchor_windows(&mut self, c: usize) {
+        self.late_start = c + self.transient_samples;
+        self.steady_start = self.fixed_steady_start.max(self.late_start);
+        self.window_start = self.steady_start;
+        self.steady_error_sum = 0.0;
+        self.late_error = SumOfSquares::ZERO;
+        self.contact_lost = 0;
+        self.spread = Spread::ZERO;
     }
 
     #[inline(always)]
@@ -529,12 +605,24 @@ impl OnlineMetrics {
             step_peak_time: nan,
             path_rms_error: nan,
             bounces: nan,
+            first_contact_time: nan,
+            impact_peak: nan,
             assessed_time: nan,
+            contact_start: nan,
             diverged,
             stable: None,
             criteria: self.criteria,
             force_control: self.force_control,
         };
+        if self.force_control {
+            // Facts about what happened, like force_peak: kept for a diverged run too.
+            m.first_contact_time = self.first_contact.map_or(nan, |c| self.time(c));
+            m.impact_peak = self.impact_peak;
+            m.contact_start = match self.first_contact {
+                Some(c) if !self.starts_touching => self.time(c),
+                _ => 0.0,
+            };
+        }
         m.stable = self.judged(m, outcome);
         if diverged || len == 0 {
             return m;
@@ -619,8 +707,14 @@ mod tests {
         TaskFrame::new(TaskVector::x(), TaskVector::zeros(), 0.0)
     }
 
-    /// Metrics of a force signal f(t), with the tip on its reference.
+    /// Metrics of a force signal f(t), with the tip on its reference, starting touching.
     fn metrics_of(config: &ScenarioConfig, force: impl Fn(usize) -> f64) -> Metrics {
+        metrics_from(config, 0.0, force)
+    }
+
+    /// Metrics of a force signal f(t) whose sample 0 has penetration `delta0` (negative:
+    /// the tool starts apart from the surface).
+    fn metrics_from(config: &ScenarioConfig, delta0: f64, force: impl Fn(usize) -> f64) -> Metrics {
         let mut online = OnlineMetrics::new(config, &frame());
         for k in 0..config.samples() {
             online.push(&Row {
@@ -632,7 +726,7 @@ mod tests {
                 f: force(k),
                 f_measured: force(k),
                 f_d: 10.0,
-                penetration: 0.0,
+                penetration: if k == 0 { delta0 } else { 0.0 },
                 x_a: 0.0,
                 xa_dot: 0.0,
                 tau: &[0.0; 3],
@@ -640,6 +734,102 @@ mod tests {
             });
         }
         online.finish(&Outcome::Completed)
+    }
+
+    /// SPEC §16: a run that starts apart is judged from first contact + 1 s; one that
+    /// starts touching from t = 1 s (today's windows, unchanged).
+    #[test]
+    fn windows_start_one_second_after_first_contact() {
+        let ten = ScenarioConfig {
+            duration: 10.0,
+            ..config()
+        };
+        // Free space for 1.6 s, then 10 N held: no loss of contact in the contact phase.
+        let held = |k: usize| if k < 1600 { 0.0 } else { 10.0 };
+        let apart = metrics_from(&ten, -0.02, held);
+        assert_eq!(apart.first_contact_time, 1600.0 * 1e-3);
+        assert_eq!(apart.contact_start, 1600.0 * 1e-3);
+        assert_eq!(apart.contact_loss, 0.0);
+        assert_eq!(apart.assessed_time, (10_000 - 2600) as f64 * 1e-3);
+        assert_eq!((apart.force_rms_error, apart.force_ss_error), (0.0, 0.0));
+        assert_eq!(apart.impact_peak, 10.0);
+        assert_eq!(apart.bounces, 0.0);
+        assert_eq!(apart.stable, Some(true));
+        assert_eq!(apart.judgement(&Outcome::Completed).verdict, "stable");
+        // The same signal from a run that starts touching: 600 of 9001 samples lost.
+        let touching = metrics_from(&ten, 0.0, held);
+        assert_eq!(touching.contact_start, 0.0);
+        assert_eq!(touching.contact_loss, 600.0 / 9001.0);
+        assert_eq!(touching.stable, Some(false));
+        assert_eq!(
+            touching.judgement(&Outcome::Completed).verdict,
+            "unstable: loss of contact: f = 0 in 7 % of samples after t = 1 s, 0 bounces \
+             (max_contact_loss 5 %)"
+        );
+        // Contact at 2.5 s of a 3-s run: 0.5 s of contact phase is too short to assess.
+        let late = metrics_from(&config(), -0.02, |k| if k < 2500 { 0.0 } else { 10.0 });
+        assert_eq!(late.stable, None);
+        assert_eq!(
+            late.judgement(&Outcome::Completed).verdict,
+            "not assessed: only 0 s of the run after t = 3.5 s (first contact at 2.5 s + 1 s), \
+             min_assessed is 1 s"
+        );
+        // Never touched: today's windows, and the verdict says what happened.
+        let never = metrics_from(&ten, -0.02, |_| 0.0);
+        assert!(never.first_contact_time.is_nan() && never.impact_peak.is_nan());
+        assert_eq!(never.contact_loss, 1.0);
+        assert_eq!(
+            never.judgement(&Outcome::Completed).verdict,
+            "unstable: no contact: f = 0 throughout, the tool never touched the surface \
+             (max_contact_loss 5 %)"
+        );
+    }
+
+    /// impact_peak is the largest force within 0.5 s of first contact; a force_limit it
+    /// exceeds is failed and named as the impact.
+    #[test]
+    fn impact_peak_and_the_force_limit() {
+        // Contact at 0.5 s, a 30 N spike at 0.7 s, 10 N after; a 25 N bump at 1.2 s (after
+        // the impact window) and one of 40 N at 2 s.
+        let signal = |bump: f64| {
+            move |k: usize| match k {
+                0..=499 => 0.0,
+                700 => 30.0,
+                1200 => 25.0,
+                2000 => bump,
+                _ => 10.0,
+            }
+        };
+        let limited = |limit: f64| ScenarioConfig {
+            criteria: CriteriaParams {
+                force_limit: Some(limit),
+                ..CriteriaParams::default()
+            },
+            ..config()
+        };
+        let m = metrics_from(&limited(20.0), -0.01, signal(10.0));
+        assert_eq!(m.first_contact_time, 0.5);
+        assert_eq!(m.impact_peak, 30.0);
+        assert_eq!(m.force_peak, 30.0);
+        assert_eq!(m.stable, Some(false));
+        assert_eq!(
+            m.judgement(&Outcome::Completed).verdict,
+            "unstable: impact peak 30 N (within 0.5 s of first contact at t = 0.5 s) above \
+             force_limit 20 N"
+        );
+        let m = metrics_from(&limited(20.0), -0.01, signal(40.0));
+        assert_eq!(
+            m.judgement(&Outcome::Completed).verdict,
+            "unstable: impact peak 30 N (within 0.5 s of first contact at t = 0.5 s) above \
+             force_limit 20 N (force peak 40 N later)"
+        );
+        // Only the later bump is above the limit: a force peak, not the impact.
+        let m = metrics_from(&limited(35.0), -0.01, signal(40.0));
+        assert_eq!(m.impact_peak, 30.0);
+        assert_eq!(
+            m.judgement(&Outcome::Completed).verdict,
+            "unstable: force peak 40 N above force_limit 35 N"
+        );
     }
 
     #[test]

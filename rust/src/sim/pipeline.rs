@@ -9,6 +9,7 @@
 use nalgebra::SVector;
 
 use crate::contact::{KnownTip, Surface};
+use crate::control::approach::Approach;
 use crate::control::controller::{not_finite, Controller, ControllerKey, Measured};
 use crate::control::filter::{ForceControl, ForceControlKey};
 use crate::control::reference::Sample;
@@ -24,6 +25,8 @@ use crate::world::surface::Environment;
 #[derive(Debug, Clone)]
 pub struct Pipeline<T: Real, M, const N: usize> {
     pub sensor: ForceSensor<T>,
+    /// A guarded approach before force control (SPEC §16); `None`: force control from t = 0.
+    pub approach: Option<Approach<T>>,
     pub force_control: Option<ForceControl<T>>,
     pub frame: TaskFrame<T>,
     pub controller: Controller<T, M, N>,
@@ -40,6 +43,8 @@ pub struct StageKey {
     pub actuator_delay: usize,
     /// `None`: position control only.
     pub force_control: Option<ForceControlKey>,
+    /// Whether a guarded approach precedes force control.
+    pub approach: bool,
     pub controller: ControllerKey,
 }
 
@@ -95,15 +100,46 @@ impl<T: Real, M: ArmModel<T, N>, const N: usize> Pipeline<T, M, N> {
         let contact = input.environment.contact(&tip);
         let (force, penetration) = (contact.normal_force, contact.penetration);
         // 3. force sensor
-        let measured = self.sensor.read(input.first, force, input.noise);
+        // (the component along n̂; × 1 exactly unless the estimated normal is tilted)
+        let measured = self.sensor.read(
+            input.first,
+            force * self.frame.force_projection,
+            input.noise,
+        );
         // 4.–5. force control, fed by the measured force; then the task reference
         let s = &input.motion_reference;
-        let (x_a, desired) = match &mut self.force_control {
-            Some(fc) => {
+        let (x_a, desired) = match (&mut self.force_control, &mut self.approach) {
+            (Some(fc), Some(approach)) if approach.any_active() => {
+                // A guarded approach in some lane: those lanes follow it (x_a recorded as
+                // the offset p − x̂_e), the others (and those switching now) the filter.
+                let tip = self.frame.normal.dot(&kin.position);
+                let g = approach.guard(measured, tip, &mut self.frame, fc);
+                let held = Sample {
+                    value: g.normal.value - self.frame.wall_estimate,
+                    rate: g.normal.rate,
+                    accel: T::zero(),
+                };
+                let guarded = self.frame.approach_reference(&g.normal, s);
+                if T::all(g.approaching) {
+                    (held, guarded)
+                } else {
+                    let x_a = fc.step(&input.force_reference, measured);
+                    let force = self.frame.force_reference(&x_a, s);
+                    if T::none(g.approaching) {
+                        (x_a, force)
+                    } else {
+                        (
+                            held.select(g.approaching, &x_a),
+                            guarded.select(g.approaching, &force),
+                        )
+                    }
+                }
+            }
+            (Some(fc), _) => {
                 let x_a = fc.step(&input.force_reference, measured);
                 (x_a, self.frame.force_reference(&x_a, s))
             }
-            None => (Sample::default(), self.frame.motion_reference(s)),
+            (None, _) => (Sample::default(), self.frame.motion_reference(s)),
         };
         // 6. control law
         let measurement = Measured {
@@ -143,6 +179,7 @@ impl<T: Real, M, const N: usize> Pipeline<T, M, N> {
             sensor_latency: self.sensor.latency(),
             actuator_delay: self.actuator.delay(),
             force_control: self.force_control.as_ref().map(ForceControl::lane_key),
+            approach: self.approach.is_some(),
             controller: self.controller.lane_key(),
         }
     }
@@ -152,6 +189,9 @@ impl<T: Real, M, const N: usize> Pipeline<T, M, N> {
         self.sensor.reset();
         if let Some(f) = &mut self.force_control {
             f.reset();
+        }
+        if let Some(a) = &mut self.approach {
+            a.reset(&mut self.frame);
         }
         self.controller.reset();
         self.actuator.reset();
@@ -172,8 +212,13 @@ impl<M, const N: usize> Pipeline<F64x4, M, N> {
             [Some(a), Some(b), Some(c), Some(d)] => Some(ForceControl::pack([a, b, c, d])?),
             _ => None,
         };
+        let approach = match p.map(|x| x.approach.as_ref()) {
+            [Some(a), Some(b), Some(c), Some(d)] => Some(Approach::pack([a, b, c, d])),
+            _ => None,
+        };
         Some(Self {
             sensor: ForceSensor::pack(p.map(|x| &x.sensor)),
+            approach,
             force_control,
             frame: TaskFrame::pack(p.map(|x| &x.frame)),
             controller: Controller::pack(p.map(|x| &x.controller), models)?,
@@ -195,6 +240,9 @@ impl<M, const N: usize> Pipeline<F64x4, M, N> {
         // One key: the outer loops are of one kind and the controllers of one structure.
         if let (Some(f), Some(g)) = (&mut self.force_control, &p.force_control) {
             f.put_lane(l, g);
+        }
+        if let (Some(a), Some(b)) = (&mut self.approach, &p.approach) {
+            a.put_lane(l, b);
         }
         self.controller.put_lane(l, &p.controller, model);
         self.sensor.put_lane(l, &p.sensor);

@@ -1,5 +1,6 @@
 //! What defines one run: the scenario's parameters and their validation.
 
+use crate::control::approach::ApproachParams;
 use crate::control::filter::ForceControlParams;
 use crate::control::params::ControllerParams;
 use crate::control::reference::Signal;
@@ -63,10 +64,14 @@ pub struct ScenarioConfig {
     pub robot: RobotConfig,
     /// The environment; ``None``: free space.
     pub wall: Option<WallParams>,
+    /// The controller's belief about the surface (SPEC §15): force along its normal n̂, motion along its tangent, x̂_e its position + position_error; its stiffness and damping are not read. ``None``: the true wall offset by its position_error.
+    pub wall_estimate: Option<WallParams>,
     /// The inner position loop: ComputedTorque, ModelFree or TimeDelayControl.
     pub controller: ControllerParams,
     /// The outer force loop; ``None`` is position-only control (x held at X0 x).
     pub admittance: Option<ForceControlParams>,
+    /// A guarded approach (SPEC §16) before force control takes over; ``None``: force control from t = 0.
+    pub approach: Option<ApproachParams>,
     /// Desired contact force f_d(t) [N].
     pub force_reference: Signal,
     /// Desired motion s(t) along t̂ from the start [m]; z_d = z0 + s(t) for the paper's wall.
@@ -98,8 +103,10 @@ impl Default for ScenarioConfig {
         Self {
             robot: RobotConfig::default(),
             wall: Some(WallParams::default()),
+            wall_estimate: None,
             controller: ControllerParams::TimeDelay(Default::default()),
             admittance: Some(ForceControlParams::Admittance(Default::default())),
+            approach: None,
             force_reference: Signal::Step {
                 value: 10.0,
                 time: 0.0,
@@ -130,6 +137,9 @@ impl ScenarioConfig {
         if let Some(w) = &self.wall {
             w.validate().map_err(|e| e.within("wall"))?;
         }
+        if let Some(w) = &self.wall_estimate {
+            w.validate().map_err(|e| e.within("wall_estimate"))?;
+        }
         self.controller
             .validate()
             .map_err(|e| e.within("controller"))?;
@@ -137,6 +147,18 @@ impl ScenarioConfig {
         if let Some(a) = &self.admittance {
             a.validate(self.period)
                 .map_err(|e| e.within("admittance"))?;
+        }
+        if let Some(a) = &self.approach {
+            a.validate().map_err(|e| e.within("approach"))?;
+            if !matches!(self.admittance, Some(ForceControlParams::Admittance(_))) {
+                return Err(Error::parameter(
+                    "approach",
+                    "a GuardedApproach",
+                    "None unless admittance is an admittance filter (the approach hands \
+                     over to its state; position-only control and the eq. 20 reference \
+                     have none)",
+                ));
+            }
         }
         self.force_reference
             .validate()

@@ -8,6 +8,7 @@
 //! `Simulation` all go through the same code. The state is explicit: [`Simulation::state`]
 //! and [`Simulation::set_state`] read and write it as one flat labelled vector.
 
+use crate::control::approach::Approach;
 use crate::control::controller::{Controller, TaskAtStart};
 use crate::control::filter::ForceControl;
 use crate::control::params::check_inertia_for;
@@ -108,9 +109,17 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             Some(w) => Environment::Plane(Wall::new(w, &start).map_err(|e| e.within("wall"))?),
             None => Environment::Free,
         };
-        let frame = match environment.plane() {
-            Some(w) => TaskFrame::new(w.normal, start, w.estimated_position()),
-            None => TaskFrame::new(TaskVector::x(), start, start[0]),
+        let estimate = match &config.wall_estimate {
+            Some(e) => Some(Wall::new(e, &start).map_err(|e| e.within("wall_estimate"))?),
+            None => None,
+        };
+        let frame = match (environment.plane(), estimate) {
+            (Some(w), None) => TaskFrame::new(w.normal, start, w.estimated_position()),
+            (Some(w), Some(e)) => {
+                TaskFrame::estimated(e.normal, start, e.estimated_position(), &w.normal)
+            }
+            (None, Some(e)) => TaskFrame::new(e.normal, start, e.estimated_position()),
+            (None, None) => TaskFrame::new(TaskVector::x(), start, start[0]),
         };
         let samples = config.samples();
         let mut metrics = OnlineMetrics::new(config, &frame);
@@ -130,6 +139,10 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             ),
             stages: Pipeline {
                 sensor: ForceSensor::new(&config.sensor, config.period, config.seed),
+                approach: config
+                    .approach
+                    .as_ref()
+                    .map(|a| Approach::new(a, &frame, config.period)),
                 force_control: config
                     .admittance
                     .as_ref()
@@ -389,6 +402,9 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         if let Some(fc) = &st.force_control {
             out.extend(fc.state_labels().iter().map(|l| format!("filter.{l}")));
         }
+        if st.approach.is_some() {
+            out.extend(Approach::STATE_LABELS.iter().map(|l| (*l).to_owned()));
+        }
         out.extend(st.controller.state_labels());
         out.extend(st.sensor.state_labels());
         out.extend(st.actuator.state_labels());
@@ -404,6 +420,9 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         let st = &self.stages;
         if let Some(fc) = &st.force_control {
             fc.state(&mut out);
+        }
+        if let Some(a) = &st.approach {
+            a.state(&st.frame, &mut out);
         }
         st.controller.state(&mut out);
         st.sensor.state(&mut out);
@@ -450,6 +469,9 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         let st = &mut self.stages;
         if let Some(fc) = &mut st.force_control {
             at += fc.set_state(&values[at..]);
+        }
+        if let Some(a) = &mut st.approach {
+            at += a.set_state(&mut st.frame, &values[at..]);
         }
         at += st.controller.set_state(&values[at..], k > 0);
         at += st.sensor.set_state(&values[at..]);
@@ -653,6 +675,178 @@ mod tests {
             Outcome::Completed => panic!("expected divergence"),
         }
         assert_eq!(r.metrics.stable, Some(false));
+    }
+
+    /// SPEC §16: with `gap` = d and no approach the tool crosses free space first: f is
+    /// exactly 0 (and δ < 0) until the first sample with f > 0, which is
+    /// `first_contact_time`; the windows start 1 s after it.
+    #[test]
+    fn a_gap_is_free_space_until_first_contact() {
+        use crate::world::environment::WallParams;
+        let d = 0.02;
+        let cfg = ScenarioConfig {
+            wall: Some(WallParams {
+                gap: d,
+                ..WallParams::default()
+            }),
+            duration: 3.0,
+            ..ScenarioConfig::default()
+        };
+        let r = simulate(&cfg).unwrap();
+        let tr = &r.trace;
+        assert!((tr.penetration[0] + d).abs() < 1e-15);
+        let first = tr.f.iter().position(|&f| f > 0.0).unwrap();
+        assert!(first > 10, "{first}");
+        assert!(tr.f[..first].iter().all(|&f| f == 0.0));
+        assert!(tr.penetration[..first].iter().all(|&p| p <= 0.0));
+        assert!(tr.penetration[first] > 0.0);
+        let m = &r.metrics;
+        assert_eq!(m.first_contact_time, tr.t[first]);
+        assert_eq!(m.contact_start, tr.t[first]);
+        let window = &tr.f[first..=first + 500];
+        assert_eq!(m.impact_peak, window.iter().cloned().fold(0.0, f64::max));
+        assert_eq!(
+            m.assessed_time,
+            (cfg.samples() - 1 - first - 1000) as f64 * 1e-3
+        );
+        // The same wall touching at the start: the paper's run, first contact at sample 1.
+        let touching = simulate(&ScenarioConfig {
+            duration: 3.0,
+            ..ScenarioConfig::default()
+        })
+        .unwrap();
+        assert_eq!(touching.metrics.contact_start, 0.0);
+        assert_eq!(touching.metrics.assessed_time, 2.0);
+    }
+
+    /// SPEC §16's closed form: sliding at v along the estimated tangent over a true plane
+    /// tilted by θ from the estimate (computed torque with contact compensation, stiff
+    /// gains), Scheme 2 keeps e_f = b v tan θ / k_a along n̂ (the surface recedes at
+    /// v tan θ, and ẋ_a = k_a e_f / b); the adaptive filter drives it to 0.
+    #[test]
+    fn sliding_over_a_tilted_plane() {
+        use crate::control::reference::Signal;
+        use crate::world::environment::WallParams;
+        let (theta, v, b, ka) = (3f64.to_radians(), 0.01, 800.0, 1.0);
+        let steady_error = |filter: AdmittanceParams| {
+            let cfg = ScenarioConfig {
+                wall: Some(WallParams {
+                    normal: [theta.cos(), 0.0, -theta.sin()],
+                    ..WallParams::default()
+                }),
+                wall_estimate: Some(WallParams::default()),
+                z_reference: Signal::Sampled {
+                    times: vec![0.0, 10.0],
+                    values: vec![0.0, 10.0 * v],
+                },
+                ..ScenarioConfig::ideal_inner_loop(filter)
+            };
+            let r = simulate(&cfg).unwrap();
+            assert_eq!(r.outcome, Outcome::Completed);
+            // f_d − f̃ along n̂ over the last 2 s (f_d = 10 N).
+            let tail = &r.trace.f_measured[8000..];
+            10.0 - tail.iter().sum::<f64>() / tail.len() as f64
+        };
+        let expected = b * v * theta.tan() / ka;
+        assert!((expected - 0.4193).abs() < 1e-4, "{expected}");
+        let scheme2 = steady_error(AdmittanceParams::scheme2(b, ka));
+        assert!(
+            (scheme2 - expected).abs() < 0.01 * expected,
+            "{scheme2} vs {expected}"
+        );
+        let adaptive = steady_error(AdmittanceParams::adaptive(b, ka, 0.005));
+        assert!(adaptive.abs() < 1e-3, "{adaptive}");
+    }
+
+    /// A guarded approach at v through a gap d (no slowdown) on the ideal inner loop of
+    /// `ideal_inner_loop` (computed torque with the plant's model and contact
+    /// compensation, K_A = 1, K_D = 2ω, K_P = ω², ω = 100 rad/s). The loop's lag has two
+    /// parts. (1) The transient: the error e = X_d − X obeys ë + 2ω ė + ω² e = 0 from
+    /// e(0) = 0, ė(0) = v (the reference starts at v from rest), e(t) = v t e^{−ωt}: a lag
+    /// e/v = t e^{−ωt} = 4.1e-10 s at d/v = 0.2 s. (2) The zero-order hold: τ_k is exact at
+    /// t_k and held while the configuration-dependent terms move, so the task acceleration
+    /// drifts by g per second within a period, and a ramp is tracked with the steady error
+    /// e_ss = −T g / (2 K_P) (V must cancel the period's mean drift, T g / 2); here the tip
+    /// leads by 5.0e-8 m (1.0 µs). With both, the tip is at p_k − e_ss, and the first
+    /// sample with f > 0 is the first k with k v T − e_ss > d: asserted exactly, and within
+    /// one period of d/v. The switch (f̃ > threshold) is bumpless.
+    #[test]
+    fn guarded_approach_reaches_the_wall_at_d_over_v() {
+        use crate::control::approach::ApproachParams;
+        use crate::world::environment::WallParams;
+        let (d, v, omega, t) = (0.01, 0.05, 100.0, 1e-3);
+        let cfg = ScenarioConfig {
+            wall: Some(WallParams {
+                gap: d,
+                ..WallParams::default()
+            }),
+            approach: Some(ApproachParams {
+                speed: v,
+                contact_speed: v,
+                slowdown_distance: 0.0,
+                threshold: 5.0,
+                reanchor: true,
+            }),
+            duration: 1.0,
+            ..ScenarioConfig::ideal_inner_loop(AdmittanceParams::scheme2(800.0, 1.0))
+        };
+        let r = simulate(&cfg).unwrap();
+        let tr = &r.trace;
+        let arrival = d / v;
+        let transient = arrival * (-omega * arrival).exp();
+        assert!((transient - 4.122e-10).abs() < 1e-13, "{transient:e}");
+        // The hold's steady error, read off the last free samples (the transient is gone:
+        // v t e^{−ωt} < 3e-11 m): constant to 1e-10 m, a lag far below one period.
+        let e_ss = tr.x_ref[199] - tr.x[199];
+        assert!((190..200).all(|k| (tr.x_ref[k] - tr.x[k] - e_ss).abs() < 1e-10));
+        assert!(e_ss.abs() / v < 0.01 * t, "{e_ss:e}");
+        let predicted = ((d + e_ss) / (v * t)).floor() as usize + 1;
+        let first = tr.f.iter().position(|&f| f > 0.0).unwrap();
+        assert_eq!(first, predicted);
+        let tc = r.metrics.first_contact_time;
+        assert_eq!(tc, tr.t[first]);
+        let lag = transient - e_ss / v;
+        assert!((tc - (arrival + lag)).abs() <= t, "{tc}");
+        // The switch: the first sample whose measured force exceeds 5 N.
+        let ks = tr.f_measured.iter().position(|&f| f > 5.0).unwrap();
+        assert!(ks > first + 1);
+        // X_d continues the approach's ramp to rounding; Ẋ_d (along n: ẋ_a) is v at the
+        // switch and then changes by at most T |ẍ_a| per period (the filter's exact ZOH
+        // step: Δẋ_a = (1 − e^{−bT/m}) (k_a e_f / b − ẋ_a), |Δẋ_a| ≤ T |ẍ_a|).
+        let continued = tr.x_ref[ks - 1] + t * tr.xa_dot[ks - 1];
+        assert!((tr.x_ref[ks] - continued).abs() < 1e-12);
+        assert_eq!(tr.xa_dot[ks], v);
+        assert_eq!(tr.xa_dot[ks - 1], v);
+        let accel = (1.0 * (10.0 - tr.f_measured[ks]) - 800.0 * v) / 1.0;
+        let step = tr.xa_dot[ks + 1] - tr.xa_dot[ks];
+        assert!(step.abs() <= t * accel.abs(), "{step} vs {}", t * accel);
+        // Re-anchored at the tip's position at the switch: x_a = p − x̂_e = X_d − X there.
+        assert!((tr.x_a[ks] - (tr.x_ref[ks] - tr.x[ks])).abs() < 1e-12);
+        // Stepping through the approach in pieces gives the run's bits.
+        let mut sim = Simulation::new(&cfg).unwrap();
+        sim.step(ks);
+        let state = sim.state();
+        let labels = sim.state_labels();
+        let active = labels.iter().position(|l| l == "approach.active").unwrap();
+        assert_eq!(state[active], 1.0);
+        sim.step(usize::MAX);
+        assert_eq!(sim.trace(), tr);
+        sim.set_state(&state).unwrap();
+        sim.step(usize::MAX);
+        assert_eq!(sim.trace(), tr);
+    }
+
+    /// An approach needs an admittance filter to hand over to.
+    #[test]
+    fn an_approach_without_a_filter_is_refused() {
+        use crate::control::approach::ApproachParams;
+        let cfg = ScenarioConfig {
+            approach: Some(ApproachParams::default()),
+            admittance: None,
+            ..ScenarioConfig::default()
+        };
+        let e = Simulation::new(&cfg).unwrap_err().to_string();
+        assert!(e.starts_with("approach = a GuardedApproach"), "{e}");
     }
 
     #[test]

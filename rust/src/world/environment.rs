@@ -44,6 +44,9 @@ pub struct WallParams {
     /// Error of the controller's estimate x̂_e = x_e + position_error [m], along n.
     #[schemars(extend("x-ui" = {"min": -0.02, "max": 0.02, "scale": "linear"}))]
     pub position_error: f64,
+    /// Free space before contact [m]: the true surface starts ``gap`` beyond ``position``
+    /// (or the tip at q0) along n. 0: touching at zero force.
+    pub gap: f64,
 }
 
 impl Default for WallParams {
@@ -56,6 +59,7 @@ impl Default for WallParams {
             normal: [1.0, 0.0, 0.0],
             position: None,
             position_error: 0.0,
+            gap: 0.0,
         }
     }
 }
@@ -78,7 +82,8 @@ impl WallParams {
         if let Some(x) = self.position {
             check::finite("position", x)?;
         }
-        check::finite("position_error", self.position_error)
+        check::finite("position_error", self.position_error)?;
+        check::non_negative("gap", self.gap)
     }
 }
 
@@ -139,7 +144,8 @@ impl Wall {
             model: p.model,
             exponent: p.exponent,
             normal,
-            position: p.position.unwrap_or_else(|| normal.dot(start)),
+            // SPEC §15: the surface starts `gap` beyond X0 (or `position`) along n.
+            position: p.position.unwrap_or_else(|| normal.dot(start)) + p.gap,
             position_error: p.position_error,
         })
     }

@@ -269,6 +269,7 @@ pub(crate) mod tests {
 #[cfg(test)]
 mod every_kind {
     use super::tests::{varied, worst_trace_gap};
+    use crate::control::approach::ApproachParams;
     use crate::control::filter::{AdmittanceParams, ForceControlParams, ImpedanceParams};
     use crate::control::params::{
         ComputedTorqueParams, ControllerParams, ModelFreeParams, PerJoint, TdcLaw, TimeDelayParams,
@@ -308,9 +309,13 @@ mod every_kind {
         out
     }
 
-    fn outer_loops() -> [Option<ForceControlParams>; 4] {
+    fn outer_loops() -> [Option<ForceControlParams>; 5] {
         [
             None,
+            // The adaptive filter of SPEC §16: its own kind, in lanes.
+            Some(ForceControlParams::Admittance(AdmittanceParams::adaptive(
+                800.0, 1.0, 0.005,
+            ))),
             Some(ForceControlParams::Admittance(AdmittanceParams::scheme1(
                 800.0, 400.0, 0.1,
             ))),
@@ -332,14 +337,37 @@ mod every_kind {
         build: impl Fn(&ScenarioConfig) -> Simulation<R, N>,
     ) -> usize {
         let mut groups = 0;
+        // Each admittance filter also behind a guarded approach (SPEC §16): the lanes'
+        // walls differ, so they switch to force control at different samples.
+        let approached = outer_loops()
+            .into_iter()
+            .filter(|a| matches!(a, Some(ForceControlParams::Admittance(_))))
+            .map(|a| (a, true));
+        let loops: Vec<_> = outer_loops()
+            .into_iter()
+            .map(|a| (a, false))
+            .chain(approached)
+            .collect();
         for controller in controllers(N) {
-            for admittance in outer_loops() {
+            for &(admittance, guarded) in &loops {
                 let configs: Vec<ScenarioConfig> = (0..4)
                     .map(|i| ScenarioConfig {
                         robot: robot.clone(),
                         admittance,
+                        approach: guarded.then(|| ApproachParams {
+                            threshold: 0.5 + i as f64,
+                            reanchor: i % 2 == 0,
+                            ..ApproachParams::default()
+                        }),
                         duration: 0.01,
                         ..varied(i, controller)
+                    })
+                    .map(|mut c| {
+                        if let (true, Some(w)) = (guarded, c.wall.as_mut()) {
+                            // Lane i crosses i·0.1 mm of free space (2 ms at 0.05 m/s each).
+                            w.gap = 1e-4 * c.seed.saturating_sub(3) as f64;
+                        }
+                        c
                     })
                     .collect();
                 let mut sims: Vec<_> = configs.iter().map(&build).collect();
@@ -402,7 +430,8 @@ mod every_kind {
         let chain7 = check::<UrdfArm<7>, 7>(RobotConfig::Urdf(panda.clone()), |c| {
             Simulation::with_robot(c, arm.clone()).unwrap()
         });
-        assert_eq!((paper, chain3, chain7), (32, 32, 32));
+        // 8 controllers × (5 outer loops + 3 filters behind an approach).
+        assert_eq!((paper, chain3, chain7), (64, 64, 64));
     }
 
     /// Runs of different stage structures given to `run_lanes_on` together still run,
