@@ -53,6 +53,7 @@ pub struct AdmittanceParams {
     #[schemars(extend("x-ui" = {"min": 0.01, "max": 10.0, "scale": "log"}))]
     pub ka: f64,
     /// Adaptation gain σ of the adaptive force-error term (Jung, Hsia & Bonitz 2004): ψ_{k+1} = ψ_k + σ e_f,k is added to e_f [per sample]; 0 is the plain filter.
+    #[schemars(extend("x-ui" = {"min": 0.0, "max": 0.05, "scale": "linear"}))]
     pub sigma: f64,
 }
 

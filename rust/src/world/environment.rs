@@ -46,6 +46,7 @@ pub struct WallParams {
     pub position_error: f64,
     /// Free space before contact [m]: the true surface starts ``gap`` beyond ``position``
     /// (or the tip at q0) along n. 0: touching at zero force.
+    #[schemars(extend("x-ui" = {"min": 0.0, "max": 0.05, "scale": "linear"}))]
     pub gap: f64,
 }
 
