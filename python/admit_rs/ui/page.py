@@ -224,6 +224,17 @@ class TuningPage:
         p.toolbar.logo = None
         return p
 
+    def _tip_plot(self, title: str, y_label: str, name: str, axis: str, x_range: Any) -> Any:
+        """The tip along one task axis (``"n"`` or ``"t"``): baseline, reference and tip."""
+        src, base = self.trace, self.baseline
+        p = self._time_plot(title, y_label, name, x_range)
+        p.line("t", f"pos_{axis}", source=base, color=BASELINE, line_dash="dashed",
+               legend_label="baseline")  # fmt: skip
+        p.line("t", f"ref_{axis}", source=src, color="black", line_dash="dashed",
+               legend_label="reference")  # fmt: skip
+        p.line("t", f"pos_{axis}", source=src, color=COLORS[0], legend_label="tip")
+        return p
+
     def _build_plots(self) -> None:
         src, base = self.trace, self.baseline
         f = self._time_plot("Force along n", "f [N]", "plot_force")
@@ -234,18 +245,8 @@ class TuningPage:
         f.line("t", "f", source=src, color=COLORS[0], line_width=1.5, legend_label="f (true)")
         f.line("t", "f_d", source=src, color="black", line_dash="dashed", legend_label="f_d")
         x = f.x_range
-        pn = self._time_plot("Tip along n", "n·X [m]", "plot_normal", x)
-        pn.line("t", "pos_n", source=base, color=BASELINE, line_dash="dashed",
-                legend_label="baseline")  # fmt: skip
-        pn.line("t", "ref_n", source=src, color="black", line_dash="dashed",
-                legend_label="reference")  # fmt: skip
-        pn.line("t", "pos_n", source=src, color=COLORS[0], legend_label="tip")
-        pt = self._time_plot("Tip along t̂", "t̂·X [m]", "plot_tangent", x)
-        pt.line("t", "pos_t", source=base, color=BASELINE, line_dash="dashed",
-                legend_label="baseline")  # fmt: skip
-        pt.line("t", "ref_t", source=src, color="black", line_dash="dashed",
-                legend_label="reference")  # fmt: skip
-        pt.line("t", "pos_t", source=src, color=COLORS[0], legend_label="tip")
+        pn = self._tip_plot("Tip along n", "n·X [m]", "plot_normal", "n", x)
+        pt = self._tip_plot("Tip along t̂", "t̂·X [m]", "plot_tangent", "t", x)
         xa = self._time_plot("Filter output x_a", "x_a [m]", "plot_xa", x)
         xa.line("t", "x_a", source=base, color=BASELINE, line_dash="dashed",
                 legend_label="baseline")  # fmt: skip
