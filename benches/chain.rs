@@ -30,6 +30,7 @@ use admit_rs::robot::{ArmModel, JointVector, RobotModel};
 use admit_rs::scalar::{F64x4, Real};
 use admit_rs::sim::scenario::RobotConfig;
 use admit_rs::sim::sweep::run_batch_with;
+use admit_rs::world::contact_law::ContactLaw;
 use admit_rs::world::environment::WallParams;
 use admit_rs::world::environment::{ContactModel, Wall};
 use admit_rs::{ScenarioConfig, Simulation};
@@ -116,10 +117,14 @@ fn evaluate<T: Real, const N: usize>(
     let f = model.configure(q);
     let normal = Vector3::new(T::one(), T::zero(), T::zero());
     let wall = Wall {
-        stiffness: T::splat(3e4),
-        damping: T::zero(),
-        model: ContactModel::KelvinVoigt,
-        exponent: T::one(),
+        law: ContactLaw {
+            stiffness: T::splat(3e4),
+            damping: T::zero(),
+            model: ContactModel::KelvinVoigt,
+            exponent: T::one(),
+            friction: T::zero(),
+            stiction_velocity: T::splat(1e-3),
+        },
         normal,
         position: T::splat(0.3),
         position_error: T::zero(),
@@ -248,10 +253,17 @@ fn sweep(c: &mut Criterion) {
         .map(|i| {
             let base = panda_config();
             ScenarioConfig {
-                wall: Some(WallParams {
-                    stiffness: 1e4 + 6e3 * i as f64,
-                    ..base.wall.clone().unwrap_or_default()
-                }),
+                wall: Some(
+                    WallParams {
+                        stiffness: 1e4 + 6e3 * i as f64,
+                        ..base
+                            .wall
+                            .as_ref()
+                            .and_then(|w| w.plane().cloned())
+                            .unwrap_or_default()
+                    }
+                    .into(),
+                ),
                 duration: 2.0,
                 ..base
             }

@@ -70,7 +70,14 @@ impl Replay {
 fn arm_and_wall(cfg: &ScenarioConfig) -> (ThreeLinkArm, Wall) {
     let arm = ThreeLinkArm::new(cfg.robot.three_link().expect("the paper's arm"));
     let x0 = arm.forward_kinematics(&arm.initial_position());
-    let wall = Wall::new(cfg.wall.as_ref().expect("fig14 has a wall"), &x0).expect("valid");
+    let wall = Wall::new(
+        cfg.wall
+            .as_ref()
+            .and_then(|w| w.plane())
+            .expect("fig14 has a wall"),
+        &x0,
+    )
+    .expect("valid");
     (arm, wall)
 }
 
@@ -172,10 +179,13 @@ fn run(c: &mut Criterion) {
 fn batch(c: &mut Criterion) {
     let configs: Vec<ScenarioConfig> = (0..64)
         .map(|i| ScenarioConfig {
-            wall: Some(WallParams {
-                stiffness: 1e4 + 9e4 * i as f64 / 63.0,
-                ..WallParams::default()
-            }),
+            wall: Some(
+                WallParams {
+                    stiffness: 1e4 + 9e4 * i as f64 / 63.0,
+                    ..WallParams::default()
+                }
+                .into(),
+            ),
             ..ScenarioConfig::default()
         })
         .collect();

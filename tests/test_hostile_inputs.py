@@ -22,6 +22,7 @@ import textwrap
 from pathlib import Path
 
 import admit_rs as ar
+import numpy as np
 import pytest
 
 HOSTILE = [0.0, -1.0, 1e300, -1e300, 1e100, 1e-300, math.nan, math.inf, -math.inf]
@@ -52,6 +53,15 @@ WORKER = f"URDF_PATH = {URDF_PATH!r}\n" + textwrap.dedent(
         "first_contact": ar.paper.scenario("fig14").replace(
             wall=ar.Wall(gap=0.001, normal=(1, 0, 0.05)), wall_estimate=ar.Wall(),
             admittance=ar.AdmittanceFilter.adaptive(), approach=ar.GuardedApproach(),
+            duration=0.3,
+        ),
+        "surfaces": ar.paper.scenario("fig14").replace(
+            wall=ar.Sphere(radius=0.2, friction=0.3, damping=20.0, gap=0.001),
+            wall_estimate=ar.Cylinder(radius=0.3, inside=True), duration=0.3,
+        ),
+        "height_field": ar.paper.scenario("fig14").replace(
+            wall=ar.HeightField(heights=[[0.0, 0.001, 0.0], [0.0, -0.001, 0.002]],
+                                friction=0.5, stiction_velocity=0.01),
             duration=0.3,
         ),
     }
@@ -156,6 +166,15 @@ def test_every_numeric_field_survives_hostile_values():
             wall=ar.Wall(gap=0.001, normal=(1, 0, 0.05)), wall_estimate=ar.Wall(),
             admittance=ar.AdmittanceFilter.adaptive(), approach=ar.GuardedApproach(),
         ),
+        # The surfaces of SPEC §15, with friction (a heights grid is covered below).
+        "surfaces": ar.paper.scenario("fig14").replace(
+            wall=ar.Sphere(radius=0.2, friction=0.3, damping=20.0, gap=0.001),
+            wall_estimate=ar.Cylinder(radius=0.3, inside=True),
+        ),
+        "height_field": ar.paper.scenario("fig14").replace(
+            wall=ar.HeightField(heights=[[0.0, 0.001, 0.0], [0.0, -0.001, 0.002]],
+                                friction=0.5, stiction_velocity=0.01),
+        ),
     }
     cases = [
         (base, path, value)
@@ -171,7 +190,8 @@ def test_every_numeric_field_survives_hostile_values():
             "robot.coulomb_friction", "robot.q0", "wall.gap", "admittance.sigma",
             "wall_estimate.normal", "wall_estimate.position_error", "wall_estimate.gap",
             "approach.speed", "approach.contact_speed", "approach.slowdown_distance",
-            "approach.threshold"} <= paths
+            "approach.threshold", "wall.friction", "wall.stiction_velocity", "wall.radius",
+            "wall_estimate.radius", "wall_estimate.axis", "wall.spacing"} <= paths
     failures = []
     worker = Worker()
     warmed = False
@@ -441,3 +461,19 @@ def test_an_int_beyond_the_float_range_is_a_parameter_error() -> None:
         ar.Wall(stiffness=10**400)
     with pytest.raises(ar.ParameterError, match=r"^b = ≈-1\.00000e\+400 is invalid"):
         ar.AdmittanceFilter(b=-(10**400))
+
+
+@pytest.mark.parametrize("value", HOSTILE)
+def test_hostile_heights_are_an_error_or_a_finite_run(value):
+    """A height-field grid is not a scalar path of `numeric_paths`: every hostile value in
+    one node, and a grid of them, is a ParameterError naming the node or a finite run."""
+    base = ar.paper.scenario("fig14").replace(duration=0.2)
+    for heights in ([[0.0, value], [0.0, 0.0]], [[value] * 3] * 3):
+        try:
+            wall = ar.HeightField(heights=heights)
+        except ar.ParameterError as e:
+            assert str(e).startswith(("heights[0][1] = ", "heights[0][0] = ")), e
+            assert abs(value) > 1e3 or math.isnan(value)
+            continue
+        r = ar.simulate(base.replace(wall=wall))
+        assert all(np.isfinite(r.trace[c].to_numpy()).all() for c in ("f", "q1", "f_t"))

@@ -33,13 +33,20 @@ def defaults() -> dict[str, dict[str, Any]]:
 def schema() -> dict[str, dict[str, Any]]:
     """Every block's JSON schema (draft 2020-12) from its Rust declaration: ``properties``
     with ``description`` (the field docs), ``type`` and, where the block has a Rust
-    ``Default``, ``default``. Keyed by the blocks' kind tags (three_link, urdf, wall, sensor,
+    ``Default``, ``default``. Keyed by the blocks' kind tags (three_link, urdf, wall, sphere,
+    cylinder, height_field, sensor,
     actuator, model, computed_torque, model_free, time_delay, admittance, impedance, step,
     sine, sampled, criteria, approach) and ``scenario``."""
 
 def check_block(kind: str, params: dict[str, Any]) -> None:
     """Validate one block (kind: robot, wall, controller, admittance, signal, model, sensor,
     actuator)."""
+
+def surface_directions(
+    params: dict[str, Any],
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """(n̂, t̂) of a surface block: its inward normal at the point nearest the tip's start
+    and the motion direction for it."""
 
 def validate(scenario: dict[str, Any]) -> None:
     """Validate a whole scenario dict, cross-field checks included."""

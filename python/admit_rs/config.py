@@ -67,6 +67,13 @@ def _check_integer(name: str, value: Any, high: int) -> None:
         raise err
 
 
+def _parameter_error(name: str, value: str, allowed: str) -> ParameterError:
+    """A ParameterError naming the field, the value (as shown) and the allowed range."""
+    err = ParameterError(f"{name} = {value} is invalid: must be {allowed}")
+    err.field, err.value, err.allowed = name, value, allowed
+    return err
+
+
 def _core_value(value: Any) -> Any:
     """A field's value as the core decodes it (serde through pythonize): blocks as dicts,
     tuples as lists, NumPy scalars as Python numbers."""
@@ -118,6 +125,9 @@ class _Block:
     """Shared machinery: conversion to the core's dict and validation through Rust."""
 
     _kind: ClassVar[str | None] = None
+    _core_kind: ClassVar[str | None] = None
+    """The ``kind`` the core's declaration tags this block with where ``_kind`` (the
+    Python/TOML tag) is None: a Wall is a ``plane`` to the core, an untagged table in TOML."""
     _check: ClassVar[str] = ""
     _PYTHON_ONLY: ClassVar[frozenset[str]] = frozenset({"label"})
     """Fields that stay in Python (not in the Rust declaration, not sent to the core)."""
@@ -128,8 +138,9 @@ class _Block:
         """The dict the core decodes by the block's serde declaration (Python field names,
         ``kind`` on tagged blocks)."""
         out: dict[str, Any] = {}
-        if self._kind is not None:
-            out["kind"] = self._kind
+        kind = self._kind if self._kind is not None else self._core_kind
+        if kind is not None:
+            out["kind"] = kind
         for f in dataclasses.fields(self):  # type: ignore[arg-type]
             if f.name in self._PYTHON_ONLY:
                 continue
@@ -467,18 +478,11 @@ class UrdfArm(_Block):
 
 
 @dataclass(frozen=True, kw_only=True)
-class Wall(_Block):
-    """A unilateral wall {X : n·X = x_e}; the tip feels −f n while it penetrates.
-
-    Penetration δ = n·X − x_e, rate δ̇ = n·Ẋ. Kelvin–Voigt: f = max(0, k δ + c δ̇);
-    Hunt–Crossley: f = max(0, k δ^p + c δ^p δ̇). The default is the paper's wall: normal to
-    x, no damping, touching the tip at q0 (SPEC §2).
-
-    Example:
-        >>> import admit_rs as ar
-        >>> ar.Wall(stiffness=5e4, damping=50.0, normal=(1, 0, -1)).normal
-        (1.0, 0.0, -1.0)
-    """
+class _Surface(_Block):
+    """The contact-law fields every surface shares (SPEC §10, §15): the tip feels −f N + F_t
+    while it penetrates, N the surface's inward normal at the tip, f from the contact law on
+    the penetration δ and its rate δ̇ = N·Ẋ, and Coulomb friction
+    F_t = −μ f v_t / √(|v_t|² + v_s²) along the surface."""
 
     stiffness: float = 30_000.0
     """Environment stiffness k_e [N/m] (Hunt–Crossley: [N/m^p]); unknown to the controller."""
@@ -488,28 +492,33 @@ class Wall(_Block):
     """Contact law: ``"kelvin_voigt"`` (spring and damper) or ``"hunt_crossley"``."""
     exponent: float = 1.0
     """Hunt–Crossley exponent p, from 1 to 10 (ignored by Kelvin–Voigt)."""
-    normal: Vector3 = (1.0, 0.0, 0.0)
-    """Normal n pointing into the wall (any length; normalised). Force is controlled along n,
-    motion along t̂ = normalise(e_z − (e_z·n) n)."""
-    position: float | None = None
-    """Wall position x_e along n [m]; ``None`` puts the plane through the tip at q0
-    (touching, zero force)."""
+    friction: float = 0.0
+    """Coulomb friction coefficient μ along the surface (0: frictionless), from 0 to 10."""
+    stiction_velocity: float = 1e-3
+    """Slip speed v_s [m/s] below which friction is regularised: F_t = −μ f v_t / √(|v_t|² +
+    v_s²)."""
     position_error: float = 0.0
-    """Error of the controller's estimate x̂_e = x_e + position_error [m], along n."""
+    """Error of the controller's estimate of the surface [m], along its normal: the
+    controller believes the surface ``position_error`` further along n."""
     gap: float = 0.0
-    """Free space before contact [m]: the true surface starts ``gap`` beyond ``position``
-    (or the tip at q0) along n. 0: touching at zero force."""
+    """Free space before contact [m]: the true surface starts ``gap`` further along n than
+    where it would touch the tip at q0 (a Wall: than its ``position``). 0: touching at zero
+    force."""
 
     _check: ClassVar[str] = "wall"
 
     def __post_init__(self) -> None:
-        self._set("normal", _vec3("normal", self.normal))
+        for name in ("normal", "axis"):
+            if hasattr(self, name):
+                self._set(name, _vec3(name, getattr(self, name)))
         self._validate()
 
     def directions(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-        """The unit normal n̂ and the motion direction t̂ = normalise(e_z − (e_z·n̂) n̂)
-        (e_x if n ∥ e_z), as the core's task frame computes them: force and ``x_*``
-        metrics are along n̂, motion and ``z_*`` metrics along t̂.
+        """The unit normal n̂ the controller's task frame controls force along (for a
+        curved surface: its inward normal at the point nearest the tip's start) and the
+        motion direction t̂ = normalise(e_z − (e_z·n̂) n̂) (e_x if n ∥ e_z), as the core
+        computes them: force and ``x_*`` metrics are along n̂, motion and ``z_*`` metrics
+        along t̂.
 
         Example:
             >>> import admit_rs as ar
@@ -517,18 +526,194 @@ class Wall(_Block):
             >>> n.round(4).tolist(), t.round(4).tolist()
             ([0.7071, 0.0, -0.7071], [0.7071, 0.0, 0.7071])
         """
-        n = np.asarray(self.normal, dtype=float)
-        n = n / np.linalg.norm(n)
-        ez = np.array([0.0, 0.0, 1.0])
-        t = ez - n * (ez @ n)
-        t = np.array([1.0, 0.0, 0.0]) if np.linalg.norm(t) < 1e-9 else t / np.linalg.norm(t)
-        return n, t
+        n, t = _core.surface_directions(self._to_core())
+        return np.asarray(n, dtype=float), np.asarray(t, dtype=float)
 
     @property
     def tilted(self) -> bool:
         """Whether n̂ is not the paper's +x (then n·X and t̂·X are not the world x, z)."""
         n, _ = self.directions()
         return bool(np.max(np.abs(n - np.array([1.0, 0.0, 0.0]))) > 1e-12)
+
+    @property
+    def planar(self) -> bool:
+        """Whether the surface is a plane (a Wall, or nothing curved about it)."""
+        return isinstance(self, Wall)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Wall(_Surface):
+    """A unilateral wall {X : n·X = x_e}; the tip feels −f n (and friction) while it
+    penetrates.
+
+    Penetration δ = n·X − x_e, rate δ̇ = n·Ẋ. Kelvin–Voigt: f = max(0, k δ + c δ̇);
+    Hunt–Crossley: f = max(0, k δ^p + c δ^p δ̇). The default is the paper's wall: normal to
+    x, no damping, no friction, touching the tip at q0 (SPEC §2).
+
+    Example:
+        >>> import admit_rs as ar
+        >>> ar.Wall(stiffness=5e4, damping=50.0, normal=(1, 0, -1)).normal
+        (1.0, 0.0, -1.0)
+    """
+
+    normal: Vector3 = (1.0, 0.0, 0.0)
+    """Normal n pointing into the wall (any length; normalised). Force is controlled along n,
+    motion along t̂ = normalise(e_z − (e_z·n) n)."""
+    position: float | None = None
+    """Wall position x_e along n [m]; ``None`` puts the plane through the tip at q0
+    (touching, zero force)."""
+
+    _core_kind: ClassVar[str] = "plane"
+
+
+@dataclass(frozen=True, kw_only=True)
+class Sphere(_Surface):
+    """A sphere of radius R (SPEC §15): a ball touched from outside, or a bowl from inside.
+
+    Outside, its centre is at X0 + (gap + R) n; inside (``inside=True``) at X0 − (R − gap) n,
+    X0 the tip at q0, so the tip starts ``gap`` from the surface either way. Penetration
+    δ = R − |X − c| outside, |X − c| − R inside; the inward normal N lies along the line to
+    the centre.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> sc = ar.Scenario(wall=ar.Sphere(radius=0.2, friction=0.3))
+        >>> sc.wall.radius, sc.wall.friction
+        (0.2, 0.3)
+    """
+
+    radius: float = 0.1
+    """Radius R [m], from 0 (exclusive) to 1e9."""
+    normal: Vector3 = (1.0, 0.0, 0.0)
+    """Approach normal n pointing into the surface at the point the tip starts beside (any
+    length; normalised). Force is controlled along n, motion along t̂ = normalise(e_z −
+    (e_z·n) n)."""
+    inside: bool = False
+    """``False``: the tip touches the outside (a ball); ``True``: the inside (a bowl)."""
+
+    _kind: ClassVar[str] = "sphere"
+
+
+@dataclass(frozen=True, kw_only=True)
+class Cylinder(_Surface):
+    """A circular cylinder of radius R about ``axis`` (SPEC §15): a shaft touched from
+    outside, or a bore from inside; δ and N as for :class:`Sphere`, with the distance to the
+    axis line.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> ar.Cylinder(radius=0.05, axis=(0, 1, 0), inside=True).axis
+        (0.0, 1.0, 0.0)
+    """
+
+    radius: float = 0.1
+    """Radius R [m], from 0 (exclusive) to 1e9."""
+    axis: Vector3 = (0.0, 0.0, 1.0)
+    """Direction of the cylinder's axis (any length; normalised); not parallel to n."""
+    normal: Vector3 = (1.0, 0.0, 0.0)
+    """Approach normal n pointing into the surface at the point the tip starts beside (any
+    length; normalised; its part along the axis is ignored). Force is controlled along n,
+    motion along t̂ = normalise(e_z − (e_z·n) n)."""
+    inside: bool = False
+    """``False``: the tip touches the outside (a shaft); ``True``: the inside (a bore)."""
+
+    _kind: ClassVar[str] = "cylinder"
+
+
+Heights: TypeAlias = tuple[tuple[float, ...], ...]
+
+
+def _heights(value: Any) -> Heights:
+    """A grid of heights as a tuple of rows (from a NumPy array or nested sequences)."""
+    if isinstance(value, str | bytes) or _holds_bool(value):
+        raise TypeError(f"heights must be a 2-D grid of numbers, got {shown(value)}")
+    try:
+        grid = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise TypeError(f"heights must be a 2-D grid of numbers: {e}") from None
+    if grid.ndim != 2:
+        raise _parameter_error(
+            "heights", f"an array of shape {grid.shape}", "a 2-D grid of at least 2×2 heights"
+        )
+    return tuple(tuple(float(h) for h in row) for row in grid)
+
+
+@dataclass(frozen=True, kw_only=True)
+class HeightField(_Surface):
+    """A scanned part (SPEC §15): the surface n·X = x_e + h(u, v) over a grid of heights
+    centred on the tip's start X0, (u, v) the coordinates of X − X0 along t̂ and
+    b̂ = n × t̂, x_e = n·X0 + gap.
+
+    h is bicubic (C¹) between nodes, shifted so that h(0, 0) = 0, and continues beyond the
+    grid as the tangent plane at its edge. δ = (n·X − x_e − h)/√(1 + |∇h|²), the inward
+    normal N ∝ n − h_u t̂ − h_v b̂. Build one from a NumPy array (``heights=array``) or from
+    a file with :meth:`from_file`.
+
+    Example:
+        >>> import admit_rs as ar, numpy as np
+        >>> u = (np.arange(5) - 2) * 0.01
+        >>> hf = ar.HeightField(heights=np.add.outer(0.1 * u, 0 * u), spacing=(0.01, 0.01))
+        >>> len(hf.heights), len(hf.heights[0])
+        (5, 5)
+    """
+
+    heights: Heights = ((0.0, 0.0), (0.0, 0.0))
+    """Heights h[i][j] [m] at u_i = (i − (rows − 1)/2)·du, v_j = (j − (cols − 1)/2)·dv along n
+    (positive: further into the part); at least 2×2, shifted so that h(0, 0) = 0."""
+    spacing: tuple[float, float] = (0.01, 0.01)
+    """Grid spacing (du, dv) [m] along t̂ and b̂ = n × t̂."""
+    normal: Vector3 = (1.0, 0.0, 0.0)
+    """Normal n pointing into the part (any length; normalised): heights are measured along
+    it. Force is controlled along n, motion along t̂ = normalise(e_z − (e_z·n) n)."""
+
+    _kind: ClassVar[str] = "height_field"
+
+    def __post_init__(self) -> None:
+        self._set("heights", _heights(self.heights))
+        if _holds_bool(self.spacing):
+            raise TypeError("spacing must be 2 numbers, got a bool")
+        try:
+            spacing = tuple(float(d) for d in self.spacing)
+        except TypeError as e:
+            raise TypeError(f"spacing must be 2 numbers, got {shown(self.spacing)}") from e
+        if len(spacing) != 2:
+            raise TypeError(f"spacing must have 2 elements, got {len(spacing)}")
+        self._set("spacing", spacing)
+        super().__post_init__()
+
+    @classmethod
+    def from_file(cls, path: str | Path, **fields: Any) -> HeightField:
+        """A height field from a grid of heights [m] in a file: ``.npy`` (a 2-D array) or
+        ``.csv``/``.txt`` (rows of comma- or whitespace-separated numbers; ``#`` starts a
+        comment). ``fields`` are the other fields (``spacing``, ``normal``, ``friction``, …).
+
+        Example:
+            >>> import admit_rs as ar, numpy as np, tempfile, pathlib
+            >>> f = pathlib.Path(tempfile.mkdtemp()) / "scan.csv"
+            >>> np.savetxt(f, np.zeros((3, 4)), delimiter=",")
+            >>> hf = ar.HeightField.from_file(f, spacing=(0.002, 0.002))
+            >>> len(hf.heights), len(hf.heights[0])
+            (3, 4)
+        """
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"no height field file at {path}")
+        if path.suffix.lower() == ".npy":
+            grid = np.load(path, allow_pickle=False)
+        else:
+            text = path.read_text(encoding="utf-8")
+            delimiter = "," if "," in text else None
+            try:
+                grid = np.loadtxt(path, delimiter=delimiter, ndmin=2, comments="#")
+            except ValueError as e:
+                raise _parameter_error(
+                    "heights", f"the file {path.name}", f"rows of numbers ({e})"
+                ) from None
+        return cls(heights=grid, **fields)
+
+
+Surface: TypeAlias = Wall | Sphere | Cylinder | HeightField
+"""Any surface block: what ``Scenario.wall`` and ``Scenario.wall_estimate`` hold."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -987,8 +1172,8 @@ class GuardedApproach(_Block):
 
 _UNIONS: dict[str, tuple[type, ...]] = {
     "robot": (Robot, UrdfArm),
-    "wall": (Wall, type(None)),
-    "wall_estimate": (Wall, type(None)),
+    "wall": (Wall, Sphere, Cylinder, HeightField, type(None)),
+    "wall_estimate": (Wall, Sphere, Cylinder, HeightField, type(None)),
     "controller": (ComputedTorque, ModelFree, TimeDelayControl),
     "admittance": (AdmittanceFilter, ImpedanceReference, type(None)),
     "approach": (GuardedApproach, type(None)),
@@ -1013,9 +1198,10 @@ class Scenario(_Block):
 
     robot: Robot | UrdfArm = field(default_factory=Robot)
     """The arm (plant): the paper's three-link arm or a URDF arm."""
-    wall: Wall | None = field(default_factory=Wall)
-    """The environment; ``None``: free space."""
-    wall_estimate: Wall | None = None
+    wall: Surface | None = field(default_factory=Wall)
+    """The surface the tool touches (SPEC §15): Wall, Sphere, Cylinder or HeightField;
+    ``None``: free space."""
+    wall_estimate: Surface | None = None
     """The controller's belief about the surface (SPEC §15): force along its normal n̂,
     motion along its tangent, x̂_e its position + position_error; its stiffness and damping
     are not read. ``None``: the true wall offset by its position_error."""
@@ -1153,7 +1339,15 @@ def describe(scenario: Scenario) -> str:
     if wall is None:
         parts.append("free space")
     else:
+        if isinstance(wall, Sphere | Cylinder):
+            inside = " (inside)" if wall.inside else ""
+            parts.append(f"{type(wall).__name__.lower()} R={_short(wall.radius)} m{inside}")
+        elif isinstance(wall, HeightField):
+            rows, cols = len(wall.heights), len(wall.heights[0])
+            parts.append(f"height field {rows}×{cols}")
         parts.append(f"k_e={_short(wall.stiffness)}")
+        if wall.friction:
+            parts.append(f"μ={_short(wall.friction)}")
         if wall.tilted:
             n, _ = wall.directions()
             parts.append("normal (" + ", ".join(_short(round(v, 4)) for v in n) + ")")
@@ -1243,6 +1437,9 @@ _KINDS: dict[str, type[_Block]] = {
     "sine": Sine,
     "sampled": Sampled,
     "urdf": UrdfArm,
+    "sphere": Sphere,
+    "cylinder": Cylinder,
+    "height_field": HeightField,
 }
 _SLOTS: dict[str, tuple[type[_Block], ...]] = {
     **{k: tuple(t for t in v if issubclass(t, _Block)) for k, v in _UNIONS.items()},

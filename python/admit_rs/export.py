@@ -174,7 +174,9 @@ def ros2_admittance(
 
     Warns:
         ExportWarning: the wall normal is not +x; the file's comment gives the rotation of
-            the control frame (x along n̂, z along t̂) to set as ``control.frame.id``.
+            the control frame (x along n̂, z along t̂) to set as ``control.frame.id``. Also
+            when the surface is not a plane (Sphere, Cylinder, HeightField): the file's
+            fixed frame is the surface's normal at the start only.
     """
     if not isinstance(scenario, Scenario):
         kind = type(scenario).__name__
@@ -281,6 +283,19 @@ def ros2_admittance(
             "Rotation matrix (rows; columns are the control frame's x, y, z in the base"
             f" frame): {'; '.join(fmt(row) for row in rot)}.",
         ]
+    wall = scenario.wall
+    if wall is not None and not wall.planar:
+        message = (
+            f"the surface is a {type(wall).__name__}, not a plane: admittance_controller"
+            " keeps one fixed control frame, so the force axis above is the surface's normal"
+            " at the start only; on a curved part the normal turns under the tool and this"
+            " file does not follow it"
+        )
+        warnings.warn(f"ros2_admittance: {message}", ExportWarning, stacklevel=2)
+        notes.append("WARNING: " + message[0].upper() + message[1:] + ".")
+    if wall is not None and wall.friction:
+        notes.append(f"Not exported: the surface's friction (mu = {wall.friction:g}) is part of"
+                     " the simulated world, not of the controller.")  # fmt: skip
     notes.append("Not exported (see docs/export.md): f_d, the inner loop, the period"
                  f" T = {scenario.period:g} s (the controller manager's update_rate).")  # fmt: skip
     lines = [line for note in notes for line in _wrap(note)]

@@ -103,6 +103,11 @@ METRICS: Mapping[str, Metric] = MappingProxyType({
                "window this is std(f) / |final f_d|; measuring the spread about f_d keeps a run "
                "that tracks a sine from counting as oscillating. NaN when the window is empty "
                "(runs ≤ 1 s) or f_d ≡ 0 there", _LAST, "–"),
+        Metric("tangential_force_mean", "N", "mean |F_t|, the Coulomb friction force along "
+               "the surface (Wall.friction and the other surfaces' friction, SPEC §15): "
+               "about μ f_d while the tool slides faster than stiction_velocity, 0 on a "
+               "frictionless surface", "last 2 s (no earlier than first contact + 1 s for a run "
+               "that starts apart), as force_ss_error", "–"),
         Metric("bounces", "count", "number of times contact is lost (f > 0 followed by f = "
                "0) after first contact. Tells bouncing (many) from ripple in contact (0)",
                _WHOLE, "–"),

@@ -89,6 +89,10 @@ def plot_result(result: Run, title: str | None = None) -> Figure:
         else:
             ax_f.plot(t, f, color="C0", label="f", zorder=2)
         ax_f.plot(t, tr["f_d"].to_numpy(), "--", color="k", lw=1, label="f_d", zorder=4)
+        if "f_t" in tr.columns and np.any(tr["f_t"].to_numpy() > 0):
+            # Friction along the surface (SPEC §15), beside the normal force.
+            ax_f.plot(t, tr["f_t"].to_numpy(), color="C4", lw=1, label="f_t (friction)",
+                      zorder=3)  # fmt: skip
         ax_f.set_ylabel("force along n [N]" if tilted else "force [N]")
         ax_f.set_title("contact force")
         ax_a.plot(t, 1e3 * tr["x_a"].to_numpy(), color="C2")
@@ -109,7 +113,7 @@ def plot_result(result: Run, title: str | None = None) -> Figure:
     ax_x.set_title(f"position along the wall normal n = {_vector(n)}" if tilted
                    else "x position" + (" (along the wall normal)" if sc.wall else ""))  # fmt: skip
     if sc.wall is not None:
-        _draw_wall(ax_x, sc, along_n, tr["penetration"].to_numpy())
+        _draw_wall(ax_x, sc, t, along_n, tr["penetration"].to_numpy())
     ax_z.plot(t, along_t, label=t_name)
     ax_z.plot(t, along_t_ref, "--", color="k", lw=1, label=f"{t_name} reference")
     ax_z.set_ylabel(f"{t_name} [m]")
@@ -148,12 +152,20 @@ def _vector(v: npt.NDArray[np.float64]) -> str:
 
 
 def _draw_wall(
-    ax: Axes, scenario: Scenario, along_n: npt.NDArray[np.float64], penetration: Any
+    ax: Axes,
+    scenario: Scenario,
+    t: npt.NDArray[np.float64],
+    along_n: npt.NDArray[np.float64],
+    penetration: Any,
 ) -> None:
     """The wall as a shaded band beyond its surface n·X = x_e (from the trace: x_e =
     n·X − δ), and the controller's estimate x̂_e when it differs."""
     finite = np.isfinite(penetration) & np.isfinite(along_n)
     if not finite.any():
+        return
+    wall = scenario.wall
+    if wall is not None and not wall.planar:
+        _draw_curved_surface(ax, t, along_n, penetration)
         return
     k = int(np.argmax(finite))
     x_e = float(along_n[k] - penetration[k])
@@ -167,6 +179,23 @@ def _draw_wall(
     ax.axhline(x_e, color="0.25", lw=1.2, zorder=2)
     if estimate != x_e:
         ax.axhline(estimate, color="0.25", lw=1, ls=":", zorder=2, label="estimated wall x̂_e")
+    ax.set_ylim(lo, hi)
+
+
+def _draw_curved_surface(
+    ax: Axes, t: npt.NDArray[np.float64], along_n: npt.NDArray[np.float64], penetration: Any
+) -> None:
+    """A curved surface's section under the tip: n·X − δ at each sample, where the surface
+    lies along n at the tip's place (to first order in the normal's tilt), shaded beyond."""
+    surface = along_n - np.asarray(penetration, dtype=float)
+    lo, hi = ax.get_ylim()
+    finite = surface[np.isfinite(surface)]
+    lo, hi = min(lo, float(finite.min())), max(hi, float(finite.max()))
+    pad = 0.08 * (hi - lo if hi > lo else 1e-3)
+    lo, hi = lo - pad, hi + pad
+    ax.fill_between(t, surface, hi, facecolor="0.55", alpha=0.25, hatch="///", edgecolor="0.4",
+                    lw=0, zorder=1, label="surface under the tip (n·X − δ)")  # fmt: skip
+    ax.plot(t, surface, color="0.25", lw=1.2, zorder=2)
     ax.set_ylim(lo, hi)
 
 

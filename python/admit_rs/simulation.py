@@ -30,8 +30,10 @@ class Result:
     (a ``KeyError``) naming the closest metric. ``trace`` columns: t, q1..q3, qd1..qd3,
     x, y, z, x_ref, y_ref, z_ref, f (true force along the wall normal), f_measured (what
     the sensor reported), f_d, penetration (n·X − x_e; NaN without a wall), x_a, xa_dot,
-    tau1..tau3 (applied torque), tau_cmd1..tau_cmd3 (commanded torque). SI units: s, rad,
-    rad/s, m, N, N·m, m/s.
+    fx, fy, fz (the true force on the surface, f N − F_t, world frame), f_t (the friction
+    force's magnitude |F_t|), slip_speed (|v_t|, the tip's speed within the contact's
+    tangent plane; NaN without a surface), tau1..tau3 (applied torque), tau_cmd1..tau_cmd3
+    (commanded torque). SI units: s, rad, rad/s, m, N, N·m, m/s.
     """
 
     scenario: Scenario

@@ -16,24 +16,37 @@ pub trait TipMotion<T: Real> {
     /// (n·X, n·Ẋ) for a unit direction n: the tip's position and velocity along n. n·Ẋ is
     /// computed only when `rate` (a damped contact reads it); otherwise it is 0.
     fn along(&self, n: &Vector3<T>, rate: bool) -> (T, T);
+
+    /// The tip position X (a curved surface's distance, a height field's coordinates).
+    fn position(&self) -> Vector3<T>;
+
+    /// The tip velocity Ẋ = J q̇ (friction's slip, a curved surface's δ̇).
+    fn velocity(&self) -> Vector3<T>;
 }
 
-/// The contact at the tip: the surface pushes the tip with F = −f n (its normal force f ≥ 0
-/// along the unit normal n pointing into the surface). The penetration δ is positive
-/// inside the surface. A tangential (friction) part and a torque join F here when a surface
-/// produces them; an arm applies [`Contact::force`] through Jᵀ.
+/// The contact at the tip: the surface pushes the tip with F = −f n + F_t (its normal force
+/// f ≥ 0 along the unit normal n pointing into the surface, and Coulomb friction F_t in the
+/// tangent plane). The penetration δ is positive inside the surface. A torque joins F here
+/// when a surface produces one; an arm applies [`Contact::force`] through Jᵀ.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Contact<T: Real> {
     pub normal: Vector3<T>,
     pub normal_force: T,
     pub penetration: T,
+    /// F_t [N], world frame; `None` for a frictionless surface (never computed, so a
+    /// frictionless run's bits do not depend on friction's code).
+    pub friction: Option<Vector3<T>>,
 }
 
 impl<T: Real> Contact<T> {
-    /// F = −f n [N], world frame.
+    /// F = −f n + F_t [N], world frame.
     #[inline(always)]
     pub fn force(&self) -> Vector3<T> {
-        self.normal * -self.normal_force
+        let normal = self.normal * -self.normal_force;
+        match &self.friction {
+            Some(ft) => normal + ft,
+            None => normal,
+        }
     }
 }
 
@@ -54,6 +67,7 @@ impl<T: Real> Surface<T> for FreeSpace {
             normal: Vector3::x().map(T::splat),
             normal_force: T::zero(),
             penetration: T::splat(f64::NAN),
+            friction: None,
         }
     }
 }
@@ -76,5 +90,15 @@ impl<T: Real, const N: usize> TipMotion<T> for KnownTip<'_, T, N> {
             T::zero()
         };
         (n.dot(self.position), rate)
+    }
+
+    #[inline(always)]
+    fn position(&self) -> Vector3<T> {
+        *self.position
+    }
+
+    #[inline(always)]
+    fn velocity(&self) -> Vector3<T> {
+        self.jacobian * self.qd
     }
 }

@@ -10,6 +10,7 @@ pub mod analysis;
 pub mod contact;
 pub mod control;
 pub mod error;
+pub mod jet;
 pub mod robot;
 pub mod scalar;
 pub mod schema;

@@ -139,7 +139,7 @@ fn starts_apart(config: &ScenarioConfig) -> bool {
     config
         .wall
         .as_ref()
-        .is_some_and(|w| w.gap > 0.0 || w.position.is_some())
+        .is_some_and(|w| w.gap() > 0.0 || w.plane().is_some_and(|p| p.position.is_some()))
 }
 
 /// The map Φ of one built simulation.
@@ -673,10 +673,13 @@ mod tests {
     fn bad_scenarios_are_clear_errors() {
         // The wall out of reach.
         let far = ScenarioConfig {
-            wall: Some(WallParams {
-                position: Some(2.0),
-                ..Default::default()
-            }),
+            wall: Some(
+                WallParams {
+                    position: Some(2.0),
+                    ..Default::default()
+                }
+                .into(),
+            ),
             ..fig14()
         };
         let e = lin(&far).unwrap_err();
@@ -684,10 +687,13 @@ mod tests {
         // k_a = 0: x_a is a free integrator.
         // (pressing through a wall estimate 1 mm deep, so that there is contact).
         let e = lin(&ScenarioConfig {
-            wall: Some(WallParams {
-                position_error: 1e-3,
-                ..Default::default()
-            }),
+            wall: Some(
+                WallParams {
+                    position_error: 1e-3,
+                    ..Default::default()
+                }
+                .into(),
+            ),
             ..ScenarioConfig::ideal_inner_loop(AdmittanceParams::scheme2(800.0, 0.0))
         })
         .unwrap_err();
@@ -708,10 +714,13 @@ mod tests {
     fn a_gap_and_an_approach_linearise_the_contact_phase() {
         use crate::control::approach::ApproachParams;
         let apart = ScenarioConfig {
-            wall: Some(WallParams {
-                gap: 0.003,
-                ..WallParams::default()
-            }),
+            wall: Some(
+                WallParams {
+                    gap: 0.003,
+                    ..WallParams::default()
+                }
+                .into(),
+            ),
             ..fig14()
         };
         let l = lin(&apart).unwrap();

@@ -415,6 +415,7 @@ where
 mod tests {
     use super::*;
     use crate::sim::simulation::ThreeLinkSimulation;
+    use crate::world::surface::SurfaceParams;
 
     /// SPEC §7's definitions on a known response: 1 − e^{−k/τ} with one overshoot.
     #[test]
@@ -484,7 +485,7 @@ mod tests {
     fn batch_equals_single_and_keeps_errors() {
         let good = ScenarioConfig::default();
         let mut far = ScenarioConfig::default();
-        if let Some(w) = &mut far.wall {
+        if let Some(w) = far.wall.as_mut().and_then(SurfaceParams::plane_mut) {
             w.position = Some(3.0);
         }
         let one = predict(&good, ThreeLinkSimulation::new).unwrap();

@@ -225,11 +225,16 @@ impl<T: Real> TaskFrame<T> {
     #[inline(always)]
     pub fn approach_reference(&self, p: &Sample<T>, s: &Sample<T>) -> Desired<T> {
         // The force reference with x̂_e + x_a = p: one formula for both phases.
-        let offset = Sample {
+        self.force_reference(&self.approach_offset(p), s)
+    }
+
+    /// The x_a that puts the force reference at coordinate p along n̂: p − x̂_e.
+    #[inline(always)]
+    pub fn approach_offset(&self, p: &Sample<T>) -> Sample<T> {
+        Sample {
             value: p.value - self.wall_estimate,
             ..*p
-        };
-        self.force_reference(&offset, s)
+        }
     }
 }
 

@@ -4,6 +4,7 @@
 //! pure functions (`laws`) and its state machine (`controller`).
 
 pub mod approach;
+pub mod belief;
 pub mod controller;
 pub mod filter;
 pub mod laws;

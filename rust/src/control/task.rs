@@ -75,16 +75,21 @@ impl TaskFrame<F64x4> {
     }
 }
 
+/// The motion direction t̂ = normalise(e_z − (e_z·n) n) for a unit normal n (e_x if n ∥ e_z).
+pub fn motion_direction(normal: &TaskVector) -> TaskVector {
+    let ez = TaskVector::z();
+    let t = ez - normal * ez.dot(normal);
+    if t.norm() < 1e-9 {
+        TaskVector::x()
+    } else {
+        t / t.norm()
+    }
+}
+
 impl TaskFrame {
     /// `normal` must be a unit vector.
     pub fn new(normal: TaskVector, start: TaskVector, wall_estimate: f64) -> Self {
-        let ez = TaskVector::z();
-        let t = ez - normal * ez.dot(&normal);
-        let tangent = if t.norm() < 1e-9 {
-            TaskVector::x()
-        } else {
-            t / t.norm()
-        };
+        let tangent = motion_direction(&normal);
         Self {
             normal,
             tangent,

@@ -46,6 +46,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(params::schema, m)?)?;
     m.add_function(wrap_pyfunction!(params::check_block, m)?)?;
     m.add_function(wrap_pyfunction!(params::validate, m)?)?;
+    m.add_function(wrap_pyfunction!(params::surface_directions, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate_batch, m)?)?;
     m.add_function(wrap_pyfunction!(robot::robot_terms, m)?)?;

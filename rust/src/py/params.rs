@@ -21,8 +21,8 @@ use crate::schema::parse_parameter_message;
 use crate::sim::scenario::RobotConfig;
 use crate::sim::simulation::ScenarioConfig;
 use crate::world::actuator::ActuatorParams;
-use crate::world::environment::WallParams;
 use crate::world::sensor::SensorParams;
+use crate::world::surface::SurfaceParams;
 
 fn join(prefix: &str, field: &str) -> String {
     match (prefix.is_empty(), field.is_empty()) {
@@ -193,8 +193,45 @@ fn decode<T: DeserializeOwned>(obj: &Bound<'_, PyAny>, path: &str) -> PyResult<T
     serde_path_to_error::deserialize(&mut de).map_err(|e| decode_error(obj.py(), path, e))
 }
 
+/// A surface block by its `kind`, decoded as its own struct so that an error names the
+/// field inside it (below serde's tagged enum the path stops at the block).
+fn decode_surface(obj: &Bound<'_, PyAny>, path: &str) -> PyResult<SurfaceParams> {
+    use pyo3::types::PyDict;
+    let Ok(dict) = obj.cast::<PyDict>() else {
+        return decode(obj, path);
+    };
+    let kind: String = match dict.get_item("kind")? {
+        Some(k) => match k.extract() {
+            Ok(k) => k,
+            Err(_) => return decode(obj, path),
+        },
+        None => "plane".to_owned(),
+    };
+    let body = dict.copy()?;
+    if body.contains("kind")? {
+        body.del_item("kind")?;
+    }
+    Ok(match kind.as_str() {
+        "plane" => SurfaceParams::Plane(decode(&body, path)?),
+        "sphere" => SurfaceParams::Sphere(decode(&body, path)?),
+        "cylinder" => SurfaceParams::Cylinder(decode(&body, path)?),
+        "height_field" => SurfaceParams::HeightField(decode(&body, path)?),
+        _ => return decode(obj, path),
+    })
+}
+
 /// A whole scenario dict, decoded and validated (cross-field checks included).
 pub(super) fn scenario_from(obj: &Bound<'_, PyAny>) -> PyResult<ScenarioConfig> {
+    // The surfaces first, by kind: their errors then name the field inside them.
+    if let Ok(dict) = obj.cast::<pyo3::types::PyDict>() {
+        for key in ["wall", "wall_estimate"] {
+            if let Some(block) = dict.get_item(key)? {
+                if !block.is_none() {
+                    decode_surface(&block, key)?;
+                }
+            }
+        }
+    }
     let config: ScenarioConfig = decode(obj, "")?;
     config.validate().map_err(|e| to_py_err(obj.py(), e))?;
     Ok(config)
@@ -225,7 +262,7 @@ pub(super) fn check_block(kind: &str, params: &Bound<'_, PyAny>) -> PyResult<()>
     let py = params.py();
     let checked = match kind {
         "robot" => decode::<RobotConfig>(params, "")?.validate().map(|_| ()),
-        "wall" => decode::<WallParams>(params, "")?.validate(),
+        "wall" => decode_surface(params, "")?.validate(),
         "controller" => decode::<ControllerParams>(params, "")?.validate(),
         // The discretisation is checked with the scenario's period, in `validate`.
         "admittance" => match decode::<ForceControlParams>(params, "")? {
@@ -251,6 +288,21 @@ pub(super) fn check_block(kind: &str, params: &Bound<'_, PyAny>) -> PyResult<()>
         }
     };
     checked.map_err(|e| to_py_err(py, e))
+}
+
+/// (n, t̂) of a surface block: the inward normal at the surface's point nearest the tip's
+/// start, and the motion direction for it (SPEC §10, §15) — the task frame the controller
+/// builds when this surface is its belief.
+#[pyfunction]
+pub(super) fn surface_directions(params: &Bound<'_, PyAny>) -> PyResult<([f64; 3], [f64; 3])> {
+    let py = params.py();
+    let p = decode::<SurfaceParams>(params, "")?;
+    p.validate().map_err(|e| to_py_err(py, e))?;
+    let start = crate::robot::TaskVector::zeros();
+    let env = crate::world::surface::Environment::new(&p, &start).map_err(|e| to_py_err(py, e))?;
+    let n = env.normal();
+    let t = crate::control::task::motion_direction(&n);
+    Ok((n.into(), t.into()))
 }
 
 /// Validates a whole scenario dict (cross-field checks included).

@@ -425,6 +425,25 @@ impl<T: Real> TipMotion<T> for ClosedTip<'_, T> {
         };
         (along, rate)
     }
+
+    #[inline(always)]
+    fn position(&self) -> Vector3<T> {
+        let (r, h) = self.radius_height();
+        let t = &self.trig;
+        Vector3::new(r * t.c1, r * t.s1, self.form.l1 + h)
+    }
+
+    /// Ẋ = J q̇, row by row as (Jᵀ e_i)·q̇.
+    #[inline(always)]
+    fn velocity(&self) -> Vector3<T> {
+        let (zero, one) = (T::zero(), T::one());
+        let row = |e: Vector3<T>| self.jacobian_transpose(&e).dot(self.qd);
+        Vector3::new(
+            row(Vector3::new(one, zero, zero)),
+            row(Vector3::new(zero, one, zero)),
+            row(Vector3::new(zero, zero, one)),
+        )
+    }
 }
 
 impl<T: Real> ClosedForm<T> {
@@ -604,8 +623,11 @@ impl<T: Real> ArmModel<T, 3> for ClosedForm<T> {
             qd,
         };
         let contact = surface.contact(&tip);
-        // The surface pushes the tip along −n.
-        let contact_torque = tip.jacobian_transpose(&contact.normal) * -contact.normal_force;
+        // The surface pushes the tip along −n (and friction along the surface).
+        let mut contact_torque = tip.jacobian_transpose(&contact.normal) * -contact.normal_force;
+        if let Some(ft) = &contact.friction {
+            contact_torque += tip.jacobian_transpose(ft);
+        }
         let d = self.dynamics(&t, qd);
         // q̈ = D⁻¹ (rest − τ_c), with τ_c the Coulomb friction and rest everything else. The
         // longest dependency chain of an RK4 stage runs q̇ → exp → τ_c → q̈ → next stage's q̇,
@@ -899,6 +921,7 @@ mod tests {
             fn contact(&self, tip: &impl TipMotion<f64>) -> Contact<f64> {
                 let (s, rate) = tip.along(&self.0, self.1);
                 Contact {
+                    friction: None,
                     normal: self.0,
                     normal_force: 1000.0 * s + 20.0 * rate,
                     penetration: s,

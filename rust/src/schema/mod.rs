@@ -26,6 +26,8 @@ use crate::sim::criteria::CriteriaParams;
 use crate::sim::scenario::ScenarioConfig;
 use crate::world::actuator::ActuatorParams;
 use crate::world::environment::WallParams;
+use crate::world::height_field::HeightFieldParams;
+use crate::world::round::{CylinderParams, SphereParams};
 use crate::world::sensor::SensorParams;
 
 /// The field an enum of the blocks is held in, named by its first variant: serde's
@@ -59,6 +61,18 @@ fn schema_value<T: JsonSchema>() -> Value {
     schemars::schema_for!(T).to_value()
 }
 
+/// A tagged block's schema: its struct's, with the `kind` it is tagged by.
+fn tagged_schema<T: JsonSchema>(kind: &str) -> Value {
+    let mut v = schema_value::<T>();
+    if let Some(props) = v.get_mut("properties").and_then(Value::as_object_mut) {
+        props.insert(
+            "kind".into(),
+            serde_json::json!({"type": "string", "const": kind}),
+        );
+    }
+    v
+}
+
 /// The variants of a `kind`-tagged enum's schema, by tag.
 fn variants(schema: &Schema) -> Map<String, Value> {
     let mut out = Map::new();
@@ -82,7 +96,7 @@ fn variants(schema: &Schema) -> Map<String, Value> {
 
 /// Every block's JSON schema (draft 2020-12: properties with `description` from the doc
 /// comments, `type`, `default` where the block has a `Default`), keyed as the Python blocks
-/// are tagged: `three_link`, `urdf`, `wall`, `sensor`, `actuator`, `model`,
+/// are tagged: `three_link`, `urdf`, `wall`, `sphere`, `cylinder`, `height_field`, `sensor`, `actuator`, `model`,
 /// `computed_torque`, `model_free`, `time_delay`, `admittance`, `impedance`, `step`, `sine`,
 /// `sampled`, `criteria`, `approach` and `scenario`.
 pub fn schemas() -> Value {
@@ -90,6 +104,15 @@ pub fn schemas() -> Value {
     out.insert("three_link".into(), schema_value::<RobotParams>());
     out.insert("urdf".into(), schema_value::<UrdfArmParams>());
     out.insert("wall".into(), schema_value::<WallParams>());
+    out.insert("sphere".into(), tagged_schema::<SphereParams>("sphere"));
+    out.insert(
+        "cylinder".into(),
+        tagged_schema::<CylinderParams>("cylinder"),
+    );
+    out.insert(
+        "height_field".into(),
+        tagged_schema::<HeightFieldParams>("height_field"),
+    );
     out.insert("sensor".into(), schema_value::<SensorParams>());
     out.insert("actuator".into(), schema_value::<ActuatorParams>());
     out.insert("model".into(), schema_value::<ModelError>());
@@ -120,6 +143,12 @@ pub fn defaults() -> Value {
     out.insert("three_link".into(), to_value(&RobotParams::default()));
     out.insert("urdf".into(), to_value(&UrdfArmParams::default()));
     out.insert("wall".into(), to_value(&WallParams::default()));
+    out.insert("sphere".into(), to_value(&SphereParams::default()));
+    out.insert("cylinder".into(), to_value(&CylinderParams::default()));
+    out.insert(
+        "height_field".into(),
+        to_value(&HeightFieldParams::default()),
+    );
     out.insert("sensor".into(), to_value(&SensorParams::default()));
     out.insert("actuator".into(), to_value(&ActuatorParams::default()));
     out.insert("model".into(), to_value(&ModelError::default()));

@@ -62,6 +62,8 @@ pub struct Metrics {
     /// std(f − f_d) / mean|f_d| over the last 2 s (t ≥ 1 s); for a constant f_d in that
     /// window this is std(f) / |final f_d|. NaN when the window is empty or f_d ≡ 0 there.
     pub force_oscillation: f64,
+    /// mean |F_t|, the friction force along the surface, over the last 2 s (t ≥ 1 s) [N].
+    pub tangential_force_mean: f64,
     /// Fraction of samples with any joint's applied torque at its limit (0 without limits).
     pub torque_saturation: f64,
     /// Largest excursion of any joint beyond its URDF position limit [rad or m]; 0 if none
@@ -90,7 +92,7 @@ pub struct Metrics {
 }
 
 /// Metric names in the order of `Metrics::values`.
-pub const METRIC_NAMES: [&str; 21] = [
+pub const METRIC_NAMES: [&str; 22] = [
     "force_ss_error",
     "force_rms_error",
     "force_peak",
@@ -106,6 +108,7 @@ pub const METRIC_NAMES: [&str; 21] = [
     "path_rms_error",
     "contact_loss",
     "force_oscillation",
+    "tangential_force_mean",
     "bounces",
     "first_contact_time",
     "impact_peak",
@@ -132,6 +135,7 @@ impl Metrics {
             self.path_rms_error,
             self.contact_loss,
             self.force_oscillation,
+            self.tangential_force_mean,
             self.bounces,
             self.first_contact_time,
             self.impact_peak,
@@ -314,6 +318,8 @@ pub struct OnlineMetrics {
     along_n: SumOfSquares,
     along_t: SumOfSquares,
     steady_error_sum: f64,
+    /// Σ |F_t| over the steady-state window.
+    steady_friction_sum: f64,
     late_error: SumOfSquares,
     contact_lost: usize,
     spread: Spread,
@@ -378,6 +384,7 @@ impl OnlineMetrics {
             along_n: SumOfSquares::ZERO,
             along_t: SumOfSquares::ZERO,
             steady_error_sum: 0.0,
+            steady_friction_sum: 0.0,
             late_error: SumOfSquares::ZERO,
             contact_lost: 0,
             spread: Spread::ZERO,
@@ -412,6 +419,7 @@ impl OnlineMetrics {
         self.along_n = SumOfSquares::ZERO;
         self.along_t = SumOfSquares::ZERO;
         self.steady_error_sum = 0.0;
+        self.steady_friction_sum = 0.0;
         self.late_error = SumOfSquares::ZERO;
         self.contact_lost = 0;
         self.spread = Spread::ZERO;
@@ -479,6 +487,7 @@ impl OnlineMetrics {
         }
         if k >= self.steady_start {
             self.steady_error_sum += f_d - f;
+            self.steady_friction_sum += row.f_t;
         }
         if k >= self.late_start {
             self.late_error.push(f_d - f);
@@ -517,6 +526,7 @@ impl OnlineMetrics {
         self.late_start = c + self.transient_samples;
         self.steady_start = self.fixed_steady_start.max(self.late_start);
         self.window_start = self.steady_start;
+        self.steady_friction_sum = 0.0;
         self.steady_error_sum = 0.0;
         self.late_error = SumOfSquares::ZERO;
         self.contact_lost = 0;
@@ -562,6 +572,9 @@ impl OnlineMetrics {
                 penetration: trace.penetration[i],
                 x_a: trace.x_a[i],
                 xa_dot: trace.xa_dot[i],
+                surface_force: [trace.fx[i], trace.fy[i], trace.fz[i]],
+                f_t: trace.f_t[i],
+                slip_speed: trace.slip_speed[i],
                 tau: &tau,
                 tau_cmd: &tau_cmd,
             });
@@ -595,6 +608,7 @@ impl OnlineMetrics {
             x_rms_error: nan,
             contact_loss: nan,
             force_oscillation: nan,
+            tangential_force_mean: nan,
             torque_saturation: match (&self.torque_limit, len) {
                 (None, _) => 0.0,
                 (Some(_), 0) => nan,
@@ -642,6 +656,7 @@ impl OnlineMetrics {
         };
         let steady = len.saturating_sub(self.steady_start.min(len));
         m.force_ss_error = self.steady_error_sum / steady as f64;
+        m.tangential_force_mean = self.steady_friction_sum / steady as f64;
         m.force_rms_error = self.late_error.rms();
         m.contact_loss = if self.late_start < len {
             self.contact_lost as f64 / (len - self.late_start) as f64
@@ -729,6 +744,9 @@ mod tests {
                 penetration: if k == 0 { delta0 } else { 0.0 },
                 x_a: 0.0,
                 xa_dot: 0.0,
+                surface_force: [0.0; 3],
+                f_t: 0.0,
+                slip_speed: 0.0,
                 tau: &[0.0; 3],
                 tau_cmd: &[0.0; 3],
             });
@@ -963,6 +981,9 @@ mod tests {
                 penetration: 0.0,
                 x_a: 0.0,
                 xa_dot: 0.0,
+                surface_force: [0.0; 3],
+                f_t: 0.0,
+                slip_speed: 0.0,
                 tau: &tau,
                 tau_cmd: &tau,
             });

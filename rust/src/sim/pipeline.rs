@@ -6,10 +6,11 @@
 //! plant state and kinematics, each run's noise draw and references at its own t) and record
 //! each run's sample; no stage or law is written twice.
 
-use nalgebra::SVector;
+use nalgebra::{SVector, Vector3};
 
-use crate::contact::{KnownTip, Surface};
+use crate::contact::{Contact, KnownTip, Surface, TipMotion};
 use crate::control::approach::Approach;
+use crate::control::belief::Belief;
 use crate::control::controller::{not_finite, Controller, ControllerKey, Measured};
 use crate::control::filter::{ForceControl, ForceControlKey};
 use crate::control::reference::Sample;
@@ -17,6 +18,7 @@ use crate::control::task::{Desired, TaskFrame};
 use crate::robot::{ArmModel, Kinematics, Orientation};
 use crate::scalar::{F64x4, Real, LANES};
 use crate::world::actuator::Actuator;
+use crate::world::contact_law::tangential;
 use crate::world::sensor::ForceSensor;
 use crate::world::surface::Environment;
 
@@ -29,6 +31,8 @@ pub struct Pipeline<T: Real, M, const N: usize> {
     pub approach: Option<Approach<T>>,
     pub force_control: Option<ForceControl<T>>,
     pub frame: TaskFrame<T>,
+    /// A curved estimate of the surface (SPEC §15); `None`: the frame's plane.
+    pub belief: Option<Belief>,
     pub controller: Controller<T, M, N>,
     pub actuator: Actuator<N, T>,
 }
@@ -45,6 +49,8 @@ pub struct StageKey {
     pub force_control: Option<ForceControlKey>,
     /// Whether a guarded approach precedes force control.
     pub approach: bool,
+    /// Whether the controller believes a curved surface.
+    pub curved: bool,
     pub controller: ControllerKey,
 }
 
@@ -71,6 +77,11 @@ pub struct Outputs<T: Real, const N: usize> {
     /// The true contact force along n and the penetration (NaN without a wall).
     pub force: T,
     pub penetration: T,
+    /// The true force on the surface, f N − F_t (world frame), |F_t| and the slip speed
+    /// |v_t| (NaN in free space).
+    pub surface_force: Vector3<T>,
+    pub f_t: T,
+    pub slip_speed: T,
     pub measured: T,
     /// The outer loop's x_a (zero for position control) and the task reference.
     pub x_a: Sample<T>,
@@ -99,13 +110,18 @@ impl<T: Real, M: ArmModel<T, N>, const N: usize> Pipeline<T, M, N> {
         };
         let contact = input.environment.contact(&tip);
         let (force, penetration) = (contact.normal_force, contact.penetration);
-        // 3. force sensor
-        // (the component along n̂; × 1 exactly unless the estimated normal is tilted)
-        let measured = self.sensor.read(
-            input.first,
-            force * self.frame.force_projection,
-            input.noise,
-        );
+        let (surface_force, f_t, slip_speed) = surface_record(&contact, &tip, input.environment);
+        // 3. force sensor: the component along n̂ (for a plane × 1 exactly unless the
+        // estimated normal is tilted; for a curved estimate n̂ at the tip)
+        let (normal, along) = match &self.belief {
+            Some(b) => {
+                let n = b.normal_at(&kin.position);
+                let along = surface_force.dot(&n);
+                (n, along)
+            }
+            None => (self.frame.normal, force * self.frame.force_projection),
+        };
+        let measured = self.sensor.read(input.first, along, input.noise);
         // 4.–5. force control, fed by the measured force; then the task reference
         let s = &input.motion_reference;
         let (x_a, desired) = match (&mut self.force_control, &mut self.approach) {
@@ -119,12 +135,13 @@ impl<T: Real, M: ArmModel<T, N>, const N: usize> Pipeline<T, M, N> {
                     rate: g.normal.rate,
                     accel: T::zero(),
                 };
-                let guarded = self.frame.approach_reference(&g.normal, s);
+                let offset = self.frame.approach_offset(&g.normal);
+                let guarded = desired(self.belief.as_ref(), &self.frame, &offset, s);
                 if T::all(g.approaching) {
                     (held, guarded)
                 } else {
                     let x_a = fc.step(&input.force_reference, measured);
-                    let force = self.frame.force_reference(&x_a, s);
+                    let force = desired(self.belief.as_ref(), &self.frame, &x_a, s);
                     if T::none(g.approaching) {
                         (x_a, force)
                     } else {
@@ -137,7 +154,7 @@ impl<T: Real, M: ArmModel<T, N>, const N: usize> Pipeline<T, M, N> {
             }
             (Some(fc), _) => {
                 let x_a = fc.step(&input.force_reference, measured);
-                (x_a, self.frame.force_reference(&x_a, s))
+                (x_a, desired(self.belief.as_ref(), &self.frame, &x_a, s))
             }
             (None, _) => (Sample::default(), self.frame.motion_reference(s)),
         };
@@ -148,7 +165,7 @@ impl<T: Real, M: ArmModel<T, N>, const N: usize> Pipeline<T, M, N> {
             kinematics: kin,
             orientation: input.orientation,
             force: measured,
-            normal: &self.frame.normal,
+            normal: &normal,
         };
         let (command, singular) = self.controller.command(&measurement, at, &desired);
         let non_finite = not_finite(&command);
@@ -161,6 +178,9 @@ impl<T: Real, M: ArmModel<T, N>, const N: usize> Pipeline<T, M, N> {
         Outputs {
             force,
             penetration,
+            surface_force,
+            f_t,
+            slip_speed,
             measured,
             x_a,
             desired,
@@ -172,6 +192,41 @@ impl<T: Real, M: ArmModel<T, N>, const N: usize> Pipeline<T, M, N> {
     }
 }
 
+/// The force reference for filter output x_a and motion s: the frame's plane, or the
+/// curved belief's surface (SPEC §15).
+#[inline(always)]
+fn desired<T: Real>(
+    belief: Option<&Belief>,
+    frame: &TaskFrame<T>,
+    x_a: &Sample<T>,
+    s: &Sample<T>,
+) -> Desired<T> {
+    match belief {
+        Some(b) => b.reference(x_a, s),
+        None => frame.force_reference(x_a, s),
+    }
+}
+
+/// What the trace records of a contact (SPEC §15): the force on the surface f N − F_t, |F_t|
+/// and the tip's slip speed |v_t| in the contact's tangent plane (NaN in free space).
+#[inline(always)]
+fn surface_record<T: Real>(
+    contact: &Contact<T>,
+    tip: &impl TipMotion<T>,
+    environment: &Environment<T>,
+) -> (Vector3<T>, T, T) {
+    let on_surface = contact.normal * contact.normal_force;
+    let (on_surface, f_t) = match &contact.friction {
+        Some(ft) => (on_surface - ft, ft.norm()),
+        None => (on_surface, T::zero()),
+    };
+    let slip = match environment {
+        Environment::Free => T::splat(f64::NAN),
+        _ => tangential(&contact.normal, &tip.velocity()).norm(),
+    };
+    (on_surface, f_t, slip)
+}
+
 impl<T: Real, M, const N: usize> Pipeline<T, M, N> {
     /// The stages' structure (see [`StageKey`]).
     pub fn lane_key(&self) -> StageKey {
@@ -180,6 +235,7 @@ impl<T: Real, M, const N: usize> Pipeline<T, M, N> {
             actuator_delay: self.actuator.delay(),
             force_control: self.force_control.as_ref().map(ForceControl::lane_key),
             approach: self.approach.is_some(),
+            curved: self.belief.is_some(),
             controller: self.controller.lane_key(),
         }
     }
@@ -221,6 +277,10 @@ impl<M, const N: usize> Pipeline<F64x4, M, N> {
             approach,
             force_control,
             frame: TaskFrame::pack(p.map(|x| &x.frame)),
+            belief: p[0]
+                .belief
+                .as_ref()
+                .map(|_| Belief::pack(p.iter().filter_map(|x| x.belief.as_ref()))),
             controller: Controller::pack(p.map(|x| &x.controller), models)?,
             actuator: Actuator::pack(p.map(|x| &x.actuator)),
         })
@@ -247,6 +307,9 @@ impl<M, const N: usize> Pipeline<F64x4, M, N> {
         self.controller.put_lane(l, &p.controller, model);
         self.sensor.put_lane(l, &p.sensor);
         self.frame.put_lane(l, &p.frame);
+        if let (Some(b), Some(theirs)) = (&mut self.belief, &p.belief) {
+            b.put_lane(l, theirs);
+        }
         self.actuator.put_lane(l, &p.actuator);
         true
     }

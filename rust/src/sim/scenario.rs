@@ -9,8 +9,8 @@ use crate::robot::chain::UrdfArmParams;
 use crate::robot::RobotParams;
 use crate::sim::criteria::CriteriaParams;
 use crate::world::actuator::ActuatorParams;
-use crate::world::environment::WallParams;
 use crate::world::sensor::SensorParams;
+use crate::world::surface::SurfaceParams;
 
 /// Largest run accepted, in samples: a trace this long already takes ~1.5 GB.
 pub const MAX_SAMPLES: usize = 10_000_000;
@@ -62,10 +62,10 @@ impl RobotConfig {
 pub struct ScenarioConfig {
     /// The arm (plant): the paper's three-link arm or a URDF arm.
     pub robot: RobotConfig,
-    /// The environment; ``None``: free space.
-    pub wall: Option<WallParams>,
+    /// The surface the tool touches (SPEC §15): Wall, Sphere, Cylinder or HeightField; ``None``: free space.
+    pub wall: Option<SurfaceParams>,
     /// The controller's belief about the surface (SPEC §15): force along its normal n̂, motion along its tangent, x̂_e its position + position_error; its stiffness and damping are not read. ``None``: the true wall offset by its position_error.
-    pub wall_estimate: Option<WallParams>,
+    pub wall_estimate: Option<SurfaceParams>,
     /// The inner position loop: ComputedTorque, ModelFree or TimeDelayControl.
     pub controller: ControllerParams,
     /// The outer force loop; ``None`` is position-only control (x held at X0 x).
@@ -102,7 +102,7 @@ impl Default for ScenarioConfig {
     fn default() -> Self {
         Self {
             robot: RobotConfig::default(),
-            wall: Some(WallParams::default()),
+            wall: Some(SurfaceParams::default()),
             wall_estimate: None,
             controller: ControllerParams::TimeDelay(Default::default()),
             admittance: Some(ForceControlParams::Admittance(Default::default())),

@@ -9,6 +9,7 @@
 //! and [`Simulation::set_state`] read and write it as one flat labelled vector.
 
 use crate::control::approach::Approach;
+use crate::control::belief::{Belief, CurvedBelief};
 use crate::control::controller::{Controller, TaskAtStart};
 use crate::control::filter::ForceControl;
 use crate::control::params::check_inertia_for;
@@ -22,7 +23,6 @@ use crate::sim::plant::{Plant, PlantState};
 pub use crate::sim::scenario::{ScenarioConfig, MAX_SAMPLES, MAX_SUBSTEPS};
 use crate::sim::trace::{Row, Trace};
 use crate::world::actuator::Actuator;
-use crate::world::environment::Wall;
 use crate::world::sensor::ForceSensor;
 use crate::world::surface::Environment;
 
@@ -106,20 +106,38 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         let q0 = robot.initial_position();
         let start = robot.model().tip_position(&robot.model().configure(&q0));
         let environment = match &config.wall {
-            Some(w) => Environment::Plane(Wall::new(w, &start).map_err(|e| e.within("wall"))?),
+            Some(w) => Environment::new(w, &start).map_err(|e| e.within("wall"))?,
             None => Environment::Free,
         };
         let estimate = match &config.wall_estimate {
-            Some(e) => Some(Wall::new(e, &start).map_err(|e| e.within("wall_estimate"))?),
+            Some(e) => Some(Environment::new(e, &start).map_err(|e| e.within("wall_estimate"))?),
             None => None,
         };
-        let frame = match (environment.plane(), estimate) {
-            (Some(w), None) => TaskFrame::new(w.normal, start, w.estimated_position()),
-            (Some(w), Some(e)) => {
-                TaskFrame::estimated(e.normal, start, e.estimated_position(), &w.normal)
-            }
-            (None, Some(e)) => TaskFrame::new(e.normal, start, e.estimated_position()),
+        // The controller's belief (SPEC §15): the task frame is the estimated surface's
+        // plane at the point nearest the start — a plane itself, a curved surface's tangent
+        // plane there — and a curved estimate is followed as it curves (`Belief`).
+        let believed = |e: &Environment| e.tangent_plane().map(|(n, x, err)| (n, x + err));
+        let frame = match (
+            environment.tangent_plane(),
+            estimate.as_ref().and_then(believed),
+        ) {
+            (Some((n, x, err)), None) => TaskFrame::new(n, start, x + err),
+            (Some((n, _, _)), Some((e, x))) => TaskFrame::estimated(e, start, x, &n),
+            (None, Some((e, x))) => TaskFrame::new(e, start, x),
             (None, None) => TaskFrame::new(TaskVector::x(), start, start[0]),
+        };
+        let curved = match (&config.wall_estimate, &config.wall) {
+            (Some(p), _) => Some((p, "wall_estimate")),
+            (None, Some(p)) => Some((p, "wall")),
+            (None, None) => None,
+        };
+        let belief = match curved {
+            Some((p, place)) if p.plane().is_none() => Some(Belief::new(CurvedBelief {
+                surface: p.believed(&start).map_err(|e| e.within(place))?,
+                start,
+                tangent: frame.tangent,
+            })),
+            _ => None,
         };
         let samples = config.samples();
         let mut metrics = OnlineMetrics::new(config, &frame);
@@ -148,6 +166,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
                     .as_ref()
                     .map(|a| ForceControl::new(a, config.period)),
                 frame,
+                belief,
                 controller,
                 actuator: Actuator::new(&config.actuator, config.period),
             },
@@ -335,6 +354,9 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             penetration: out.penetration,
             x_a: out.x_a.value,
             xa_dot: out.x_a.rate,
+            surface_force: out.surface_force.into(),
+            f_t: out.f_t,
+            slip_speed: out.slip_speed,
             tau: out.tau.as_slice(),
             tau_cmd: out.command.as_slice(),
         });
@@ -685,10 +707,13 @@ mod tests {
         use crate::world::environment::WallParams;
         let d = 0.02;
         let cfg = ScenarioConfig {
-            wall: Some(WallParams {
-                gap: d,
-                ..WallParams::default()
-            }),
+            wall: Some(
+                WallParams {
+                    gap: d,
+                    ..WallParams::default()
+                }
+                .into(),
+            ),
             duration: 3.0,
             ..ScenarioConfig::default()
         };
@@ -730,11 +755,14 @@ mod tests {
         let (theta, v, b, ka) = (3f64.to_radians(), 0.01, 800.0, 1.0);
         let steady_error = |filter: AdmittanceParams| {
             let cfg = ScenarioConfig {
-                wall: Some(WallParams {
-                    normal: [theta.cos(), 0.0, -theta.sin()],
-                    ..WallParams::default()
-                }),
-                wall_estimate: Some(WallParams::default()),
+                wall: Some(
+                    WallParams {
+                        normal: [theta.cos(), 0.0, -theta.sin()],
+                        ..WallParams::default()
+                    }
+                    .into(),
+                ),
+                wall_estimate: Some(WallParams::default().into()),
                 z_reference: Signal::Sampled {
                     times: vec![0.0, 10.0],
                     values: vec![0.0, 10.0 * v],
@@ -776,10 +804,13 @@ mod tests {
         use crate::world::environment::WallParams;
         let (d, v, omega, t) = (0.01, 0.05, 100.0, 1e-3);
         let cfg = ScenarioConfig {
-            wall: Some(WallParams {
-                gap: d,
-                ..WallParams::default()
-            }),
+            wall: Some(
+                WallParams {
+                    gap: d,
+                    ..WallParams::default()
+                }
+                .into(),
+            ),
             approach: Some(ApproachParams {
                 speed: v,
                 contact_speed: v,

@@ -172,10 +172,13 @@ mod tests {
         [1e4, 3e4, 1e5, 2e5]
             .iter()
             .map(|&k| ScenarioConfig {
-                wall: Some(WallParams {
-                    stiffness: k,
-                    ..WallParams::default()
-                }),
+                wall: Some(
+                    WallParams {
+                        stiffness: k,
+                        ..WallParams::default()
+                    }
+                    .into(),
+                ),
                 duration: 0.3,
                 ..ScenarioConfig::default()
             })

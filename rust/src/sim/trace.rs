@@ -1,7 +1,7 @@
 //! The recorded run: one column per quantity (structure of arrays), sample k at t_k.
 
 /// Names of the scalar columns, in trace order after the joint columns q, q̇.
-const TASK_COLUMNS: [&str; 12] = [
+const TASK_COLUMNS: [&str; 17] = [
     "x",
     "y",
     "z",
@@ -14,11 +14,16 @@ const TASK_COLUMNS: [&str; 12] = [
     "penetration",
     "x_a",
     "xa_dot",
+    "fx",
+    "fy",
+    "fz",
+    "f_t",
+    "slip_speed",
 ];
 
 /// Column names of a trace of an `joints`-joint arm, in order: t, q1..qn, qd1..qn, x, y, z,
-/// x_ref, y_ref, z_ref, f, f_measured, f_d, penetration, x_a, xa_dot, tau1..n,
-/// tau_cmd1..n.
+/// x_ref, y_ref, z_ref, f, f_measured, f_d, penetration, x_a, xa_dot, fx, fy, fz, f_t,
+/// slip_speed, tau1..n, tau_cmd1..n.
 pub fn trace_columns(joints: usize) -> Vec<String> {
     let joint = |prefix: &'static str| (1..=joints).map(move |j| format!("{prefix}{j}"));
     std::iter::once("t".to_owned())
@@ -49,6 +54,12 @@ pub struct Row<'a> {
     pub penetration: f64,
     pub x_a: f64,
     pub xa_dot: f64,
+    /// The true force on the surface [fx, fy, fz] (world frame): f N − F_t.
+    pub surface_force: [f64; 3],
+    /// |F_t|, the friction force's magnitude.
+    pub f_t: f64,
+    /// |v_t|, the tip's speed within the contact's tangent plane (NaN in free space).
+    pub slip_speed: f64,
     /// Applied torque.
     pub tau: &'a [f64],
     /// Commanded torque.
@@ -73,6 +84,11 @@ pub struct Trace {
     pub penetration: Vec<f64>,
     pub x_a: Vec<f64>,
     pub xa_dot: Vec<f64>,
+    pub fx: Vec<f64>,
+    pub fy: Vec<f64>,
+    pub fz: Vec<f64>,
+    pub f_t: Vec<f64>,
+    pub slip_speed: Vec<f64>,
     pub tau: Vec<Vec<f64>>,
     pub tau_cmd: Vec<Vec<f64>>,
 }
@@ -97,6 +113,11 @@ impl Trace {
             penetration: col(),
             x_a: col(),
             xa_dot: col(),
+            fx: col(),
+            fy: col(),
+            fz: col(),
+            f_t: col(),
+            slip_speed: col(),
             tau: joint_cols(),
             tau_cmd: joint_cols(),
         }
@@ -135,6 +156,11 @@ impl Trace {
         self.penetration.push(r.penetration);
         self.x_a.push(r.x_a);
         self.xa_dot.push(r.xa_dot);
+        self.fx.push(r.surface_force[0]);
+        self.fy.push(r.surface_force[1]);
+        self.fz.push(r.surface_force[2]);
+        self.f_t.push(r.f_t);
+        self.slip_speed.push(r.slip_speed);
         for (c, v) in self.tau.iter_mut().zip(r.tau) {
             c.push(*v);
         }
@@ -166,6 +192,11 @@ impl Trace {
             &mut self.penetration,
             &mut self.x_a,
             &mut self.xa_dot,
+            &mut self.fx,
+            &mut self.fy,
+            &mut self.fz,
+            &mut self.f_t,
+            &mut self.slip_speed,
         ]);
         out.extend(self.tau.iter_mut());
         out.extend(self.tau_cmd.iter_mut());
@@ -199,6 +230,9 @@ mod tests {
             penetration: 14.0,
             x_a: 15.0,
             xa_dot: 16.0,
+            surface_force: [22.0, 23.0, 24.0],
+            f_t: 25.0,
+            slip_speed: 26.0,
             tau: &[18.0, 19.0],
             tau_cmd: &[20.0, 21.0],
         };
@@ -211,6 +245,8 @@ mod tests {
         assert_eq!(value("z_ref"), 10.0);
         assert_eq!(value("f_measured"), 12.0);
         assert_eq!(value("tau_cmd2"), 21.0);
+        assert_eq!(value("fy"), 23.0);
+        assert_eq!(value("slip_speed"), 26.0);
         tr.truncate(0);
         assert!(tr.is_empty());
     }

@@ -5,96 +5,46 @@ use crate::contact::{Contact, Surface, TipMotion};
 use crate::error::{check, Error, Result};
 use crate::robot::TaskVector;
 use crate::scalar::{F64x4, Real, LANES};
+use crate::world::contact_law::{surface_params, ContactLaw};
+pub use crate::world::contact_law::{ContactModel, MAX_EXPONENT};
 use nalgebra::Vector3;
-use schemars::JsonSchema;
-use serde::{Deserialize, Serialize};
 
-/// How the contact force grows with penetration δ and its rate δ̇.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum ContactModel {
-    /// f = max(0, k δ + c δ̇): a spring and a damper in parallel.
-    KelvinVoigt,
-    /// f = max(0, k δ^p + c δ^p δ̇): damping that vanishes with the penetration, so the
-    /// force is continuous at first contact.
-    HuntCrossley,
-}
-
-/// Wall parameters. The controller never sees them; it is told
-/// x̂_e = `position` + `position_error` along the normal.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(default, deny_unknown_fields)]
-pub struct WallParams {
-    /// Environment stiffness k_e [N/m] (Hunt–Crossley: [N/m^p]); unknown to the controller.
-    #[schemars(extend("x-ui" = {"min": 1000.0, "max": 10000000.0, "scale": "log"}))]
-    pub stiffness: f64,
-    /// Contact damping c [N·s/m].
-    #[schemars(extend("x-ui" = {"min": 0.0, "max": 500.0, "scale": "linear"}))]
-    pub damping: f64,
-    /// Contact law: ``"kelvin_voigt"`` (spring and damper) or ``"hunt_crossley"``.
-    pub model: ContactModel,
-    /// Hunt–Crossley exponent p, from 1 to 10 (ignored by Kelvin–Voigt).
-    pub exponent: f64,
-    /// Normal n pointing into the wall (any length; normalised). Force is controlled along n,
-    /// motion along t̂ = normalise(e_z − (e_z·n) n).
-    pub normal: [f64; 3],
-    /// Wall position x_e along n [m]; ``None`` puts the plane through the tip at q0
-    /// (touching, zero force).
-    pub position: Option<f64>,
-    /// Error of the controller's estimate x̂_e = x_e + position_error [m], along n.
-    #[schemars(extend("x-ui" = {"min": -0.02, "max": 0.02, "scale": "linear"}))]
-    pub position_error: f64,
-    /// Free space before contact [m]: the true surface starts ``gap`` beyond ``position``
-    /// (or the tip at q0) along n. 0: touching at zero force.
-    #[schemars(extend("x-ui" = {"min": 0.0, "max": 0.05, "scale": "linear"}))]
-    pub gap: f64,
-}
-
-impl Default for WallParams {
-    fn default() -> Self {
-        Self {
-            stiffness: 30_000.0,
-            damping: 0.0,
-            model: ContactModel::KelvinVoigt,
-            exponent: 1.0,
-            normal: [1.0, 0.0, 0.0],
-            position: None,
-            position_error: 0.0,
-            gap: 0.0,
-        }
+surface_params! {
+    /// Wall parameters: the plane {X : n·X = x_e}. The controller never sees them; it is
+    /// told x̂_e = `position` + `position_error` along the normal.
+    pub struct WallParams {
+        /// Normal n pointing into the wall (any length; normalised). Force is controlled along n,
+        /// motion along t̂ = normalise(e_z − (e_z·n) n).
+        pub normal: [f64; 3] = [1.0, 0.0, 0.0],
+        /// Wall position x_e along n [m]; ``None`` puts the plane through the tip at q0
+        /// (touching, zero force).
+        pub position: Option<f64> = None,
     }
 }
 
-/// Largest Hunt–Crossley exponent accepted.
-pub const MAX_EXPONENT: f64 = 10.0;
-
 impl WallParams {
     pub fn validate(&self) -> Result<()> {
-        check::non_negative("stiffness", self.stiffness)?;
-        check::non_negative("damping", self.damping)?;
-        if !(self.exponent.is_finite() && (1.0..=MAX_EXPONENT).contains(&self.exponent)) {
-            return Err(Error::parameter(
-                "exponent",
-                self.exponent,
-                &format!("from 1 to {MAX_EXPONENT}"),
-            ));
-        }
+        self.validate_contact()?;
         unit_normal(&self.normal)?;
         if let Some(x) = self.position {
             check::finite("position", x)?;
         }
-        check::finite("position_error", self.position_error)?;
-        check::non_negative("gap", self.gap)
+        Ok(())
     }
 }
 
 /// `v / |v|`, computed without overflow; an error for a zero or non-finite vector.
 pub fn unit_normal(v: &[f64; 3]) -> Result<TaskVector> {
+    unit_vector("normal", v)
+}
+
+/// Field `field`'s `v / |v|` (see [`unit_normal`]).
+pub fn unit_vector(field: &str, v: &[f64; 3]) -> Result<TaskVector> {
     let v = TaskVector::from(*v);
     let scale = v.amax();
     if !(v.iter().all(|x| x.is_finite()) && scale > 0.0) {
         return Err(Error::parameter(
-            "normal",
+            field,
             format!("{:?}", [v[0], v[1], v[2]]),
             "a finite, non-zero vector",
         ));
@@ -104,13 +54,10 @@ pub fn unit_normal(v: &[f64; 3]) -> Result<TaskVector> {
 }
 
 /// A wall with its normal and position resolved: over `f64`, or over lanes (four walls,
-/// one model, `Wall::pack`) for runs advancing together.
+/// one contact-law key, `Wall::pack`) for runs advancing together.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Wall<T: Real = f64> {
-    pub stiffness: T,
-    pub damping: T,
-    pub model: ContactModel,
-    pub exponent: T,
+    pub law: ContactLaw<T>,
     /// Unit normal n.
     pub normal: Vector3<T>,
     /// x_e along n.
@@ -119,18 +66,13 @@ pub struct Wall<T: Real = f64> {
 }
 
 impl Wall<F64x4> {
-    /// Four walls of one contact model in four lanes.
+    /// Four walls of one contact-law key in four lanes.
     pub fn pack(walls: [&Wall; LANES]) -> Self {
-        debug_assert!(walls.iter().all(|w| w.model == walls[0].model));
-        let p = |f: fn(&Wall) -> f64| F64x4::from_lanes(|i| f(walls[i]));
         Self {
-            stiffness: p(|w| w.stiffness),
-            damping: p(|w| w.damping),
-            model: walls[0].model,
-            exponent: p(|w| w.exponent),
+            law: ContactLaw::pack(walls.map(|w| &w.law)),
             normal: Vector3::from_fn(|j, _| F64x4::from_lanes(|i| walls[i].normal[j])),
-            position: p(|w| w.position),
-            position_error: p(|w| w.position_error),
+            position: F64x4::from_lanes(|i| walls[i].position),
+            position_error: F64x4::from_lanes(|i| walls[i].position_error),
         }
     }
 }
@@ -140,10 +82,7 @@ impl Wall {
     pub fn new(p: &WallParams, start: &TaskVector) -> Result<Self> {
         let normal = unit_normal(&p.normal)?;
         Ok(Self {
-            stiffness: p.stiffness,
-            damping: p.damping,
-            model: p.model,
-            exponent: p.exponent,
+            law: p.law(),
             normal,
             // SPEC §15: the surface starts `gap` beyond X0 (or `position`) along n.
             position: p.position.unwrap_or_else(|| normal.dot(start)) + p.gap,
@@ -159,27 +98,25 @@ impl Wall {
 }
 
 /// The plane {X : n·X = x_e} as a surface: the force along n from the tip's n·X and, for
-/// a damped wall, n·Ẋ.
+/// a damped wall, n·Ẋ; friction from the tip's velocity in the plane.
 impl<T: Real> Surface<T> for Wall<T> {
     #[inline(always)]
     fn contact(&self, tip: &impl TipMotion<T>) -> Contact<T> {
-        let (along, rate) = tip.along(&self.normal, self.needs_rate());
+        let (along, rate) = tip.along(&self.normal, self.law.needs_rate());
+        let normal_force = self.force_along(along, rate);
         Contact {
             normal: self.normal,
-            normal_force: self.force_along(along, rate),
+            normal_force,
             penetration: along - self.position,
+            friction: self.law.has_friction().then(|| {
+                self.law
+                    .friction_force(normal_force, &self.normal, &tip.velocity())
+            }),
         }
     }
 }
 
 impl<T: Real> Wall<T> {
-    /// Whether the force reads the tip's rate along n: only with damping (in lanes: in any
-    /// lane).
-    #[inline(always)]
-    pub fn needs_rate(&self) -> bool {
-        !T::all(self.damping.simd_eq(T::zero()))
-    }
-
     /// Penetration δ = n·X − x_e (positive inside the wall).
     #[inline(always)]
     pub fn penetration(&self, position: &Vector3<T>) -> T {
@@ -193,37 +130,9 @@ impl<T: Real> Wall<T> {
     }
 
     /// Contact force along n [N] from the tip's displacement s = n·X and rate ṡ = n·Ẋ.
-    /// Lanes out of contact (or undamped) take their branch by select.
     #[inline(always)]
     pub fn force_along(&self, along: T, rate: T) -> T {
-        let zero = T::zero();
-        let delta = along - self.position;
-        let apart = delta.simd_le(zero);
-        if T::all(apart) {
-            return zero;
-        }
-        let spring = match self.model {
-            ContactModel::KelvinVoigt => delta,
-            ContactModel::HuntCrossley => delta.simd_powf(self.exponent),
-        };
-        let undamped = self.damping.simd_eq(zero);
-        // The paper's wall: no velocity term at all (and no 0·δ̇ to round).
-        let elastic = self.stiffness * spring;
-        let f = if T::all(undamped) {
-            elastic
-        } else {
-            let f = match self.model {
-                ContactModel::KelvinVoigt => self.stiffness * delta + self.damping * rate,
-                ContactModel::HuntCrossley => spring * (self.stiffness + self.damping * rate),
-            };
-            // A wall pushes, never pulls.
-            elastic.select(undamped, f.simd_max(zero))
-        };
-        if T::none(apart) {
-            f
-        } else {
-            zero.select(apart, f)
-        }
+        self.law.normal_force(along - self.position, rate)
     }
 }
 

@@ -2,6 +2,9 @@
 //! reports it and the actuators that turn commands into torque (SPEC §10).
 
 pub mod actuator;
+pub mod contact_law;
 pub mod environment;
+pub mod height_field;
+pub mod round;
 pub mod sensor;
 pub mod surface;

@@ -1,20 +1,126 @@
-//! The registry of surfaces the tip can touch (SPEC §14): one enum the plant, the stage
-//! pipeline and the lanes hold, so a new surface is its own file (implementing
-//! `contact::Surface`) plus one variant and its match arms here. Nothing in the plant, the
-//! controller or the lanes names a concrete surface.
+//! The registry of surfaces the tip can touch (SPEC §14, §15): their parameters as one
+//! tagged enum ([`SurfaceParams`], the scenario's `wall`) and, resolved for a start, one
+//! enum the plant, the stage pipeline and the lanes hold ([`Environment`]). A new surface is
+//! its own file (implementing `contact::Surface`) plus one variant and its match arms here.
+//! Nothing in the plant, the controller or the lanes names a concrete surface.
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 use crate::contact::{Contact, FreeSpace, Surface, TipMotion};
+use crate::error::Result;
+use crate::jet::{self, Smooth, V3};
 use crate::robot::TaskVector;
 use crate::scalar::{F64x4, Real, LANES};
-use crate::world::environment::{ContactModel, Wall};
+use crate::world::contact_law::ContactLawKey;
+use crate::world::environment::{Wall, WallParams};
+use crate::world::height_field::{HeightField, HeightFieldParams};
+use crate::world::round::{CylinderParams, Round, RoundKey, SphereParams};
+
+/// A surface's parameters, by kind (SPEC §15): tagged `plane`, `sphere`, `cylinder` and
+/// `height_field`, as the Python blocks send them (a TOML table without a kind is a plane:
+/// the Python side reads it so).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum SurfaceParams {
+    Plane(WallParams),
+    Sphere(SphereParams),
+    Cylinder(CylinderParams),
+    HeightField(HeightFieldParams),
+}
+
+/// The kinds a tagged surface may name.
+pub const SURFACE_KINDS: [&str; 4] = ["plane", "sphere", "cylinder", "height_field"];
+
+impl From<WallParams> for SurfaceParams {
+    fn from(p: WallParams) -> Self {
+        SurfaceParams::Plane(p)
+    }
+}
+
+impl Default for SurfaceParams {
+    fn default() -> Self {
+        SurfaceParams::Plane(WallParams::default())
+    }
+}
+
+impl SurfaceParams {
+    pub fn validate(&self) -> Result<()> {
+        match self {
+            SurfaceParams::Plane(p) => p.validate(),
+            SurfaceParams::Sphere(p) => p.validate(),
+            SurfaceParams::Cylinder(p) => p.validate(),
+            SurfaceParams::HeightField(p) => p.validate(),
+        }
+    }
+
+    /// The plane's parameters, if this is one.
+    pub fn plane(&self) -> Option<&WallParams> {
+        match self {
+            SurfaceParams::Plane(p) => Some(p),
+            _ => None,
+        }
+    }
+
+    /// The plane's parameters, if this is one (mutable: a guarded approach's sweeps move
+    /// its gap).
+    pub fn plane_mut(&mut self) -> Option<&mut WallParams> {
+        match self {
+            SurfaceParams::Plane(p) => Some(p),
+            _ => None,
+        }
+    }
+
+    /// The surface's kind tag.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            SurfaceParams::Plane(_) => "plane",
+            SurfaceParams::Sphere(_) => "sphere",
+            SurfaceParams::Cylinder(_) => "cylinder",
+            SurfaceParams::HeightField(_) => "height_field",
+        }
+    }
+
+    /// The controller's error along the normal [m].
+    pub fn position_error(&self) -> f64 {
+        match self {
+            SurfaceParams::Plane(p) => p.position_error,
+            SurfaceParams::Sphere(p) => p.position_error,
+            SurfaceParams::Cylinder(p) => p.position_error,
+            SurfaceParams::HeightField(p) => p.position_error,
+        }
+    }
+
+    /// The surface as the controller believes it, for a tip starting at `start`: moved by
+    /// its `position_error` along its normal at the point nearest the start (SPEC §15; `p`
+    /// must be valid).
+    pub fn believed(&self, start: &TaskVector) -> Result<Environment> {
+        let normal = Environment::new(self, start)?.normal();
+        Environment::new(self, &(start + normal * self.position_error()))
+    }
+
+    /// The gap before contact [m] (SPEC §16).
+    pub fn gap(&self) -> f64 {
+        match self {
+            SurfaceParams::Plane(p) => p.gap,
+            SurfaceParams::Sphere(p) => p.gap,
+            SurfaceParams::Cylinder(p) => p.gap,
+            SurfaceParams::HeightField(p) => p.gap,
+        }
+    }
+}
 
 /// The environment of one run (`f64`) or of four runs of one kind in lanes.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Environment<T: Real = f64> {
     /// Free space: no contact.
     Free,
     /// A plane (SPEC §10): `world::environment`.
     Plane(Wall<T>),
+    /// A sphere or a cylinder (SPEC §15): `world::round`.
+    Round(Round<T>),
+    /// A height field (SPEC §15): `world::height_field`.
+    HeightField(HeightField<T>),
 }
 
 /// What runs must share for their environments to advance in one lane group: the kind and
@@ -22,7 +128,9 @@ pub enum Environment<T: Real = f64> {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum EnvironmentKey {
     Free,
-    Plane(ContactModel),
+    Plane(ContactLawKey),
+    Round(RoundKey),
+    HeightField(ContactLawKey),
 }
 
 impl<T: Real> Surface<T> for Environment<T> {
@@ -31,33 +139,101 @@ impl<T: Real> Surface<T> for Environment<T> {
         match self {
             Environment::Free => FreeSpace.contact(tip),
             Environment::Plane(w) => w.contact(tip),
+            Environment::Round(r) => r.contact(tip),
+            Environment::HeightField(h) => h.contact(tip),
         }
     }
 }
 
 impl<T: Real> Environment<T> {
-    pub fn lane_key(&self) -> EnvironmentKey {
-        match self {
-            Environment::Free => EnvironmentKey::Free,
-            Environment::Plane(w) => EnvironmentKey::Plane(w.model),
-        }
-    }
-
-    /// The plane, if this is one (the task frame and the metrics read its normal and
-    /// position).
+    /// The plane, if this is one.
     pub fn plane(&self) -> Option<&Wall<T>> {
         match self {
             Environment::Plane(w) => Some(w),
-            Environment::Free => None,
+            _ => None,
         }
     }
 }
 
 impl Environment {
+    /// The surface of `p` (valid) for a tip starting at `start`.
+    pub fn new(p: &SurfaceParams, start: &TaskVector) -> Result<Self> {
+        Ok(match p {
+            SurfaceParams::Plane(w) => Environment::Plane(Wall::new(w, start)?),
+            SurfaceParams::Sphere(s) => Environment::Round(Round::sphere(s, start)?),
+            SurfaceParams::Cylinder(c) => Environment::Round(Round::cylinder(c, start)?),
+            SurfaceParams::HeightField(h) => Environment::HeightField(HeightField::new(h, start)?),
+        })
+    }
+
+    pub fn lane_key(&self) -> EnvironmentKey {
+        match self {
+            Environment::Free => EnvironmentKey::Free,
+            Environment::Plane(w) => EnvironmentKey::Plane(w.law.key()),
+            Environment::Round(r) => EnvironmentKey::Round(r.key()),
+            Environment::HeightField(h) => EnvironmentKey::HeightField(h.key()),
+        }
+    }
+
+    /// The plane the controller's task frame is built on (SPEC §10, §15): a plane itself;
+    /// for a curved surface its tangent plane at the point nearest the start. Returns the
+    /// unit normal and the plane's position along it (the surface's own, without
+    /// `position_error`), and the position error; `None` in free space.
+    pub fn tangent_plane(&self) -> Option<(TaskVector, f64, f64)> {
+        let (point, normal, error) = match self {
+            Environment::Free => return None,
+            Environment::Plane(w) => return Some((w.normal, w.position, w.position_error)),
+            Environment::Round(r) => {
+                let (p, n) = r.nearest_to_start();
+                (p, n, r.position_error)
+            }
+            Environment::HeightField(h) => {
+                let (p, n) = h.nearest_to_start();
+                (p, n, h.position_error)
+            }
+        };
+        Some((normal, normal.dot(&point), error))
+    }
+
     /// The contact normal the task frame controls force along, where the surface is
     /// planar (e_x in free space, the paper's default).
     pub fn normal(&self) -> TaskVector {
-        self.plane().map_or_else(TaskVector::x, |w| w.normal)
+        self.tangent_plane().map_or_else(TaskVector::x, |p| p.0)
+    }
+}
+
+impl Environment {
+    /// (δ, N) at Y over values or jets: the penetration (positive inside) and the inward
+    /// normal, as the contact computes them (free space: NaN and e_x).
+    pub fn depth_normal<S: Smooth>(&self, y: &V3<S>) -> (S, V3<S>) {
+        match self {
+            Environment::Free => (S::constant(f64::NAN), jet::constant(&TaskVector::x())),
+            Environment::Plane(w) => {
+                let n = jet::constant(&w.normal);
+                (jet::dot(&n, y) - S::constant(w.position), n)
+            }
+            Environment::Round(r) => r.depth_normal(y),
+            Environment::HeightField(h) => h.depth_normal(y),
+        }
+    }
+
+    /// The surface's point nearest Y and its inward normal there, over values or jets: for
+    /// a plane, a sphere and a cylinder Y − δ N (δ their exact distance); for a height field
+    /// the foot of the perpendicular, by iteration.
+    pub fn foot<S: Smooth>(&self, y: &V3<S>) -> (V3<S>, V3<S>) {
+        match self {
+            Environment::HeightField(h) => h.foot(y),
+            _ => {
+                let (depth, normal) = self.depth_normal(y);
+                (jet::minus(y, &jet::scaled(&normal, depth)), normal)
+            }
+        }
+    }
+
+    /// Whether the surface is a plane (or free space): the task frame's fixed directions
+    /// are then exact everywhere.
+    pub fn is_planar(&self) -> bool {
+        matches!(self, Environment::Free | Environment::Plane(_))
     }
 }
 
@@ -67,12 +243,23 @@ impl Environment<F64x4> {
         if !e.iter().all(|x| x.lane_key() == e[0].lane_key()) {
             return None;
         }
+        // One key: every lane is of the first lane's kind.
         Some(match e[0] {
             Environment::Free => Environment::Free,
             Environment::Plane(_) => Environment::Plane(Wall::pack(e.map(|x| match x {
                 Environment::Plane(w) => w,
-                Environment::Free => unreachable!("one key: every lane is a plane"),
+                _ => unreachable!("one key: every lane is a plane"),
             }))),
+            Environment::Round(_) => Environment::Round(Round::pack(e.map(|x| match x {
+                Environment::Round(r) => r,
+                _ => unreachable!("one key: every lane is a round surface"),
+            }))),
+            Environment::HeightField(_) => {
+                Environment::HeightField(HeightField::pack(e.map(|x| match x {
+                    Environment::HeightField(h) => h,
+                    _ => unreachable!("one key: every lane is a height field"),
+                })))
+            }
         })
     }
 }

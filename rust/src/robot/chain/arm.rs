@@ -348,6 +348,16 @@ impl<T: Real, const N: usize> TipMotion<T> for ChainTip<'_, T, N> {
         };
         (n.dot(&self.frames.tip.pos), rate)
     }
+
+    #[inline(always)]
+    fn position(&self) -> Vector3<T> {
+        self.frames.tip.pos
+    }
+
+    #[inline(always)]
+    fn velocity(&self) -> Vector3<T> {
+        self.chain.tip_velocity(self.frames, self.qd)
+    }
 }
 
 /// A URDF chain of `N` joints as a [`RobotModel`].

@@ -328,10 +328,13 @@ pub(crate) mod tests {
             .iter()
             .map(|&k| {
                 let config = ScenarioConfig {
-                    wall: Some(WallParams {
-                        stiffness: k,
-                        ..WallParams::default()
-                    }),
+                    wall: Some(
+                        WallParams {
+                            stiffness: k,
+                            ..WallParams::default()
+                        }
+                        .into(),
+                    ),
                     duration: 0.4,
                     ..ScenarioConfig::default()
                 };

@@ -110,6 +110,9 @@ impl<R: RobotModel<N>, const N: usize> LaneStages<R, N> {
                 penetration: lane(out.penetration, l),
                 x_a: lane(out.x_a.value, l),
                 xa_dot: lane(out.x_a.rate, l),
+                surface_force: lane_of(&out.surface_force, l).into(),
+                f_t: lane(out.f_t, l),
+                slip_speed: lane(out.slip_speed, l),
                 tau: tau.as_slice(),
                 tau_cmd: command.as_slice(),
             });
@@ -137,10 +140,13 @@ pub(crate) mod tests {
         let f = i as f64;
         ScenarioConfig {
             seed: 3 + i as u64,
-            wall: Some(WallParams {
-                stiffness: 1e4 * (1.0 + f),
-                ..WallParams::default()
-            }),
+            wall: Some(
+                WallParams {
+                    stiffness: 1e4 * (1.0 + f),
+                    ..WallParams::default()
+                }
+                .into(),
+            ),
             controller,
             sensor: SensorParams {
                 noise_std: 0.05 * f,
@@ -282,6 +288,7 @@ mod every_kind {
     use crate::sim::outcome::Outcome;
     use crate::sim::scenario::RobotConfig;
     use crate::sim::simulation::{ScenarioConfig, Simulation};
+    use crate::world::surface::SurfaceParams;
 
     /// Every controller kind with its structural switches (`joints`: for the per-joint D̄).
     fn controllers(joints: usize) -> Vec<ControllerParams> {
@@ -363,7 +370,9 @@ mod every_kind {
                         ..varied(i, controller)
                     })
                     .map(|mut c| {
-                        if let (true, Some(w)) = (guarded, c.wall.as_mut()) {
+                        if let (true, Some(w)) =
+                            (guarded, c.wall.as_mut().and_then(SurfaceParams::plane_mut))
+                        {
                             // Lane i crosses i·0.1 mm of free space (2 ms at 0.05 m/s each).
                             w.gap = 1e-4 * c.seed.saturating_sub(3) as f64;
                         }
@@ -434,6 +443,137 @@ mod every_kind {
         assert_eq!((paper, chain3, chain7), (64, 64, 64));
     }
 
+    /// Every surface kind (SPEC §15), with and without friction and damping, runs in lanes
+    /// on the paper's arm and on the Panda, each run within 1e-9 of `simulate`, lanes of
+    /// one group differing in radius, friction and stiffness.
+    #[test]
+    fn every_surface_runs_in_lanes() {
+        with_stack(every_surface);
+    }
+
+    fn every_surface() {
+        use crate::world::height_field::HeightFieldParams;
+        use crate::world::round::{CylinderParams, SphereParams};
+        let bump = |i: usize| -> Vec<Vec<f64>> {
+            (0..9)
+                .map(|r| {
+                    (0..7)
+                        .map(|c| 1e-3 * ((r * 7 + c + i) % 5) as f64 - 4e-3 * r as f64)
+                        .collect()
+                })
+                .collect()
+        };
+        let surfaces = |i: usize, friction: f64, damping: f64| -> Vec<SurfaceParams> {
+            let f = i as f64;
+            let (stiffness, friction) = (2e4 * (1.0 + f), friction * (1.0 + 0.5 * f));
+            let wall = crate::world::environment::WallParams {
+                stiffness,
+                damping,
+                friction,
+                normal: [1.0, 0.0, 0.2],
+                ..Default::default()
+            };
+            let sphere = |inside| SphereParams {
+                stiffness,
+                damping,
+                friction,
+                radius: 0.1 + 0.05 * f,
+                inside,
+                ..Default::default()
+            };
+            let cylinder = |inside| CylinderParams {
+                stiffness,
+                damping,
+                friction,
+                radius: 0.2 + 0.05 * f,
+                axis: [0.0, 1.0, 0.3],
+                inside,
+                ..Default::default()
+            };
+            vec![
+                wall.into(),
+                SurfaceParams::Sphere(sphere(false)),
+                SurfaceParams::Sphere(sphere(true)),
+                SurfaceParams::Cylinder(cylinder(false)),
+                SurfaceParams::Cylinder(cylinder(true)),
+                SurfaceParams::HeightField(HeightFieldParams {
+                    stiffness,
+                    damping,
+                    friction,
+                    heights: bump(i),
+                    spacing: [0.01, 0.015],
+                    ..Default::default()
+                }),
+            ]
+        };
+        let controller = ControllerParams::TimeDelay(TimeDelayParams::default());
+        let panda = UrdfArmParams {
+            q0: Some(vec![0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.785]),
+            ..urdf(
+                include_str!("../../../../examples/data/panda.urdf"),
+                "panda_link8",
+            )
+        };
+        let arm = UrdfArm::<7>::new(&panda).unwrap();
+        let (mut groups, mut completed) = (0, 0);
+        for (friction, damping) in [(0.0, 0.0), (0.3, 0.0), (0.5, 20.0)] {
+            for kind in 0..6 {
+                for robot in [RobotConfig::default(), RobotConfig::Urdf(panda.clone())] {
+                    let configs: Vec<ScenarioConfig> = (0..4)
+                        .map(|i| ScenarioConfig {
+                            robot: robot.clone(),
+                            wall: Some(surfaces(i, friction, damping).swap_remove(kind)),
+                            duration: 0.05,
+                            ..varied(i, controller)
+                        })
+                        .collect();
+                    let runs = match &robot {
+                        RobotConfig::Urdf(_) => {
+                            let mut sims: Vec<_> = configs
+                                .iter()
+                                .map(|c| Simulation::with_robot(c, arm.clone()).unwrap())
+                                .collect();
+                            let (runs, path) = run_lanes_on(&mut sims);
+                            assert_eq!(path, StagePath::Lanes, "{kind} {friction}");
+                            runs
+                        }
+                        _ => {
+                            let mut sims: Vec<_> = configs
+                                .iter()
+                                .map(|c| Simulation::new(c).unwrap())
+                                .collect();
+                            let (runs, path) = run_lanes_on(&mut sims);
+                            assert_eq!(path, StagePath::Lanes, "{kind} {friction}");
+                            runs
+                        }
+                    };
+                    for (c, r) in configs.iter().zip(&runs) {
+                        let alone = simulate(c).unwrap();
+                        match (r.outcome, alone.outcome) {
+                            (Outcome::Completed, Outcome::Completed) => {
+                                worst_trace_gap(&alone, r, 1.0);
+                                if friction > 0.0 {
+                                    let felt = r.trace.f_t.iter().any(|&f| f > 0.0);
+                                    assert!(felt, "{kind}: no friction");
+                                }
+                                completed += 1;
+                            }
+                            (
+                                Outcome::Diverged { time: a, .. },
+                                Outcome::Diverged { time: b, .. },
+                            ) => assert_eq!(a, b),
+                            (a, b) => panic!("{kind} {friction}: lanes {a:?}, simulate {b:?}"),
+                        }
+                    }
+                    groups += 1;
+                }
+            }
+        }
+        assert_eq!(groups, 36);
+        // The paper's arm completes every run (the Panda under the paper's TDC gains may not).
+        assert!(completed >= 72, "{completed} runs completed");
+    }
+
     /// Runs of different stage structures given to `run_lanes_on` together still run,
     /// each exactly as `simulate` (stages lane by lane, plants in lanes), and say so.
     #[test]
@@ -469,7 +609,7 @@ mod every_kind {
         let configs: Vec<ScenarioConfig> = (0..3)
             .map(|i| ScenarioConfig {
                 duration: 0.05,
-                wall: (i != 1).then(crate::world::environment::WallParams::default),
+                wall: (i != 1).then(SurfaceParams::default),
                 admittance: None,
                 ..ScenarioConfig::default()
             })

@@ -1,0 +1,74 @@
+"""What a curved surface and friction cost (issue #22): runs/s on a plane, on a sphere with
+friction and on a height field with friction, one run at a time and in lanes.
+
+    python benches/surfaces.py [--repeats 7] [--runs 64] [--duration 10]
+
+Not a test: prints a table. The scenario is fig. 14 (TDC + Scheme 2, 10 N, a 0.05 m sine
+along the surface). The sphere has R = 0.3 m and μ = 0.3; the height field is a 41×41 grid at
+5 mm (the scanned part of examples/polishing.py) with μ = 0.3; the controller believes the
+true shape in both (the curved belief of SPEC §15). Each variant is timed in alternation with
+the plane, median of ``--repeats``; the ratios are what issue #22's targets are stated in
+(sphere with friction ≤ 1.15×, height field ≤ 1.3× the plane, scalar and in lanes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import admit_rs as ar
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "examples"))
+from polishing import scanned_part  # noqa: E402
+
+
+def variants(duration: float) -> dict[str, ar.Scenario]:
+    base = ar.paper.scenario("fig14").replace(duration=duration)
+    return {
+        "plane": base,
+        "sphere, μ = 0.3": base.replace(wall=ar.Sphere(radius=0.3, friction=0.3)),
+        "height field, μ = 0.3": base.replace(
+            wall=dataclasses.replace(scanned_part(), friction=0.3)
+        ),
+    }
+
+
+def timed(f) -> float:
+    start = time.perf_counter()
+    f()
+    return time.perf_counter() - start
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--runs", type=int, default=64, help="runs per lane sweep")
+    ap.add_argument("--duration", type=float, default=10.0)
+    args = ap.parse_args()
+    scenarios = variants(args.duration)
+    grid = {"wall.stiffness": [2e4 + 1e3 * i for i in range(args.runs)]}
+    jobs = {
+        "scalar": lambda sc: ar.simulate(sc),
+        "lanes": lambda sc: ar.sweep(sc, grid=grid, progress=False, threads=1),
+    }
+    print(f"admit_rs {ar.__version__}; {args.duration:g}-s runs; median of {args.repeats}")
+    print(f"{'variant':24} {'path':7} {'time [s]':>10} {'× plane':>8}")
+    for path, job in jobs.items():
+        times: dict[str, list[float]] = {name: [] for name in scenarios}
+        for name, sc in scenarios.items():
+            job(sc)  # warm-up
+        for _ in range(args.repeats):
+            for name, sc in scenarios.items():  # alternated, so that load drifts hit all
+                times[name].append(timed(lambda sc=sc: job(sc)))
+        plane = statistics.median(times["plane"])
+        for name in scenarios:
+            t = statistics.median(times[name])
+            print(f"{name:24} {path:7} {t:10.4f} {t / plane:8.3f}")
+
+
+if __name__ == "__main__":
+    main()
