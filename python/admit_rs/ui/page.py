@@ -46,8 +46,21 @@ BASELINE = "#9a9a9a"
 _URL_JS = """
 const q = cb_obj.data.query[0];
 window.history.replaceState(null, "", window.location.pathname + q);
-link.value = window.location.href;
+link.setv({value: window.location.href}, {sync: false});
 """
+_UNPACK_JS = """
+const v = packed.data.v, names = packed.tags;
+if (v === undefined || v.length === undefined || !names.length) { return; }
+const n = v.length / names.length, data = {};
+for (let i = 0; i < names.length; i++) {
+  data[names[i]] = new Float64Array(v.buffer, v.byteOffset + 8 * i * n, n);
+}
+trace.setv({data}, {sync: false, check_eq: false});
+"""
+"""The trace arrives as one float64 buffer (``packed``: the columns one after the other,
+their names in its tags) and is split here into the plotted source's columns, views of that
+buffer. One buffer is 5 WebSocket frames where a column each was 25, handled one by one on
+the browser's main thread; ``sync: false`` keeps the browser from sending the columns back."""
 _DOWNLOAD_JS = """
 if (!cb_obj.data.file[0]) { return; }
 const d = JSON.parse(cb_obj.data.file[0]);
@@ -210,6 +223,10 @@ class TuningPage:
         self.controls_box = column(name="controls", width=340)
 
         self.trace = ColumnDataSource(data=_empty(), name="trace")
+        self.packed = ColumnDataSource(data={"v": np.zeros(0)}, name="packed")
+        unpack = CustomJS(args={"packed": self.packed, "trace": self.trace}, code=_UNPACK_JS)
+        self.packed.js_on_change("data", unpack)
+        self.doc.js_on_event("document_ready", unpack)
         self.baseline = ColumnDataSource(data=_empty(), name="baseline")
         self.limits = ColumnDataSource(data={"xs": [], "ys": [], "color": []}, name="limits")
         self.poles = ColumnDataSource(data={"re": [], "im": [], "mag": []}, name="poles")
@@ -300,7 +317,7 @@ class TuningPage:
                      self.pole_text, self.metrics, self.export_text):  # fmt: skip
             self.doc.add_root(root)
         # Not roots (every root must be placed in the page): held by the header instead.
-        header.tags = [self.url_state, self.download]
+        header.tags = [self.url_state, self.download, self.packed]
         from jinja2 import Template
 
         self.doc.template = Template(TEMPLATE)
@@ -481,7 +498,10 @@ class TuningPage:
             return
         self._set_torque_lines(view.joints)
         self.plotted = view.plotted if view.plotted is not None else view.columns
-        self.trace.data = self.plotted
+        names = list(self.plotted)
+        if self.packed.tags != names:
+            self.packed.tags = names
+        self.packed.data = {"v": np.concatenate([self.plotted[k] for k in names])}
         self.doc.add_timeout_callback(partial(self._show_rest, job, view), REST_DELAY_MS)
 
     def _show_rest(self, job: runs.Job, view: runs.RunView) -> None:
