@@ -126,6 +126,29 @@ def test_toml_export_of_a_urdf_arm_names_its_file():
     assert ar.Scenario.from_dict(tomllib.loads(text)).robot.urdf == arm.urdf
 
 
+def test_the_dominant_pole_is_described_truthfully():
+    from admit_rs.ui import runs
+
+    T = 0.001
+    assert runs.dominant_words(0.99 + 0j, T) == [
+        ("dominant pole", "real, z = 0.99", ""), ("time constant τ", "0.0995", "s")]
+    assert runs.dominant_words(-0.5 + 0j, T) == [
+        ("dominant pole", "real, z = -0.5", "(flips sign every sample)"),
+        ("time constant τ", "0.001443", "s")]  # -T / ln 0.5
+    assert runs.dominant_words(1.01 + 0j, T)[1] == ("grows by e every", "0.1005", "s")
+    # A complex pair: the s-plane pole s = ln(z)/T, here s = -20 ± 2π·5j.
+    z = complex(np.exp((-20 + 2j * np.pi * 5) * T))
+    rows = runs.dominant_words(z, T)
+    assert rows[1] == ("dominant pole frequency", "5", "Hz")
+    assert rows[2] == ("dominant pole damping ζ", f"{20 / abs(-20 + 2j * np.pi * 5):.3g}", "")
+    # The page's dominant pole for fig. 15 is predict's (same frequency and damping).
+    pred = runs.predict(ar.paper.scenario("fig15"))
+    v = pred.values
+    assert runs.dominant_words(pred.dominant(), pred.period)[1:] == [
+        ("dominant pole frequency", f"{v['dominant_frequency']:.4g}", "Hz"),
+        ("dominant pole damping ζ", f"{v['dominant_damping']:.3g}", "")]
+
+
 def test_coalescer_runs_the_last_state_and_drops_the_waiting_ones():
     from admit_rs.ui import runs
 
@@ -238,7 +261,9 @@ def _only_local(drv):
 
 
 def _slider_value(drv, name):
-    return drv.execute_script("return Bokeh.documents[0].get_model_by_name(arguments[0]).value;",
+    """The value of the slider shown as ``name`` (through its view: a switch of scenario
+    leaves the replaced sliders' models in BokehJS's document until it is rebuilt)."""
+    return drv.execute_script(browser.FIND_VIEW_JS + "return findView(arguments[0]).model.value;",
                               name)  # fmt: skip
 
 
@@ -274,7 +299,13 @@ def test_default_page_is_stable_and_plots_the_run(server, chrome):
     assert "Simulated:" in verdict and ">stable<" in verdict
     page = browser.text(chrome)
     assert "Simulated: stable" in page and "Predicted: stable" in page
-    assert "dominant pole frequency" in page and "force_ss_error" in page
+    assert "force_ss_error" in page
+    # fig. 14's dominant pole is real: its time constant, not "0 Hz, ζ = 1".
+    sc = ar.paper.scenario("fig14")
+    rho = ar.analysis.predict(sc)["spectral_radius"]
+    assert f"dominant pole real, z = {rho:.6g} time constant τ {-sc.period / math.log(rho):.4g} s" \
+        in page, page  # fmt: skip
+    assert "dominant pole frequency" not in page and "damping ζ" not in page
     _assert_plots_hold_the_run(chrome, ar.paper.scenario("fig14"))
     assert len(browser.column(chrome, "poles", "re")) == ar.analysis.linearize(
         ar.paper.scenario("fig14")).nstates
@@ -308,6 +339,59 @@ def test_moving_b_changes_the_url_and_the_trace(server, chrome):
     assert len(after) != len(before) or not np.array_equal(after, before)
     _assert_plots_hold_the_run(chrome, sc)
     assert _slider_value(chrome, "admittance.b") == pytest.approx(math.log10(b), abs=0.01)
+
+
+@needs_browser
+def test_a_complex_dominant_pole_shows_its_frequency_and_damping(server, chrome):
+    browser.open_page(chrome, server + "?scenario=fig15")
+    browser.wait(chrome, "return Bokeh.documents[0].get_model_by_name('pole_text').text"
+                 ".includes('pole pair')")  # fmt: skip
+    v = ar.analysis.predict(ar.paper.scenario("fig15"))
+    page = browser.text(chrome)
+    assert f"dominant pole frequency {v['dominant_frequency']:.4g} Hz" in page
+    assert f"dominant pole damping ζ {v['dominant_damping']:.3g}" in page
+    assert "time constant" not in page
+
+
+@needs_browser
+def test_slider_tooltips_are_the_field_docs_and_labels_keep_units(server, chrome):
+    browser.open_page(chrome, server)
+    schema = _core.schema()
+    cs = controls.controls(ar.paper.scenario("fig14"))
+    keys = {"admittance": "admittance", "wall": "wall", "sensor": "sensor",
+            "actuator": "actuator", "controller": "time_delay", "controller.model": "model",
+            "scenario": "scenario"}  # fmt: skip
+    shown = chrome.execute_script(browser.FIND_VIEW_JS + """
+        const out = {};
+        for (const p of arguments[0]) {
+          const v = findView(p);
+          out[p] = [v.el.getAttribute("title"), v.model.title];
+        }
+        return out;""", [c.path for c in cs])  # fmt: skip
+    for c in cs:
+        doc = schema[keys[c.block]]["properties"][c.name]["description"]
+        tip, label = shown[c.path]
+        assert tip == " ".join(doc.split()), c.path
+        assert label.startswith(c.title), c.path
+    assert shown["admittance.b"] == ["Damping [N·s/m].", "b [N·s/m]"]
+    assert shown["wall.stiffness"][1] == "stiffness [N/m]"
+
+
+@needs_browser
+def test_legends_sit_above_the_plot_areas(server, chrome):
+    browser.open_page(chrome, server)
+    where = chrome.execute_script("""
+        const doc = Bokeh.documents[0], out = {};
+        for (const n of ["plot_force", "plot_normal", "plot_tangent", "plot_xa", "plot_torque"]) {
+          const p = doc.get_model_by_name(n);
+          const legends = (side) => p[side].filter((m) => m.type === "Legend")
+                                           .map((m) => m.items.length);
+          out[n] = [legends("above"), legends("center")];
+        }
+        return out;""")  # fmt: skip
+    assert where == {"plot_force": [[4], []], "plot_normal": [[3], []],
+                     "plot_tangent": [[3], []], "plot_xa": [[2], []],
+                     "plot_torque": [[3], []]}  # fmt: skip
 
 
 @needs_browser

@@ -21,6 +21,7 @@ import numpy as np
 from bokeh.document import Document
 from bokeh.layouts import column, row
 from bokeh.models import ColumnDataSource, CustomJS, CustomJSTickFormatter, Range1d
+from bokeh.models.annotations import Legend
 from bokeh.models.widgets.buttons import Button
 from bokeh.models.widgets.inputs import Checkbox, Select, TextAreaInput, TextInput
 from bokeh.models.widgets.markups import Div
@@ -42,6 +43,13 @@ PLOT_WIDTH = 470
 PLOT_HEIGHT = 210
 COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f"]
 BASELINE = "#9a9a9a"
+LEGEND: dict[str, Any] = {
+    "orientation": "horizontal", "location": "top_left", "click_policy": "hide",
+    "label_text_font_size": "8pt", "glyph_width": 18, "glyph_height": 10, "label_height": 10,
+    "label_standoff": 3, "spacing": 8, "padding": 1, "margin": 2, "border_line_alpha": 0.0,
+    "background_fill_alpha": 0.0,
+}  # fmt: skip
+"""The time plots' legends: one row above the plot area (clicking an entry hides its line)."""
 
 _URL_JS = """
 const q = cb_obj.data.query[0];
@@ -239,6 +247,9 @@ class TuningPage:
                    tools="pan,wheel_zoom,box_zoom,reset,save", x_axis_label="t [s]",
                    y_axis_label=y_label, **kw)  # fmt: skip
         p.toolbar.logo = None
+        # Above the plot area, not in it: a legend never covers the traces. The lines
+        # drawn with ``legend_label`` join this one (Bokeh finds it on the plot).
+        p.add_layout(Legend(**LEGEND), "above")
         return p
 
     def _tip_plot(self, title: str, y_label: str, name: str, axis: str, x_range: Any) -> Any:
@@ -273,11 +284,6 @@ class TuningPage:
         self.torque_plot.multi_line("xs", "ys", source=self.limits, color="color",
                                     line_dash="dotted", line_width=1.5)  # fmt: skip
         self.torque_lines: list[Any] = []
-        for plot in (f, pn, pt, xa):
-            plot.legend.location = "bottom_right"
-            plot.legend.click_policy = "hide"
-            plot.legend.label_text_font_size = "8pt"
-            plot.legend.background_fill_alpha = 0.6
         poles = figure(title="Predicted poles (z-plane)", width=330, height=330,
                        x_range=Range1d(start=-1.15, end=1.15),
                        y_range=Range1d(start=-1.15, end=1.15),
@@ -351,7 +357,7 @@ class TuningPage:
         slider = Slider(start=lo, end=hi, value=value, step=c.slider_step, title=title,
                         format=_slider_format(c), width=300, name=c.path,
                         disabled=c.value is None, show_value=c.value is not None,
-                        tags=[c.scale])  # fmt: skip
+                        tags=[c.scale], html_attributes={"title": c.doc})  # fmt: skip
         if c.value is None:
             slider.title = f"{title} (off)"
         slider.on_change("value", partial(self._on_slider, c))
@@ -540,10 +546,6 @@ class TuningPage:
         p.renderers = keep + self.torque_lines
         p.legend.items = [it for it in p.legend.items
                           if it.renderers and it.renderers[0] in self.torque_lines]  # fmt: skip
-        p.legend.location = "bottom_right"
-        p.legend.label_text_font_size = "8pt"
-        p.legend.background_fill_alpha = 0.6
-        p.legend.orientation = "horizontal"
 
     _sim_html = ""
     _predicted_html = ""
@@ -564,11 +566,11 @@ class TuningPage:
         self.applied_prediction = generation
         self._predicted_html = self._prediction_html(pred)
         self.verdict.text = (self._sim_html or "<b>Simulated:</b> running…") + self._predicted_html
-        if pred.poles is not None:
+        dom = pred.dominant()
+        if pred.poles is not None and dom is not None:
             p = pred.poles
             self.poles.data = {"re": p.real, "im": p.imag, "mag": np.abs(p)}
-            k = int(np.argmax(np.abs(p)))
-            self.dominant.data = {"re": [float(p[k].real)], "im": [float(p[k].imag)]}
+            self.dominant.data = {"re": [dom.real], "im": [dom.imag]}
         else:
             self.poles.data = {"re": [], "im": [], "mag": []}
             self.dominant.data = {"re": [], "im": []}
@@ -596,9 +598,15 @@ class TuningPage:
         if pred.values is None:
             return f"No linear model: {html.escape(pred.error or '')}"
         v = pred.values
-        rows = [
-            ("dominant pole frequency", _number(v.get("dominant_frequency"), 4), "Hz"),
-            ("dominant pole damping ζ", _number(v.get("dominant_damping"), 3), ""),
+        pole = pred.dominant()
+        if pole is not None:
+            rows = runs.dominant_words(pole, pred.period)
+        else:  # no eigenvalues (see the note below): predict's own numbers
+            rows = [
+                ("dominant pole frequency", _number(v.get("dominant_frequency"), 4), "Hz"),
+                ("dominant pole damping ζ", _number(v.get("dominant_damping"), 3), ""),
+            ]
+        rows += [
             ("spectral radius ρ", _number(v.get("spectral_radius"), 6), "(< 1: stable)"),
             ("predicted overshoot", _number(v.get("overshoot_pct"), 3), "%"),
             ("predicted settling time", _number(v.get("settling_time"), 3), "s"),
