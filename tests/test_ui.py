@@ -149,6 +149,19 @@ def test_the_dominant_pole_is_described_truthfully():
         ("dominant pole damping ζ", f"{v['dominant_damping']:.3g}", "")]
 
 
+def test_an_uploaded_toml_is_a_base_while_the_server_runs():
+    sc = ar.paper.scenario("fig19").replace(**{"admittance.b": 500.0})
+    raw = ar.export.toml(sc).encode()
+    name = controls.register_upload(raw, "mine.toml")
+    assert name.startswith("upload:") and len(name) == len("upload:") + 12
+    assert controls.register_upload(raw, "again.toml") == name  # same bytes, same name
+    assert controls.load_base(name) == sc
+    with pytest.raises(controls.QueryError, match="upload the file again"):
+        controls.load_base("upload:000000000000")
+    with pytest.raises(controls.QueryError, match="uploaded file bad.toml: not a valid TOML"):
+        controls.register_upload(b"[scenario\n", "bad.toml")
+
+
 def test_coalescer_runs_the_last_state_and_drops_the_waiting_ones():
     from admit_rs.ui import runs
 
@@ -392,6 +405,47 @@ def test_legends_sit_above_the_plot_areas(server, chrome):
     assert where == {"plot_force": [[4], []], "plot_normal": [[3], []],
                      "plot_tangent": [[3], []], "plot_xa": [[2], []],
                      "plot_torque": [[3], []]}  # fmt: skip
+
+
+@needs_browser
+def test_an_uploaded_toml_restores_the_sliders(server, chrome, tmp_path):
+    sc = ar.paper.scenario("fig19").replace(**{"admittance.b": 500.0, "wall.stiffness": 2e5,
+                                               "sensor.cutoff": 40.0})  # fmt: skip
+    path = tmp_path / "uploaded.toml"
+    ar.export.toml(sc, path)
+    browser.open_page(chrome, server)
+    before = chrome.current_url
+    field = browser.element(chrome, "toml_upload", "input[type=file]")
+    field.send_keys(str(path))  # what choosing the file in the dialog does
+    browser.wait(chrome, "return window.location.search.includes('scenario=upload%3A') || "
+                 "window.location.search.includes('scenario=upload:')", 30)  # fmt: skip
+    url = chrome.current_url
+    assert url != before
+    browser.wait(chrome, browser.READY_JS, 60)
+    assert _slider_value(chrome, "admittance.b") == pytest.approx(math.log10(500))
+    assert _slider_value(chrome, "wall.stiffness") == pytest.approx(math.log10(2e5))
+    assert _slider_value(chrome, "sensor.cutoff") == pytest.approx(math.log10(40.0))
+    assert chrome.execute_script(browser.FIND_VIEW_JS + "return findView('sensor.cutoff:on')"
+                                 ".model.active;") is True  # fmt: skip
+    # Once idle, the plots hold the uploaded scenario's run.
+    from admit_rs.ui import runs
+
+    expected = runs.decimated(runs.view_of(sc, ar.simulate(sc).trace, 3))["f"]
+    browser.wait(chrome, "const f = Bokeh.documents[0].get_model_by_name('trace').data.f;"
+                 "return f.length === arguments[0] && f[arguments[1]] === arguments[2];",
+                 30, len(expected), 300, float(expected[300]))  # fmt: skip
+    _assert_plots_hold_the_run(chrome, sc)
+    # The link names the upload, and opens it again (on this server).
+    browser.open_page(chrome, url)
+    assert _slider_value(chrome, "admittance.b") == pytest.approx(math.log10(500))
+    _assert_plots_hold_the_run(chrome, sc)
+    # Not a scenario: an error in words.
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[scenario]\nduration = 'long'\n")
+    browser.element(chrome, "toml_upload", "input[type=file]").send_keys(str(bad))
+    msg = browser.wait(chrome, "const e = Bokeh.documents[0].get_model_by_name('error');"
+                       "return e.visible && e.text;", 30)  # fmt: skip
+    assert "duration" in msg and "Traceback" not in browser.text(chrome)
 
 
 @needs_browser

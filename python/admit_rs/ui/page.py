@@ -9,6 +9,7 @@ Bokeh document.
 
 from __future__ import annotations
 
+import base64
 import html
 import json
 import logging
@@ -23,7 +24,7 @@ from bokeh.layouts import column, row
 from bokeh.models import ColumnDataSource, CustomJS, CustomJSTickFormatter, Range1d
 from bokeh.models.annotations import Legend
 from bokeh.models.widgets.buttons import Button
-from bokeh.models.widgets.inputs import Checkbox, Select, TextAreaInput, TextInput
+from bokeh.models.widgets.inputs import Checkbox, FileInput, Select, TextAreaInput, TextInput
 from bokeh.models.widgets.markups import Div
 from bokeh.models.widgets.sliders import Slider
 from bokeh.plotting import figure
@@ -196,6 +197,9 @@ class TuningPage:
                                    width=260, name="toml_path")  # fmt: skip
         self.toml_load = Button(label="Load", width=60, name="toml_load")
         self.toml_load.on_click(self._on_load_toml)
+        self.toml_upload = FileInput(title="…or upload one", accept=".toml", width=230,
+                                     name="toml_upload")  # fmt: skip
+        self.toml_upload.on_change("value", self._on_upload)
 
         self.link = TextInput(title="Link to this state", width=420, name="link")
         self.copy = Button(label="Copy link", width=110, name="copy_link")
@@ -308,7 +312,7 @@ class TuningPage:
 
         header = column(
             row(Div(text="<h2 style='margin:4px 0'>admit_rs — tune by hand</h2>", width=300),
-                self.picker, self.toml_path, column(pad(), self.toml_load)),
+                self.picker, self.toml_path, column(pad(), self.toml_load), self.toml_upload),
             row(column(pad(), self.pin), column(pad(), self.unpin),
                 self.link, column(pad(), self.copy),
                 column(pad(), self.export_toml),
@@ -391,6 +395,23 @@ class TuningPage:
             self._show_error("Type the path of a TOML scenario file first.")
             return
         self._switch_base(path)
+
+    def _on_upload(self, attr: str, old: Any, new: Any) -> None:
+        # The browser sets value, filename and mime type in one message, value first: read
+        # them once all are applied.
+        if new:
+            self.doc.add_next_tick_callback(self._load_upload)
+
+    def _load_upload(self) -> None:
+        value, filename = self.toml_upload.value, self.toml_upload.filename or "(unnamed)"
+        if not isinstance(value, str) or not value:
+            return
+        try:
+            name = ctl.register_upload(base64.b64decode(value, validate=True), str(filename))
+        except (AdmitError, ValueError, TypeError) as e:
+            self._show_error(str(e))
+            return
+        self._switch_base(name)
 
     def _switch_base(self, name: str) -> None:
         try:
