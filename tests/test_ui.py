@@ -405,6 +405,20 @@ def test_legends_sit_above_the_plot_areas(server, chrome):
     assert where == {"plot_force": [[4], []], "plot_normal": [[3], []],
                      "plot_tangent": [[3], []], "plot_xa": [[2], []],
                      "plot_torque": [[3], []]}  # fmt: skip
+    # Clicking an entry hides its line (the entry's stand-in, and the line follows it), and
+    # the entry holds no data source that changes with each run.
+    hidden = chrome.execute_script("""
+        const doc = Bokeh.documents[0];
+        const legend = doc.get_model_by_name("plot_force").above.find((m) => m.type === "Legend");
+        const item = legend.items.find((it) => it.label.value === "f measured");
+        const line = doc.get_model_by_name("plot_force:trace:f_measured");
+        const before = line.visible;
+        item.renderers[0].visible = false;   // what a click on the entry does (click_policy)
+        return [before, item.renderers[0].data_source.data.x.length,
+                legend.items.map((it) => it.renderers[0].data_source.name)];""")  # fmt: skip
+    assert hidden == [True, 0, [None, None, None, None]]
+    browser.wait(chrome, "return !Bokeh.documents[0].get_model_by_name("
+                 "'plot_force:trace:f_measured').visible", 10)  # fmt: skip
 
 
 @needs_browser

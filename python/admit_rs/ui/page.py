@@ -22,7 +22,7 @@ import numpy as np
 from bokeh.document import Document
 from bokeh.layouts import column, row
 from bokeh.models import ColumnDataSource, CustomJS, CustomJSTickFormatter, Range1d
-from bokeh.models.annotations import Legend
+from bokeh.models.annotations import Legend, LegendItem
 from bokeh.models.widgets.buttons import Button
 from bokeh.models.widgets.inputs import Checkbox, FileInput, Select, TextAreaInput, TextInput
 from bokeh.models.widgets.markups import Div
@@ -251,8 +251,8 @@ class TuningPage:
                    tools="pan,wheel_zoom,box_zoom,reset,save", x_axis_label="t [s]",
                    y_axis_label=y_label, **kw)  # fmt: skip
         p.toolbar.logo = None
-        # Above the plot area, not in it: a legend never covers the traces. The lines
-        # drawn with ``legend_label`` join this one (Bokeh finds it on the plot).
+        # Above the plot area, not in it: a legend never covers the traces. Its entries
+        # come from :func:`_line`.
         p.add_layout(Legend(**LEGEND), "above")
         return p
 
@@ -260,29 +260,24 @@ class TuningPage:
         """The tip along one task axis (``"n"`` or ``"t"``): baseline, reference and tip."""
         src, base = self.trace, self.baseline
         p = self._time_plot(title, y_label, name, x_range)
-        p.line("t", f"pos_{axis}", source=base, color=BASELINE, line_dash="dashed",
-               legend_label="baseline")  # fmt: skip
-        p.line("t", f"ref_{axis}", source=src, color="black", line_dash="dashed",
-               legend_label="reference")  # fmt: skip
-        p.line("t", f"pos_{axis}", source=src, color=COLORS[0], legend_label="tip")
+        _line(p, f"pos_{axis}", base, "baseline", color=BASELINE, line_dash="dashed")
+        _line(p, f"ref_{axis}", src, "reference", color="black", line_dash="dashed")
+        _line(p, f"pos_{axis}", src, "tip", color=COLORS[0])
         return p
 
     def _build_plots(self) -> None:
         src, base = self.trace, self.baseline
         f = self._time_plot("Force along n", "f [N]", "plot_force")
-        f.line("t", "f", source=base, color=BASELINE, line_dash="dashed",
-               legend_label="baseline f")  # fmt: skip
-        f.line("t", "f_measured", source=src, color=COLORS[1], alpha=0.7,
-               legend_label="f measured")  # fmt: skip
-        f.line("t", "f", source=src, color=COLORS[0], line_width=1.5, legend_label="f (true)")
-        f.line("t", "f_d", source=src, color="black", line_dash="dashed", legend_label="f_d")
+        _line(f, "f", base, "baseline f", color=BASELINE, line_dash="dashed")
+        _line(f, "f_measured", src, "f measured", color=COLORS[1], alpha=0.7)
+        _line(f, "f", src, "f (true)", color=COLORS[0], line_width=1.5)
+        _line(f, "f_d", src, "f_d", color="black", line_dash="dashed")
         x = f.x_range
         pn = self._tip_plot("Tip along n", "n·X [m]", "plot_normal", "n", x)
         pt = self._tip_plot("Tip along t̂", "t̂·X [m]", "plot_tangent", "t", x)
         xa = self._time_plot("Filter output x_a", "x_a [m]", "plot_xa", x)
-        xa.line("t", "x_a", source=base, color=BASELINE, line_dash="dashed",
-                legend_label="baseline")  # fmt: skip
-        xa.line("t", "x_a", source=src, color=COLORS[2], legend_label="x_a")
+        _line(xa, "x_a", base, "baseline", color=BASELINE, line_dash="dashed")
+        _line(xa, "x_a", src, "x_a", color=COLORS[2])
         self.torque_plot = self._time_plot("Joint torques (applied) and limits", "τ [N·m]",
                                            "plot_torque", x)  # fmt: skip
         self.torque_plot.multi_line("xs", "ys", source=self.limits, color="color",
@@ -555,18 +550,16 @@ class TuningPage:
         self.metrics.text = self._metrics_html(view)
 
     def _set_torque_lines(self, joints: int) -> None:
-        if len(self.torque_lines) == joints:
+        if len(self.torque_lines) == 2 * joints:  # each a line and its legend's stand-in
             return
         p = self.torque_plot
         keep = [r for r in p.renderers if r not in self.torque_lines]
-        self.torque_lines = [
-            p.line("t", f"tau{j}", source=self.trace, color=COLORS[(j - 1) % len(COLORS)],
-                   legend_label=f"τ{j}")  # fmt: skip
-            for j in range(1, joints + 1)
-        ]
+        legend = p.legend[0]
+        legend.items = []
+        lines = [_line(p, f"tau{j}", self.trace, f"τ{j}", color=COLORS[(j - 1) % len(COLORS)])
+                 for j in range(1, joints + 1)]  # fmt: skip
+        self.torque_lines = [r for pair in lines for r in pair]
         p.renderers = keep + self.torque_lines
-        p.legend.items = [it for it in p.legend.items
-                          if it.renderers and it.renderers[0] in self.torque_lines]  # fmt: skip
 
     _sim_html = ""
     _predicted_html = ""
@@ -698,6 +691,28 @@ class TuningPage:
     def _closed(self, session_context: Any) -> None:
         self.sim_worker.close()
         self.predict_worker.close()
+
+
+_FOLLOW_JS = """
+const line = cb_obj.document.get_model_by_id(line_id);
+if (line != null) { line.visible = cb_obj.visible; }
+"""
+
+
+def _line(p: Any, y: str, source: ColumnDataSource, label: str, **style: Any) -> tuple[Any, Any]:
+    """Draws column ``y`` of ``source`` against ``t`` on ``p``, with a legend entry.
+
+    The entry is drawn by a stand-in renderer of the same style and no data, not by the
+    line itself: BokehJS re-renders a legend on every change of anything its entries
+    reach (a line's data source too), a new small canvas per entry and a re-layout of the
+    plot, 10–20 ms for each new trace. Clicking the entry hides the stand-in, and the line
+    follows it (found by id, not held: holding it would reach the data again).
+    Returns (line, stand-in)."""
+    line = p.line("t", y, source=source, name=f"{p.name}:{source.name}:{y}", **style)
+    stand_in = p.line("x", "y", source=ColumnDataSource(data={"x": [], "y": []}), **style)
+    stand_in.js_on_change("visible", CustomJS(args={"line_id": line.id}, code=_FOLLOW_JS))
+    p.legend[0].items.append(LegendItem(label=label, renderers=[stand_in]))
+    return line, stand_in
 
 
 def _empty() -> dict[str, list[float]]:
