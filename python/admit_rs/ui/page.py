@@ -429,9 +429,9 @@ class TuningPage:
             self.verdict.text = "<b>Simulated:</b> not run (see the error)"
             return
         self.current = scenario
-        self.url_state.data = {"query": [ctl.query_string(self.base_name, self.overrides)]}
         self.generation += 1
-        self.sim_worker.submit(self.generation, scenario)
+        self.sim_worker.submit(self.generation, scenario)  # first: the run is the long part
+        self.url_state.data = {"query": [ctl.query_string(self.base_name, self.overrides)]}
 
     def _next_tick(self, fn: Callable[[], None]) -> None:
         try:

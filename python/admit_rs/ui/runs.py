@@ -53,10 +53,15 @@ class Coalescer:
     """One worker thread; ``submit`` replaces any waiting job; ``work(job)`` runs on the
     thread. Jobs run in submission order, so results arrive in order."""
 
+    IDLE_EXIT = 30.0
+    """The worker thread ends after this many seconds without a job (a new one starts on
+    the next submit); between jobs of a drag it waits, so no thread is started per job."""
+
     def __init__(self, work: Callable[[Job], None], name: str) -> None:
         self._work = work
         self._name = name
         self._lock = threading.Lock()
+        self._wake = threading.Condition(self._lock)
         self._waiting: Job | None = None
         self._running: Job | None = None
         self._latest = 0
@@ -72,6 +77,8 @@ class Coalescer:
             if self._thread is None:
                 self._thread = threading.Thread(target=self._loop, name=self._name, daemon=True)
                 self._thread.start()
+            else:
+                self._wake.notify()
 
     def newer_than(self, generation: int) -> bool:
         return self._latest > generation
@@ -90,10 +97,13 @@ class Coalescer:
             self._waiting = None
             if self._running is not None:
                 self._running.cancelled = True
+            self._wake.notify()
 
     def _loop(self) -> None:
         while True:
             with self._lock:
+                if self._waiting is None and not self._closed:
+                    self._wake.wait(self.IDLE_EXIT)
                 job, self._waiting = self._waiting, None
                 self._running = job
                 if job is None or self._closed:
