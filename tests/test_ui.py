@@ -405,6 +405,22 @@ def test_legends_sit_above_the_plot_areas(server, chrome):
     assert where == {"plot_force": [[4], []], "plot_normal": [[3], []],
                      "plot_tangent": [[3], []], "plot_xa": [[2], []],
                      "plot_torque": [[3], []]}  # fmt: skip
+    # Every entry shows a sample of its line (the stand-in's glyph is painted).
+    inked = chrome.execute_script(browser.FIND_VIEW_JS + """
+        const out = [];
+        for (const n of ["plot_force", "plot_xa", "plot_torque"]) {
+          const pv = findView(n);
+          const legend = pv.model.above.find((m) => m.type === "Legend");
+          const lv = pv.views.find_one(legend);
+          out.push(lv.entries.map(({glyph}) => {
+            const c = glyph.canvas, d = c.getContext("2d").getImageData(0, 0, c.width, c.height);
+            let inked = 0;
+            for (let i = 3; i < d.data.length; i += 4) { if (d.data[i] > 0) { inked++; } }
+            return inked;
+          }));
+        }
+        return out;""")  # fmt: skip
+    assert [len(x) for x in inked] == [4, 2, 3] and all(n > 10 for x in inked for n in x), inked
     # Clicking an entry hides its line (the entry's stand-in, and the line follows it), and
     # the entry holds no data source that changes with each run.
     hidden = chrome.execute_script("""
@@ -414,7 +430,7 @@ def test_legends_sit_above_the_plot_areas(server, chrome):
         const line = doc.get_model_by_name("plot_force:trace:f_measured");
         const before = line.visible;
         item.renderers[0].visible = false;   // what a click on the entry does (click_policy)
-        return [before, item.renderers[0].data_source.data.x.length,
+        return [before, item.renderers[0].data_source.data.x.filter((x) => !isNaN(x)).length,
                 legend.items.map((it) => it.renderers[0].data_source.name)];""")  # fmt: skip
     assert hidden == [True, 0, [None, None, None, None]]
     browser.wait(chrome, "return !Bokeh.documents[0].get_model_by_name("

@@ -709,7 +709,10 @@ def _line(p: Any, y: str, source: ColumnDataSource, label: str, **style: Any) ->
     follows it (found by id, not held: holding it would reach the data again).
     Returns (line, stand-in)."""
     line = p.line("t", y, source=source, name=f"{p.name}:{source.name}:{y}", **style)
-    stand_in = p.line("x", "y", source=ColumnDataSource(data={"x": [], "y": []}), **style)
+    # One NaN point: nothing on the plot or in its ranges, but a sample for the legend's
+    # glyph (an empty source draws an empty one).
+    nan = float("nan")
+    stand_in = p.line("x", "y", source=ColumnDataSource(data={"x": [nan], "y": [nan]}), **style)
     stand_in.js_on_change("visible", CustomJS(args={"line_id": line.id}, code=_FOLLOW_JS))
     p.legend[0].items.append(LegendItem(label=label, renderers=[stand_in]))
     return line, stand_in
