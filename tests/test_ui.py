@@ -523,7 +523,7 @@ def _click(drv, name):
 
 @needs_browser
 def test_a_long_run_shows_progress_and_cancels(server, chrome, tmp_path):
-    sc = _panda(30.0)
+    sc = _panda(120.0)  # ~5 s on an idle core: time to cancel it even on a loaded machine
     path = tmp_path / "panda.toml"
     ar.export.toml(sc, path)
     chrome.get(server + f"?scenario={path}")
