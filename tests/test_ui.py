@@ -126,6 +126,42 @@ def test_toml_export_of_a_urdf_arm_names_its_file():
     assert ar.Scenario.from_dict(tomllib.loads(text)).robot.urdf == arm.urdf
 
 
+def test_the_dominant_pole_is_described_truthfully():
+    from admit_rs.ui import runs
+
+    T = 0.001
+    assert runs.dominant_words(0.99 + 0j, T) == [
+        ("dominant pole", "real, z = 0.99", ""), ("time constant τ", "0.0995", "s")]
+    assert runs.dominant_words(-0.5 + 0j, T) == [
+        ("dominant pole", "real, z = -0.5", "(flips sign every sample)"),
+        ("time constant τ", "0.001443", "s")]  # -T / ln 0.5
+    assert runs.dominant_words(1.01 + 0j, T)[1] == ("grows by e every", "0.1005", "s")
+    # A complex pair: the s-plane pole s = ln(z)/T, here s = -20 ± 2π·5j.
+    z = complex(np.exp((-20 + 2j * np.pi * 5) * T))
+    rows = runs.dominant_words(z, T)
+    assert rows[1] == ("dominant pole frequency", "5", "Hz")
+    assert rows[2] == ("dominant pole damping ζ", f"{20 / abs(-20 + 2j * np.pi * 5):.3g}", "")
+    # The page's dominant pole for fig. 15 is predict's (same frequency and damping).
+    pred = runs.predict(ar.paper.scenario("fig15"))
+    v = pred.values
+    assert runs.dominant_words(pred.dominant(), pred.period)[1:] == [
+        ("dominant pole frequency", f"{v['dominant_frequency']:.4g}", "Hz"),
+        ("dominant pole damping ζ", f"{v['dominant_damping']:.3g}", "")]
+
+
+def test_an_uploaded_toml_is_a_base_while_the_server_runs():
+    sc = ar.paper.scenario("fig19").replace(**{"admittance.b": 500.0})
+    raw = ar.export.toml(sc).encode()
+    name = controls.register_upload(raw, "mine.toml")
+    assert name.startswith("upload:") and len(name) == len("upload:") + 12
+    assert controls.register_upload(raw, "again.toml") == name  # same bytes, same name
+    assert controls.load_base(name) == sc
+    with pytest.raises(controls.QueryError, match="upload the file again"):
+        controls.load_base("upload:000000000000")
+    with pytest.raises(controls.QueryError, match="uploaded file bad.toml: not a valid TOML"):
+        controls.register_upload(b"[scenario\n", "bad.toml")
+
+
 def test_coalescer_runs_the_last_state_and_drops_the_waiting_ones():
     from admit_rs.ui import runs
 
@@ -238,7 +274,9 @@ def _only_local(drv):
 
 
 def _slider_value(drv, name):
-    return drv.execute_script("return Bokeh.documents[0].get_model_by_name(arguments[0]).value;",
+    """The value of the slider shown as ``name`` (through its view: a switch of scenario
+    leaves the replaced sliders' models in BokehJS's document until it is rebuilt)."""
+    return drv.execute_script(browser.FIND_VIEW_JS + "return findView(arguments[0]).model.value;",
                               name)  # fmt: skip
 
 
@@ -274,7 +312,13 @@ def test_default_page_is_stable_and_plots_the_run(server, chrome):
     assert "Simulated:" in verdict and ">stable<" in verdict
     page = browser.text(chrome)
     assert "Simulated: stable" in page and "Predicted: stable" in page
-    assert "dominant pole frequency" in page and "force_ss_error" in page
+    assert "force_ss_error" in page
+    # fig. 14's dominant pole is real: its time constant, not "0 Hz, ζ = 1".
+    sc = ar.paper.scenario("fig14")
+    rho = ar.analysis.predict(sc)["spectral_radius"]
+    assert f"dominant pole real, z = {rho:.6g} time constant τ {-sc.period / math.log(rho):.4g} s" \
+        in page, page  # fmt: skip
+    assert "dominant pole frequency" not in page and "damping ζ" not in page
     _assert_plots_hold_the_run(chrome, ar.paper.scenario("fig14"))
     assert len(browser.column(chrome, "poles", "re")) == ar.analysis.linearize(
         ar.paper.scenario("fig14")).nstates
@@ -308,6 +352,130 @@ def test_moving_b_changes_the_url_and_the_trace(server, chrome):
     assert len(after) != len(before) or not np.array_equal(after, before)
     _assert_plots_hold_the_run(chrome, sc)
     assert _slider_value(chrome, "admittance.b") == pytest.approx(math.log10(b), abs=0.01)
+
+
+@needs_browser
+def test_a_complex_dominant_pole_shows_its_frequency_and_damping(server, chrome):
+    browser.open_page(chrome, server + "?scenario=fig15")
+    browser.wait(chrome, "return Bokeh.documents[0].get_model_by_name('pole_text').text"
+                 ".includes('pole pair')")  # fmt: skip
+    v = ar.analysis.predict(ar.paper.scenario("fig15"))
+    page = browser.text(chrome)
+    assert f"dominant pole frequency {v['dominant_frequency']:.4g} Hz" in page
+    assert f"dominant pole damping ζ {v['dominant_damping']:.3g}" in page
+    assert "time constant" not in page
+
+
+@needs_browser
+def test_slider_tooltips_are_the_field_docs_and_labels_keep_units(server, chrome):
+    browser.open_page(chrome, server)
+    schema = _core.schema()
+    cs = controls.controls(ar.paper.scenario("fig14"))
+    keys = {"admittance": "admittance", "wall": "wall", "sensor": "sensor",
+            "actuator": "actuator", "controller": "time_delay", "controller.model": "model",
+            "scenario": "scenario"}  # fmt: skip
+    shown = chrome.execute_script(browser.FIND_VIEW_JS + """
+        const out = {};
+        for (const p of arguments[0]) {
+          const v = findView(p);
+          out[p] = [v.el.getAttribute("title"), v.model.title];
+        }
+        return out;""", [c.path for c in cs])  # fmt: skip
+    for c in cs:
+        doc = schema[keys[c.block]]["properties"][c.name]["description"]
+        tip, label = shown[c.path]
+        assert tip == " ".join(doc.split()), c.path
+        assert label.startswith(c.title), c.path
+    assert shown["admittance.b"] == ["Damping [N·s/m].", "b [N·s/m]"]
+    assert shown["wall.stiffness"][1] == "stiffness [N/m]"
+
+
+@needs_browser
+def test_legends_sit_above_the_plot_areas(server, chrome):
+    browser.open_page(chrome, server)
+    where = chrome.execute_script("""
+        const doc = Bokeh.documents[0], out = {};
+        for (const n of ["plot_force", "plot_normal", "plot_tangent", "plot_xa", "plot_torque"]) {
+          const p = doc.get_model_by_name(n);
+          const legends = (side) => p[side].filter((m) => m.type === "Legend")
+                                           .map((m) => m.items.length);
+          out[n] = [legends("above"), legends("center")];
+        }
+        return out;""")  # fmt: skip
+    assert where == {"plot_force": [[4], []], "plot_normal": [[3], []],
+                     "plot_tangent": [[3], []], "plot_xa": [[2], []],
+                     "plot_torque": [[3], []]}  # fmt: skip
+    # Every entry shows a sample of its line (the stand-in's glyph is painted).
+    inked = chrome.execute_script(browser.FIND_VIEW_JS + """
+        const out = [];
+        for (const n of ["plot_force", "plot_xa", "plot_torque"]) {
+          const pv = findView(n);
+          const legend = pv.model.above.find((m) => m.type === "Legend");
+          const lv = pv.views.find_one(legend);
+          out.push(lv.entries.map(({glyph}) => {
+            const c = glyph.canvas, d = c.getContext("2d").getImageData(0, 0, c.width, c.height);
+            let inked = 0;
+            for (let i = 3; i < d.data.length; i += 4) { if (d.data[i] > 0) { inked++; } }
+            return inked;
+          }));
+        }
+        return out;""")  # fmt: skip
+    assert [len(x) for x in inked] == [4, 2, 3] and all(n > 10 for x in inked for n in x), inked
+    # Clicking an entry hides its line (the entry's stand-in, and the line follows it), and
+    # the entry holds no data source that changes with each run.
+    hidden = chrome.execute_script("""
+        const doc = Bokeh.documents[0];
+        const legend = doc.get_model_by_name("plot_force").above.find((m) => m.type === "Legend");
+        const item = legend.items.find((it) => it.label.value === "f measured");
+        const line = doc.get_model_by_name("plot_force:trace:f_measured");
+        const before = line.visible;
+        item.renderers[0].visible = false;   // what a click on the entry does (click_policy)
+        return [before, item.renderers[0].data_source.data.x.filter((x) => !isNaN(x)).length,
+                legend.items.map((it) => it.renderers[0].data_source.name)];""")  # fmt: skip
+    assert hidden == [True, 0, [None, None, None, None]]
+    browser.wait(chrome, "return !Bokeh.documents[0].get_model_by_name("
+                 "'plot_force:trace:f_measured').visible", 10)  # fmt: skip
+
+
+@needs_browser
+def test_an_uploaded_toml_restores_the_sliders(server, chrome, tmp_path):
+    sc = ar.paper.scenario("fig19").replace(**{"admittance.b": 500.0, "wall.stiffness": 2e5,
+                                               "sensor.cutoff": 40.0})  # fmt: skip
+    path = tmp_path / "uploaded.toml"
+    ar.export.toml(sc, path)
+    browser.open_page(chrome, server)
+    before = chrome.current_url
+    field = browser.element(chrome, "toml_upload", "input[type=file]")
+    field.send_keys(str(path))  # what choosing the file in the dialog does
+    browser.wait(chrome, "return window.location.search.includes('scenario=upload%3A') || "
+                 "window.location.search.includes('scenario=upload:')", 30)  # fmt: skip
+    url = chrome.current_url
+    assert url != before
+    browser.wait(chrome, browser.READY_JS, 60)
+    assert _slider_value(chrome, "admittance.b") == pytest.approx(math.log10(500))
+    assert _slider_value(chrome, "wall.stiffness") == pytest.approx(math.log10(2e5))
+    assert _slider_value(chrome, "sensor.cutoff") == pytest.approx(math.log10(40.0))
+    assert chrome.execute_script(browser.FIND_VIEW_JS + "return findView('sensor.cutoff:on')"
+                                 ".model.active;") is True  # fmt: skip
+    # Once idle, the plots hold the uploaded scenario's run.
+    from admit_rs.ui import runs
+
+    expected = runs.decimated(runs.view_of(sc, ar.simulate(sc).trace, 3))["f"]
+    browser.wait(chrome, "const f = Bokeh.documents[0].get_model_by_name('trace').data.f;"
+                 "return f.length === arguments[0] && f[arguments[1]] === arguments[2];",
+                 30, len(expected), 300, float(expected[300]))  # fmt: skip
+    _assert_plots_hold_the_run(chrome, sc)
+    # The link names the upload, and opens it again (on this server).
+    browser.open_page(chrome, url)
+    assert _slider_value(chrome, "admittance.b") == pytest.approx(math.log10(500))
+    _assert_plots_hold_the_run(chrome, sc)
+    # Not a scenario: an error in words.
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[scenario]\nduration = 'long'\n")
+    browser.element(chrome, "toml_upload", "input[type=file]").send_keys(str(bad))
+    msg = browser.wait(chrome, "const e = Bokeh.documents[0].get_model_by_name('error');"
+                       "return e.visible && e.text;", 30)  # fmt: skip
+    assert "duration" in msg and "Traceback" not in browser.text(chrome)
 
 
 @needs_browser
@@ -355,7 +523,7 @@ def _click(drv, name):
 
 @needs_browser
 def test_a_long_run_shows_progress_and_cancels(server, chrome, tmp_path):
-    sc = _panda(30.0)
+    sc = _panda(120.0)  # ~5 s on an idle core: time to cancel it even on a loaded machine
     path = tmp_path / "panda.toml"
     ar.export.toml(sc, path)
     chrome.get(server + f"?scenario={path}")

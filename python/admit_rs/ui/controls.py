@@ -14,9 +14,11 @@ Nothing here imports Bokeh: it is the page's model, tested on its own.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 import re
 import sys
+import threading
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,11 +42,13 @@ __all__ = [
     "load_base",
     "parse_query",
     "query_string",
+    "register_upload",
 ]
 
 BASE_KEY = "scenario"
 """The query key naming the base scenario: a paper figure (``fig14``), one curve of a
-multi-curve figure (``fig9:2``, counted from 1) or a TOML file's path."""
+multi-curve figure (``fig9:2``, counted from 1), a TOML file's path or an uploaded file
+(``upload:<sha256[:12]>``)."""
 
 SEED_PATH = "seed"
 
@@ -226,9 +230,12 @@ def base_names() -> list[tuple[str, str]]:
 
 def load_base(name: str) -> Scenario:
     """The base scenario ``name``: a paper figure (``fig14``, ``14``), one of its curves
-    (``fig9:2``) or a TOML file (``path/to/scenario.toml``, in the layout ``admit-rs run``
-    reads). Errors are :class:`QueryError` or the scenario's own ParameterError."""
+    (``fig9:2``), a TOML file (``path/to/scenario.toml``, in the layout ``admit-rs run``
+    reads) or one uploaded to this server (:func:`register_upload`). Errors are
+    :class:`QueryError` or the scenario's own ParameterError."""
     text = str(name).strip()
+    if text.startswith(UPLOAD_PREFIX):
+        return _load_upload(text)
     if text.endswith(".toml") or "/" in text or Path(text).suffix:
         return _load_toml(Path(text))
     fig, _, curve = text.partition(":")
@@ -251,21 +258,63 @@ def load_base(name: str) -> Scenario:
 def _load_toml(path: Path) -> Scenario:
     try:
         with open(path, "rb") as fh:
-            data = tomllib.load(fh)
+            raw = fh.read()
     except FileNotFoundError:
         raise QueryError(f"{BASE_KEY}={path}: no such file") from None
     except OSError as e:
         raise QueryError(f"{BASE_KEY}={path}: cannot read it ({e.strerror})") from None
+    return _scenario_of_toml(raw, f"{BASE_KEY}={path}", path.parent)
+
+
+def _scenario_of_toml(raw: bytes, what: str, folder: Path) -> Scenario:
+    """The scenario of a TOML file's bytes; a relative URDF path is relative to ``folder``."""
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         first = str(e).splitlines()[0] if str(e) else "invalid TOML"
-        raise QueryError(f"{BASE_KEY}={path}: not a valid TOML file ({first})") from None
+        raise QueryError(f"{what}: not a valid TOML file ({first})") from None
     table = data.get("scenario", data)
+    if not isinstance(table, dict):
+        raise QueryError(f"{what}: [scenario] must be a table")
     robot = table.get("robot")
     if isinstance(robot, dict) and "path" in robot and "urdf" not in robot:
         p = Path(robot["path"])
         if not p.is_absolute():
-            table = {**table, "robot": {**robot, "path": str(path.parent / p)}}
+            table = {**table, "robot": {**robot, "path": str(folder / p)}}
     return Scenario.from_dict(table)
+
+
+UPLOAD_PREFIX = "upload:"
+"""Base names of uploaded TOML files: ``upload:`` and the first 12 hex digits of the file's
+SHA-256, so that the same file is the same name (and the same link)."""
+MAX_UPLOADS = 64
+_UPLOADS: dict[str, Scenario] = {}
+_UPLOADS_LOCK = threading.Lock()
+
+
+def register_upload(raw: bytes, filename: str) -> str:
+    """Reads an uploaded TOML file (its bytes; ``filename`` for messages) and keeps its
+    scenario in this process under the base name it returns (``upload:<sha256[:12]>``),
+    which :func:`load_base`, and so a link, then accepts while this server runs (the last
+    :data:`MAX_UPLOADS` files). A relative URDF path in it is relative to the server's
+    working directory (an upload has no folder). Errors as :func:`load_base`'s."""
+    name = UPLOAD_PREFIX + hashlib.sha256(raw).hexdigest()[:12]
+    scenario = _scenario_of_toml(raw, f"uploaded file {filename}", Path.cwd())
+    with _UPLOADS_LOCK:
+        _UPLOADS.pop(name, None)
+        _UPLOADS[name] = scenario
+        while len(_UPLOADS) > MAX_UPLOADS:
+            del _UPLOADS[next(iter(_UPLOADS))]
+    return name
+
+
+def _load_upload(name: str) -> Scenario:
+    with _UPLOADS_LOCK:
+        scenario = _UPLOADS.get(name)
+    if scenario is None:
+        raise QueryError(f"{BASE_KEY}={name}: an uploaded file this server does not hold "
+                         "(uploads last while the server runs): upload the file again")  # fmt: skip
+    return scenario
 
 
 # -- the URL query -------------------------------------------------------------------------

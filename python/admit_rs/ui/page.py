@@ -9,6 +9,7 @@ Bokeh document.
 
 from __future__ import annotations
 
+import base64
 import html
 import json
 import logging
@@ -21,8 +22,9 @@ import numpy as np
 from bokeh.document import Document
 from bokeh.layouts import column, row
 from bokeh.models import ColumnDataSource, CustomJS, CustomJSTickFormatter, Range1d
+from bokeh.models.annotations import Legend, LegendItem
 from bokeh.models.widgets.buttons import Button
-from bokeh.models.widgets.inputs import Checkbox, Select, TextAreaInput, TextInput
+from bokeh.models.widgets.inputs import Checkbox, FileInput, Select, TextAreaInput, TextInput
 from bokeh.models.widgets.markups import Div
 from bokeh.models.widgets.sliders import Slider
 from bokeh.plotting import figure
@@ -42,12 +44,32 @@ PLOT_WIDTH = 470
 PLOT_HEIGHT = 210
 COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f"]
 BASELINE = "#9a9a9a"
+LEGEND: dict[str, Any] = {
+    "orientation": "horizontal", "location": "top_left", "click_policy": "hide",
+    "label_text_font_size": "8pt", "glyph_width": 18, "glyph_height": 10, "label_height": 10,
+    "label_standoff": 3, "spacing": 8, "padding": 1, "margin": 2, "border_line_alpha": 0.0,
+    "background_fill_alpha": 0.0,
+}  # fmt: skip
+"""The time plots' legends: one row above the plot area (clicking an entry hides its line)."""
 
 _URL_JS = """
 const q = cb_obj.data.query[0];
 window.history.replaceState(null, "", window.location.pathname + q);
-link.value = window.location.href;
+link.setv({value: window.location.href}, {sync: false});
 """
+_UNPACK_JS = """
+const v = packed.data.v, names = packed.tags;
+if (v === undefined || v.length === undefined || !names.length) { return; }
+const n = v.length / names.length, data = {};
+for (let i = 0; i < names.length; i++) {
+  data[names[i]] = new Float64Array(v.buffer, v.byteOffset + 8 * i * n, n);
+}
+trace.setv({data}, {sync: false, check_eq: false});
+"""
+"""The trace arrives as one float64 buffer (``packed``: the columns one after the other,
+their names in its tags) and is split here into the plotted source's columns, views of that
+buffer. One buffer is 5 WebSocket frames where a column each was 25, handled one by one on
+the browser's main thread; ``sync: false`` keeps the browser from sending the columns back."""
 _DOWNLOAD_JS = """
 if (!cb_obj.data.file[0]) { return; }
 const d = JSON.parse(cb_obj.data.file[0]);
@@ -175,6 +197,9 @@ class TuningPage:
                                    width=260, name="toml_path")  # fmt: skip
         self.toml_load = Button(label="Load", width=60, name="toml_load")
         self.toml_load.on_click(self._on_load_toml)
+        self.toml_upload = FileInput(title="…or upload one", accept=".toml", width=230,
+                                     name="toml_upload")  # fmt: skip
+        self.toml_upload.on_change("value", self._on_upload)
 
         self.link = TextInput(title="Link to this state", width=420, name="link")
         self.copy = Button(label="Copy link", width=110, name="copy_link")
@@ -210,6 +235,10 @@ class TuningPage:
         self.controls_box = column(name="controls", width=340)
 
         self.trace = ColumnDataSource(data=_empty(), name="trace")
+        self.packed = ColumnDataSource(data={"v": np.zeros(0)}, name="packed")
+        unpack = CustomJS(args={"packed": self.packed, "trace": self.trace}, code=_UNPACK_JS)
+        self.packed.js_on_change("data", unpack)
+        self.doc.js_on_event("document_ready", unpack)
         self.baseline = ColumnDataSource(data=_empty(), name="baseline")
         self.limits = ColumnDataSource(data={"xs": [], "ys": [], "color": []}, name="limits")
         self.poles = ColumnDataSource(data={"re": [], "im": [], "mag": []}, name="poles")
@@ -222,45 +251,38 @@ class TuningPage:
                    tools="pan,wheel_zoom,box_zoom,reset,save", x_axis_label="t [s]",
                    y_axis_label=y_label, **kw)  # fmt: skip
         p.toolbar.logo = None
+        # Above the plot area, not in it: a legend never covers the traces. Its entries
+        # come from :func:`_line`.
+        p.add_layout(Legend(**LEGEND), "above")
         return p
 
     def _tip_plot(self, title: str, y_label: str, name: str, axis: str, x_range: Any) -> Any:
         """The tip along one task axis (``"n"`` or ``"t"``): baseline, reference and tip."""
         src, base = self.trace, self.baseline
         p = self._time_plot(title, y_label, name, x_range)
-        p.line("t", f"pos_{axis}", source=base, color=BASELINE, line_dash="dashed",
-               legend_label="baseline")  # fmt: skip
-        p.line("t", f"ref_{axis}", source=src, color="black", line_dash="dashed",
-               legend_label="reference")  # fmt: skip
-        p.line("t", f"pos_{axis}", source=src, color=COLORS[0], legend_label="tip")
+        _line(p, f"pos_{axis}", base, "baseline", color=BASELINE, line_dash="dashed")
+        _line(p, f"ref_{axis}", src, "reference", color="black", line_dash="dashed")
+        _line(p, f"pos_{axis}", src, "tip", color=COLORS[0])
         return p
 
     def _build_plots(self) -> None:
         src, base = self.trace, self.baseline
         f = self._time_plot("Force along n", "f [N]", "plot_force")
-        f.line("t", "f", source=base, color=BASELINE, line_dash="dashed",
-               legend_label="baseline f")  # fmt: skip
-        f.line("t", "f_measured", source=src, color=COLORS[1], alpha=0.7,
-               legend_label="f measured")  # fmt: skip
-        f.line("t", "f", source=src, color=COLORS[0], line_width=1.5, legend_label="f (true)")
-        f.line("t", "f_d", source=src, color="black", line_dash="dashed", legend_label="f_d")
+        _line(f, "f", base, "baseline f", color=BASELINE, line_dash="dashed")
+        _line(f, "f_measured", src, "f measured", color=COLORS[1], alpha=0.7)
+        _line(f, "f", src, "f (true)", color=COLORS[0], line_width=1.5)
+        _line(f, "f_d", src, "f_d", color="black", line_dash="dashed")
         x = f.x_range
         pn = self._tip_plot("Tip along n", "n·X [m]", "plot_normal", "n", x)
         pt = self._tip_plot("Tip along t̂", "t̂·X [m]", "plot_tangent", "t", x)
         xa = self._time_plot("Filter output x_a", "x_a [m]", "plot_xa", x)
-        xa.line("t", "x_a", source=base, color=BASELINE, line_dash="dashed",
-                legend_label="baseline")  # fmt: skip
-        xa.line("t", "x_a", source=src, color=COLORS[2], legend_label="x_a")
+        _line(xa, "x_a", base, "baseline", color=BASELINE, line_dash="dashed")
+        _line(xa, "x_a", src, "x_a", color=COLORS[2])
         self.torque_plot = self._time_plot("Joint torques (applied) and limits", "τ [N·m]",
                                            "plot_torque", x)  # fmt: skip
         self.torque_plot.multi_line("xs", "ys", source=self.limits, color="color",
                                     line_dash="dotted", line_width=1.5)  # fmt: skip
         self.torque_lines: list[Any] = []
-        for plot in (f, pn, pt, xa):
-            plot.legend.location = "bottom_right"
-            plot.legend.click_policy = "hide"
-            plot.legend.label_text_font_size = "8pt"
-            plot.legend.background_fill_alpha = 0.6
         poles = figure(title="Predicted poles (z-plane)", width=330, height=330,
                        x_range=Range1d(start=-1.15, end=1.15),
                        y_range=Range1d(start=-1.15, end=1.15),
@@ -285,7 +307,7 @@ class TuningPage:
 
         header = column(
             row(Div(text="<h2 style='margin:4px 0'>admit_rs — tune by hand</h2>", width=300),
-                self.picker, self.toml_path, column(pad(), self.toml_load)),
+                self.picker, self.toml_path, column(pad(), self.toml_load), self.toml_upload),
             row(column(pad(), self.pin), column(pad(), self.unpin),
                 self.link, column(pad(), self.copy),
                 column(pad(), self.export_toml),
@@ -300,7 +322,7 @@ class TuningPage:
                      self.pole_text, self.metrics, self.export_text):  # fmt: skip
             self.doc.add_root(root)
         # Not roots (every root must be placed in the page): held by the header instead.
-        header.tags = [self.url_state, self.download]
+        header.tags = [self.url_state, self.download, self.packed]
         from jinja2 import Template
 
         self.doc.template = Template(TEMPLATE)
@@ -334,7 +356,7 @@ class TuningPage:
         slider = Slider(start=lo, end=hi, value=value, step=c.slider_step, title=title,
                         format=_slider_format(c), width=300, name=c.path,
                         disabled=c.value is None, show_value=c.value is not None,
-                        tags=[c.scale])  # fmt: skip
+                        tags=[c.scale], html_attributes={"title": c.doc})  # fmt: skip
         if c.value is None:
             slider.title = f"{title} (off)"
         slider.on_change("value", partial(self._on_slider, c))
@@ -369,6 +391,23 @@ class TuningPage:
             return
         self._switch_base(path)
 
+    def _on_upload(self, attr: str, old: Any, new: Any) -> None:
+        # The browser sets value, filename and mime type in one message, value first: read
+        # them once all are applied.
+        if new:
+            self.doc.add_next_tick_callback(self._load_upload)
+
+    def _load_upload(self) -> None:
+        value, filename = self.toml_upload.value, self.toml_upload.filename or "(unnamed)"
+        if not isinstance(value, str) or not value:
+            return
+        try:
+            name = ctl.register_upload(base64.b64decode(value, validate=True), str(filename))
+        except (AdmitError, ValueError, TypeError) as e:
+            self._show_error(str(e))
+            return
+        self._switch_base(name)
+
     def _switch_base(self, name: str) -> None:
         try:
             base = ctl.load_base(name)
@@ -390,9 +429,9 @@ class TuningPage:
             self.verdict.text = "<b>Simulated:</b> not run (see the error)"
             return
         self.current = scenario
-        self.url_state.data = {"query": [ctl.query_string(self.base_name, self.overrides)]}
         self.generation += 1
-        self.sim_worker.submit(self.generation, scenario)
+        self.sim_worker.submit(self.generation, scenario)  # first: the run is the long part
+        self.url_state.data = {"query": [ctl.query_string(self.base_name, self.overrides)]}
 
     def _next_tick(self, fn: Callable[[], None]) -> None:
         try:
@@ -481,7 +520,10 @@ class TuningPage:
             return
         self._set_torque_lines(view.joints)
         self.plotted = view.plotted if view.plotted is not None else view.columns
-        self.trace.data = self.plotted
+        names = list(self.plotted)
+        if self.packed.tags != names:
+            self.packed.tags = names
+        self.packed.data = {"v": np.concatenate([self.plotted[k] for k in names])}
         self.doc.add_timeout_callback(partial(self._show_rest, job, view), REST_DELAY_MS)
 
     def _show_rest(self, job: runs.Job, view: runs.RunView) -> None:
@@ -508,22 +550,16 @@ class TuningPage:
         self.metrics.text = self._metrics_html(view)
 
     def _set_torque_lines(self, joints: int) -> None:
-        if len(self.torque_lines) == joints:
+        if len(self.torque_lines) == 2 * joints:  # each a line and its legend's stand-in
             return
         p = self.torque_plot
         keep = [r for r in p.renderers if r not in self.torque_lines]
-        self.torque_lines = [
-            p.line("t", f"tau{j}", source=self.trace, color=COLORS[(j - 1) % len(COLORS)],
-                   legend_label=f"τ{j}")  # fmt: skip
-            for j in range(1, joints + 1)
-        ]
+        legend = p.legend[0]
+        legend.items = []
+        lines = [_line(p, f"tau{j}", self.trace, f"τ{j}", color=COLORS[(j - 1) % len(COLORS)])
+                 for j in range(1, joints + 1)]  # fmt: skip
+        self.torque_lines = [r for pair in lines for r in pair]
         p.renderers = keep + self.torque_lines
-        p.legend.items = [it for it in p.legend.items
-                          if it.renderers and it.renderers[0] in self.torque_lines]  # fmt: skip
-        p.legend.location = "bottom_right"
-        p.legend.label_text_font_size = "8pt"
-        p.legend.background_fill_alpha = 0.6
-        p.legend.orientation = "horizontal"
 
     _sim_html = ""
     _predicted_html = ""
@@ -544,11 +580,11 @@ class TuningPage:
         self.applied_prediction = generation
         self._predicted_html = self._prediction_html(pred)
         self.verdict.text = (self._sim_html or "<b>Simulated:</b> running…") + self._predicted_html
-        if pred.poles is not None:
+        dom = pred.dominant()
+        if pred.poles is not None and dom is not None:
             p = pred.poles
             self.poles.data = {"re": p.real, "im": p.imag, "mag": np.abs(p)}
-            k = int(np.argmax(np.abs(p)))
-            self.dominant.data = {"re": [float(p[k].real)], "im": [float(p[k].imag)]}
+            self.dominant.data = {"re": [dom.real], "im": [dom.imag]}
         else:
             self.poles.data = {"re": [], "im": [], "mag": []}
             self.dominant.data = {"re": [], "im": []}
@@ -576,9 +612,15 @@ class TuningPage:
         if pred.values is None:
             return f"No linear model: {html.escape(pred.error or '')}"
         v = pred.values
-        rows = [
-            ("dominant pole frequency", _number(v.get("dominant_frequency"), 4), "Hz"),
-            ("dominant pole damping ζ", _number(v.get("dominant_damping"), 3), ""),
+        pole = pred.dominant()
+        if pole is not None:
+            rows = runs.dominant_words(pole, pred.period)
+        else:  # no eigenvalues (see the note below): predict's own numbers
+            rows = [
+                ("dominant pole frequency", _number(v.get("dominant_frequency"), 4), "Hz"),
+                ("dominant pole damping ζ", _number(v.get("dominant_damping"), 3), ""),
+            ]
+        rows += [
             ("spectral radius ρ", _number(v.get("spectral_radius"), 6), "(< 1: stable)"),
             ("predicted overshoot", _number(v.get("overshoot_pct"), 3), "%"),
             ("predicted settling time", _number(v.get("settling_time"), 3), "s"),
@@ -649,6 +691,31 @@ class TuningPage:
     def _closed(self, session_context: Any) -> None:
         self.sim_worker.close()
         self.predict_worker.close()
+
+
+_FOLLOW_JS = """
+const line = cb_obj.document.get_model_by_id(line_id);
+if (line != null) { line.visible = cb_obj.visible; }
+"""
+
+
+def _line(p: Any, y: str, source: ColumnDataSource, label: str, **style: Any) -> tuple[Any, Any]:
+    """Draws column ``y`` of ``source`` against ``t`` on ``p``, with a legend entry.
+
+    The entry is drawn by a stand-in renderer of the same style and no data, not by the
+    line itself: BokehJS re-renders a legend on every change of anything its entries
+    reach (a line's data source too), a new small canvas per entry and a re-layout of the
+    plot, 10–20 ms for each new trace. Clicking the entry hides the stand-in, and the line
+    follows it (found by id, not held: holding it would reach the data again).
+    Returns (line, stand-in)."""
+    line = p.line("t", y, source=source, name=f"{p.name}:{source.name}:{y}", **style)
+    # One NaN point: nothing on the plot or in its ranges, but a sample for the legend's
+    # glyph (an empty source draws an empty one).
+    nan = float("nan")
+    stand_in = p.line("x", "y", source=ColumnDataSource(data={"x": [nan], "y": [nan]}), **style)
+    stand_in.js_on_change("visible", CustomJS(args={"line_id": line.id}, code=_FOLLOW_JS))
+    p.legend[0].items.append(LegendItem(label=label, renderers=[stand_in]))
+    return line, stand_in
 
 
 def _empty() -> dict[str, list[float]]:

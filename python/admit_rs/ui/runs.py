@@ -53,10 +53,15 @@ class Coalescer:
     """One worker thread; ``submit`` replaces any waiting job; ``work(job)`` runs on the
     thread. Jobs run in submission order, so results arrive in order."""
 
+    IDLE_EXIT = 30.0
+    """The worker thread ends after this many seconds without a job (a new one starts on
+    the next submit); between jobs of a drag it waits, so no thread is started per job."""
+
     def __init__(self, work: Callable[[Job], None], name: str) -> None:
         self._work = work
         self._name = name
         self._lock = threading.Lock()
+        self._wake = threading.Condition(self._lock)
         self._waiting: Job | None = None
         self._running: Job | None = None
         self._latest = 0
@@ -72,6 +77,8 @@ class Coalescer:
             if self._thread is None:
                 self._thread = threading.Thread(target=self._loop, name=self._name, daemon=True)
                 self._thread.start()
+            else:
+                self._wake.notify()
 
     def newer_than(self, generation: int) -> bool:
         return self._latest > generation
@@ -90,10 +97,13 @@ class Coalescer:
             self._waiting = None
             if self._running is not None:
                 self._running.cancelled = True
+            self._wake.notify()
 
     def _loop(self) -> None:
         while True:
             with self._lock:
+                if self._waiting is None and not self._closed:
+                    self._wake.wait(self.IDLE_EXIT)
                 job, self._waiting = self._waiting, None
                 self._running = job
                 if job is None or self._closed:
@@ -257,6 +267,52 @@ class Prediction:
     values: dict[str, float | bool | str] | None
     poles: npt.NDArray[np.complex128] | None
     error: str | None = None
+    period: float = 0.0
+    """The model's sample period T [s] (the poles are of z = e^(sT))."""
+
+    def dominant(self) -> complex | None:
+        """The pole of largest modulus (the page's red cross), or None without poles."""
+        if self.poles is None or len(self.poles) == 0:
+            return None
+        return complex(self.poles[int(np.argmax(np.abs(self.poles)))])
+
+
+REAL_POLE_TOL = 1e-9
+"""A pole is real when its imaginary part is below this fraction of its modulus (the
+eigenvalues of a real matrix come as exact conjugate pairs or with imaginary part 0)."""
+
+
+def dominant_words(pole: complex, period: float) -> list[tuple[str, str, str]]:
+    """(what, value, unit) rows that describe the dominant pole truthfully.
+
+    A complex pair is a damped oscillation: its frequency and damping ratio ζ (the s-plane
+    pole s = ln(z)/T). A real pole does not oscillate, so a frequency of 0 Hz and ζ = 1
+    would mislead: it is described by z and its time constant τ = −T / ln|z| (the time
+    its mode takes to fall to 1/e; a pole outside the unit circle grows by e every
+    T / ln|z| instead). A negative real pole flips sign every sample."""
+    r = abs(pole)
+    if r == 0.0:
+        return [("dominant pole", "real, z = 0", "(gone after one sample)")]
+    if abs(pole.imag) > REAL_POLE_TOL * r:
+        s = complex(np.log(pole)) / period
+        freq = abs(s.imag) / (2 * math.pi)
+        zeta = -s.real / abs(s)
+        return [
+            ("dominant pole pair", f"{pole.real:.5g} ± {abs(pole.imag):.3g}j", ""),
+            ("dominant pole frequency", f"{freq:.4g}", "Hz"),
+            ("dominant pole damping ζ", f"{zeta:.3g}", ""),
+        ]
+    z = pole.real
+    rows = [("dominant pole", f"real, z = {z:.6g}",
+             "(flips sign every sample)" if z < 0 else "")]  # fmt: skip
+    log_r = math.log(r)
+    if log_r < 0:
+        rows.append(("time constant τ", f"{-period / log_r:.4g}", "s"))
+    elif log_r > 0:
+        rows.append(("grows by e every", f"{period / log_r:.4g}", "s"))
+    else:
+        rows.append(("time constant τ", "∞", "(on the unit circle)"))
+    return rows
 
 
 def predict(scenario: Scenario) -> Prediction:
@@ -265,15 +321,15 @@ def predict(scenario: Scenario) -> Prediction:
     try:
         values = analysis.predict(scenario)
     except (AdmitError, ValueError, TypeError) as e:
-        return Prediction(None, None, str(e))
+        return Prediction(None, None, str(e), scenario.period)
     amp = float(values.get("friction_amplitude", 0.0))  # type: ignore[arg-type]
     try:
         model = analysis._with_friction(scenario, amp) if amp > 0 else scenario
         raw = _core.linearize(model._to_core(), None)
         poles = np.linalg.eigvals(np.asarray(raw["a"], dtype=float))
     except (AdmitError, ValueError, np.linalg.LinAlgError) as e:
-        return Prediction(values, None, str(e))
-    return Prediction(values, poles.astype(np.complex128))
+        return Prediction(values, None, str(e), scenario.period)
+    return Prediction(values, poles.astype(np.complex128), None, scenario.period)
 
 
 def finite(x: Any) -> bool:
