@@ -26,13 +26,17 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
+if __name__ == "__main__" and "JAX_PEER_CORES" in os.environ:
+    # Pinned before numpy and jax start any thread, so that every thread inherits it.
+    os.sched_setaffinity(0, {int(c) for c in os.environ["JAX_PEER_CORES"].split(",")})
+
+import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import peers  # noqa: E402
 
 try:
-    import jax
+    import jax  # noqa: E402
 
     # float64 throughout, as admit_rs and the Numba peer: set before any array is made.
     jax.config.update("jax_enable_x64", True)
@@ -266,11 +270,10 @@ def sessions(
                 if t > 1:
                     xla.append(f"--xla_force_host_platform_device_count={t}")
                 env["XLA_FLAGS"] = " ".join(xla)
-                cores = sorted(os.sched_getaffinity(0))[:t]
+                env["JAX_PEER_CORES"] = ",".join(map(str, sorted(os.sched_getaffinity(0))[:t]))
                 done = subprocess.run(
                     [sys.executable, __file__, str(path), "--repeats", str(repeats)],
                     env=env, capture_output=True, text=True,
-                    preexec_fn=lambda cores=cores: os.sched_setaffinity(0, cores),
                 )  # fmt: skip
                 lines = done.stdout.strip().splitlines()
                 if not lines:
@@ -323,6 +326,7 @@ def main() -> None:
         "jax": jax.__version__,
         "xla_flags": os.environ.get("XLA_FLAGS", ""),
         "devices": [str(d) for d in jax.devices()],
+        "cores": sorted(os.sched_getaffinity(0)),
         "compile_s": compile_s,
         "first_s": first_s,
         "agreement": agreement,

@@ -199,7 +199,8 @@ def main() -> None:
                   f"scalar / best JAX {scalar / best:.2f}x")  # fmt: skip
     for (flag, threads), r in sorted(jax_runs.items()):
         print(f"JAX {flag or 'as shipped'}, {threads} thread(s): compile {r['compile_s']:.1f} s "
-              f"(not in the table), XLA devices {len(r['devices'])}")  # fmt: skip
+              f"(not in the table), XLA devices {len(r['devices'])}, "
+              f"cores {r['cores']}")  # fmt: skip
 
 
 def jax_sweeps(args, table, stiffness, error) -> dict:
