@@ -253,8 +253,7 @@ def sessions(
     ``data`` holds the runs' parameters and admit_rs's metrics (``main`` checks agreement
     against them before timing). One thread: the process is pinned to one core, so XLA's
     thread pool has that core only. Two or more: as many host devices, the runs sharded
-    over them (one XLA partition per device thread; one unpinned device leaves the second
-    core mostly idle on these loops of small element-wise ops).
+    over them, so that XLA runs one partition on each.
     """
     import subprocess
     import tempfile
