@@ -3,7 +3,6 @@ import without their peer, and agree with admit_rs on a tiny case when it is ins
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 from pathlib import Path
 
@@ -24,7 +23,7 @@ def test_bench_modules_import_without_their_peer():
     assert isinstance(panda_mujoco.HAVE_MUJOCO, bool)
 
 
-@pytest.mark.skipif(importlib.util.find_spec("jax") is None, reason="jax not installed")
+@pytest.mark.skipif(not jax_peer.HAVE_JAX, reason="jax not installed")
 def test_jax_peer_agrees_with_admit_rs_on_a_short_sweep():
     base = ar.paper.scenario("fig19").replace(duration=1.2)
     vary = {"wall.stiffness": ar.LogUniform(1e4, 1e5), "wall.position_error": ar.Uniform(0, 0.01)}
@@ -44,7 +43,7 @@ def test_jax_peer_agrees_with_admit_rs_on_a_short_sweep():
         assert np.max(np.abs(ours - ref) / np.abs(ref)) <= 1e-9, name
 
 
-@pytest.mark.skipif(importlib.util.find_spec("mujoco") is None, reason="mujoco not installed")
+@pytest.mark.skipif(not panda_mujoco.HAVE_MUJOCO, reason="mujoco not installed")
 def test_mujoco_peer_agrees_with_admit_rs_on_a_short_panda_run():
     sc = panda_mujoco.scenario(0.05, 1)
     panda_mujoco.check_scenario(sc)
