@@ -15,6 +15,14 @@ force_rms_error to 1e-9 relative on every run; the script stops otherwise.
 
 admit_rs is timed through ``ar.sweep`` (the parameter draws, the Rust batch with the GIL
 released and the Polars table included). Both run in this one process, on 1 and 2 threads.
+
+The JAX peer (``benches/jax_peer.py``, optional: skipped with a message when jax is absent)
+is the same model again, ``jax.vmap`` over runs of a ``lax.scan`` over periods, float64. It
+runs in one subprocess per XLA flag setting (as shipped, and ``--xla_cpu_max_isa=AVX2``: the
+flag is read when jax starts) and thread count (1: pinned to one core; 2: two host devices,
+the runs sharded over them); each checks its agreement with admit_rs's table on every run
+before it times (same 1e-9), and the script stops otherwise. Its compile time is reported
+apart from the table; the table's JAX time is the best of ``--jax-repeats`` compiled calls.
 """
 
 from __future__ import annotations
@@ -30,8 +38,11 @@ import admit_rs as ar
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
+import jax_peer  # noqa: E402
 import peers  # noqa: E402
 from compare import check_preset  # noqa: E402
+
+JAX_FLAGS = ["", "--xla_cpu_max_isa=AVX2"]
 
 TRANSIENT, WINDOW = 1.0, 2.0
 
@@ -110,6 +121,8 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=2000)
     parser.add_argument("--duration", type=float, default=10.0)
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--jax-repeats", type=int, default=2)
+    parser.add_argument("--skip-jax", action="store_true")
     args = parser.parse_args()
     if not peers.HAVE_NUMBA:
         raise SystemExit("numba is not installed: pip install -e '.[bench]'")
@@ -148,6 +161,7 @@ def main() -> None:
         print(f"agreement {name}: max relative difference {rel:.1e} over {len(ours)} runs")
         if not rel <= 1e-9:
             raise SystemExit(f"{name} differs from the peer by {rel:.1e} > 1e-9: not timing")
+    jax_runs = jax_sweeps(args, table, stiffness, error)
 
     print(f"\n{args.runs} runs of {args.duration} s (fig19, k_e x wall error), metrics only, "
           f"{os.cpu_count()} cores; Numba compile + first sweep {compile_s:.1f} s")  # fmt: skip
@@ -168,12 +182,48 @@ def main() -> None:
         rates["numba", threads] = args.runs / elapsed
         print(f"{'Numba @njit(parallel=True) prange':38s} {threads:7d} {elapsed:9.2f} "
               f"{args.runs / elapsed:8.1f}")  # fmt: skip
+        for flag in JAX_FLAGS if jax_runs else []:
+            elapsed = min(jax_runs[flag, threads]["times_s"])
+            rates["jax", flag, threads] = args.runs / elapsed
+            name = f"JAX vmap+scan ({flag.lstrip('-') if flag else 'as shipped'})"
+            print(f"{name:38s} {threads:7d} {elapsed:9.2f} {args.runs / elapsed:8.1f}")
     for threads in args.threads:
         lanes = rates["admit_rs (4 lanes, ar.sweep)", threads]
         scalar = rates["admit_rs (scalar, ar.sweep)", threads]
         print(f"on {threads} thread(s): lanes / Numba {lanes / rates['numba', threads]:.2f}x, "
               f"scalar / Numba {scalar / rates['numba', threads]:.2f}x, "
               f"lanes / scalar {lanes / scalar:.2f}x")  # fmt: skip
+        if jax_runs:
+            best = max(rates["jax", flag, threads] for flag in JAX_FLAGS)
+            print(f"on {threads} thread(s): lanes / best JAX {lanes / best:.2f}x, "
+                  f"scalar / best JAX {scalar / best:.2f}x")  # fmt: skip
+    for (flag, threads), r in sorted(jax_runs.items()):
+        print(f"JAX {flag or 'as shipped'}, {threads} thread(s): compile {r['compile_s']:.1f} s "
+              f"(not in the table), XLA devices {len(r['devices'])}, "
+              f"cores {r['cores']}")  # fmt: skip
+
+
+def jax_sweeps(args, table, stiffness, error) -> dict:
+    """The JAX peer's sessions (``jax_peer.sessions``), agreement checked in each; {} when
+    jax is absent or skipped."""
+    if args.skip_jax:
+        return {}
+    if not jax_peer.HAVE_JAX:
+        print("JAX peer skipped: jax is not installed (pip install 'jax[cpu]')")
+        return {}
+    data = {
+        "duration": args.duration,
+        "stiffness": stiffness,
+        "error": error,
+        "force_peak": table["force_peak"].to_numpy(),
+        "force_rms_error": table["force_rms_error"].to_numpy(),
+    }
+    reports = jax_peer.sessions(data, args.threads, args.jax_repeats, JAX_FLAGS)
+    for (flag, threads), r in sorted(reports.items()):
+        gaps = ", ".join(f"{k} {v:.1e}" for k, v in r["agreement"].items())
+        print(f"JAX agreement ({flag or 'as shipped'}, {threads} thread(s)): max relative "
+              f"difference {gaps} over {len(stiffness)} runs")  # fmt: skip
+    return reports
 
 
 _control = peers._control
