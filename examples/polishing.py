@@ -122,7 +122,7 @@ def figure(by_mu: dict, by_belief: dict) -> Figure:
     return fig
 
 
-def main(out: Path) -> None:
+def main(out: Path) -> dict[str, pl.DataFrame]:
     out.mkdir(parents=True, exist_ok=True)
     frictions, by_mu = friction_table()
     beliefs, by_belief = estimate_table()
@@ -131,6 +131,7 @@ def main(out: Path) -> None:
         text = f"## Friction\n\n{frictions}\n\n## Beliefs about the shape\n\n{beliefs}\n"
     (out / "polishing.md").write_text(text, encoding="utf-8")
     print(text)
+    return {"friction": frictions, "beliefs": beliefs}
 
 
 if __name__ == "__main__":

@@ -82,6 +82,9 @@ MISSPELLED = [
     (ar.UrdfArm, "tip_lnk", "tip_link"),
     (ar.Criteria, "force_limt", "force_limit"),
     (ar.GuardedApproach, "threshhold", "threshold"),
+    (ar.Sphere, "radus", "radius"),
+    (ar.Cylinder, "axiss", "axis"),
+    (ar.HeightField, "spacng", "spacing"),
 ]
 
 
@@ -154,8 +157,8 @@ def test_no_close_match_lists_the_valid_keywords():
     with pytest.raises(ar.UnknownParameterError) as info:
         ar.Wall(zzz=1.0)
     assert str(info.value) == (
-        "Wall: unknown keyword 'zzz'; valid: stiffness, damping, model, exponent, normal, "
-        "position, position_error, gap"
+        "Wall: unknown keyword 'zzz'; valid: stiffness, damping, model, exponent, friction, "
+        "stiction_velocity, position_error, gap, normal, position"
     )
     assert info.value.suggestions == []
 
@@ -288,8 +291,14 @@ def test_toml_key_typos_name_the_path_and_the_closest_key():
 
 
 def test_toml_fixed_table_with_a_kind_is_rejected():
-    with pytest.raises(ar.UnknownParameterError, match="a wall table takes no kind"):
-        _toml('[wall]\nkind = "wall"\n')
+    with pytest.raises(ar.UnknownParameterError, match="a sensor table takes no kind"):
+        _toml('[sensor]\nkind = "sensor"\n')
+    # A surface table names its kind (SPEC §15); a misspelt one gets the closest.
+    with pytest.raises(ar.UnknownParameterError, match=r"unknown kind 'sphre' for wall") as e:
+        _toml('[wall]\nkind = "sphre"\n')
+    assert e.value.suggestions[0] == "sphere"
+    assert isinstance(_toml('[wall]\nkind = "plane"\n').wall, ar.Wall)
+    assert isinstance(_toml('[wall]\nkind = "sphere"\nradius = 0.2\n').wall, ar.Sphere)
 
 
 # --- K_A of eq. 39: controller.command_divisor ------------------------------------------

@@ -72,3 +72,23 @@ def test_first_contact_example(tmp_path):
         assert peaks[-1] > peaks[1]
     assert 10.0 < tables["m_eff"]["m_eff"][0] < 30.0
     assert (tmp_path / "first_contact.png").stat().st_size > 10_000
+
+
+def test_polishing_example(tmp_path):
+    spec = importlib.util.spec_from_file_location("polishing", ROOT / "examples" / "polishing.py")
+    assert spec and spec.loader
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    tables = example.main(tmp_path)
+    for row in tables["friction"].iter_rows(named=True):
+        # The drag is μ f_d while sliding, a little less for the slow turns of the sine.
+        mu, drag = row["μ"], row["tangential_force_mean"]
+        assert (drag == 0.0) if mu == 0 else (0.95 * mu * 10.0 < drag < mu * 10.0), row
+    beliefs = {r["belief"]: r for r in tables["beliefs"].iter_rows(named=True)}
+    true, flat = beliefs["true shape"], beliefs["flat (tangent plane)"]
+    assert flat["force_rms_error"] > 2.5 * true["force_rms_error"]
+    assert true["stable"] and not flat["stable"]
+    assert (tmp_path / "polishing.png").stat().st_size > 10_000
+    assert (tmp_path / "polishing.md").read_text() == (
+        ROOT / "docs/surfaces/polishing.md"
+    ).read_text()

@@ -1458,7 +1458,7 @@ def _field_names(cls: type[Any]) -> list[str]:
 
 
 def _kind_of(t: type[_Block]) -> str:
-    return t._kind or t.__name__
+    return t._kind or t._core_kind or t.__name__
 
 
 def _table_type(key: str, table: Mapping[str, Any], where: str) -> type[_Block]:
@@ -1481,6 +1481,8 @@ def _table_type(key: str, table: Mapping[str, Any], where: str) -> type[_Block]:
         return kinds[kind]
     if len(types) == 1:
         return types[0]
+    if Wall in types:
+        return Wall  # a surface table without a kind is a plane (SPEC §15)
     # No kind: the field's default block. Choosing a kind by the keys is deprecated.
     keys = set(table)
     fit = [t for t in types if keys <= set(_field_names(t)) | set(t._RENAMED)]
