@@ -185,3 +185,21 @@ def test_sweeps_over_friction_and_radius_are_the_same_bits_everywhere(tmp_path):
         assert row["tangential_force_mean"] == pytest.approx(
             alone.metrics["tangential_force_mean"], rel=1e-9, abs=1e-12
         )
+
+
+def test_the_linearised_analysis_at_a_frozen_contact_point():
+    """The analysis freezes the motion at s(0): the tool rests on the surface, so regularised
+    friction is a viscous damper μ f / v_s along it (3000 N·s/m at μ = 0.3, f = 10 N,
+    v_s = 1 mm/s) and the curvature enters through the normal's turn with position."""
+    base = ar.paper.scenario("fig14")
+    plane = ar.analysis.predict(base)
+    # A huge sphere is the plane; a slack regularisation (v_s = 1 km/s) is no friction.
+    huge = ar.analysis.predict(base.replace(wall=ar.Sphere(radius=1e6)))
+    slack = ar.analysis.predict(base.replace(wall=ar.Wall(friction=0.3, stiction_velocity=1e3)))
+    for other in (huge, slack):
+        assert other["spectral_radius"] == pytest.approx(plane["spectral_radius"], rel=1e-8)
+        assert other["overshoot_pct"] == pytest.approx(plane["overshoot_pct"], rel=1e-5)
+    # At rest, stiction damps the tangential motion: the force response changes.
+    stuck = ar.analysis.predict(base.replace(wall=ar.Wall(friction=0.3)))
+    assert stuck["overshoot_pct"] > plane["overshoot_pct"] + 1.0
+    assert abs(stuck["force_ss_error"]) < 1e-9
