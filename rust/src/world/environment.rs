@@ -4,7 +4,7 @@
 use crate::contact::{Contact, Surface, TipMotion};
 use crate::error::{check, Error, Result};
 use crate::robot::TaskVector;
-use crate::scalar::{F64x4, Real, LANES};
+use crate::scalar::{Real, Wide};
 use nalgebra::Vector3;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -118,17 +118,20 @@ pub struct Wall<T: Real = f64> {
     pub position_error: T,
 }
 
-impl Wall<F64x4> {
+impl<W: Real> Wall<W> {
     /// Four walls of one contact model in four lanes.
-    pub fn pack(walls: [&Wall; LANES]) -> Self {
+    pub fn pack<const L: usize>(walls: [&Wall; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         debug_assert!(walls.iter().all(|w| w.model == walls[0].model));
-        let p = |f: fn(&Wall) -> f64| F64x4::from_lanes(|i| f(walls[i]));
+        let p = |f: fn(&Wall) -> f64| W::from_lanes(|i| f(walls[i]));
         Self {
             stiffness: p(|w| w.stiffness),
             damping: p(|w| w.damping),
             model: walls[0].model,
             exponent: p(|w| w.exponent),
-            normal: Vector3::from_fn(|j, _| F64x4::from_lanes(|i| walls[i].normal[j])),
+            normal: Vector3::from_fn(|j, _| W::from_lanes(|i| walls[i].normal[j])),
             position: p(|w| w.position),
             position_error: p(|w| w.position_error),
         }
