@@ -5,6 +5,7 @@ stiffness drawn from 1e4–1e5 N/m), one thread, metrics only; each path twice, 
 The target is lanes ≥ 2.5× scalar (docs/performance.md §10).
 
     python benches/panda_lanes.py
+    ADMIT_RS_LANES=avx512 python benches/panda_lanes.py   # a lane build forced (issue #25)
 """
 
 from __future__ import annotations
@@ -40,7 +41,9 @@ def main() -> None:
         for a, b in zip(tables[True]["force_peak"], tables[False]["force_peak"], strict=True)
     )
     print(f"lanes vs scalar force_peak: max relative difference {gap:.1e}")
-    print(f"Panda, 16 runs of 4 s, 1 thread: lanes {best[True]:.3f} s, scalar {best[False]:.3f} s")
+    build = ar._core._lane_path()
+    print(f"Panda, 16 runs of 4 s, 1 thread: lanes ({build} build) {best[True]:.3f} s, "
+          f"scalar {best[False]:.3f} s")  # fmt: skip
     print(f"lanes / scalar {best[False] / best[True]:.2f}x (target 2.5x)")
 
 

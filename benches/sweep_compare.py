@@ -1,6 +1,7 @@
 """Sweep throughput against a Numba ``prange`` peer: runs/s of the 10-s fig. 19 sweep.
 
     python benches/sweep_compare.py [--runs 2000] [--duration 10] [--threads 1 2]
+                                    [--lane-builds portable avx2 avx512]
 
 Not a test: prints a table. The sweep is fig. 19 (TDC eq. 18 + Scheme 2, wall error) over
 k_e ~ LogUniform(1e4, 1e5) × wall error ~ Uniform(0, 0.01) m, metrics only (no traces).
@@ -23,6 +24,9 @@ flag is read when jax starts) and thread count (1: pinned to one core; 2: two ho
 the runs sharded over them); each checks its agreement with admit_rs's table on every run
 before it times (same 1e-9), and the script stops otherwise. Its compile time is reported
 apart from the table; the table's JAX time is the best of ``--jax-repeats`` compiled calls.
+Each lane build of ``--lane-builds`` (default: every one this CPU runs; issue #25: 4-wide
+portable and AVX2, 8-wide AVX-512) gets a row too, forced through ``_core._lane_path`` after
+its table was checked to be the default build's bit for bit.
 """
 
 from __future__ import annotations
@@ -123,7 +127,11 @@ def main() -> None:
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--jax-repeats", type=int, default=2)
     parser.add_argument("--skip-jax", action="store_true")
+    parser.add_argument("--lane-builds", nargs="*", default=None)
     args = parser.parse_args()
+    from admit_rs import _core
+
+    builds = list(_core._lane_runs()) if args.lane_builds is None else args.lane_builds
     if not peers.HAVE_NUMBA:
         raise SystemExit("numba is not installed: pip install -e '.[bench]'")
     preset = ar.paper.scenario("fig19")
@@ -132,11 +140,15 @@ def main() -> None:
     c = peers.Fig14(duration=args.duration, position_error=0.01)
     vary = {"wall.stiffness": ar.LogUniform(1e4, 1e5), "wall.position_error": ar.Uniform(0, 0.01)}
 
-    def admit(threads: int, lanes: bool = True):
-        return ar.sweep(
-            base, vary=vary, samples=args.runs, seed=0, threads=threads, progress=False,
-            lanes=lanes,
-        )  # fmt: skip
+    def admit(threads: int, lanes: bool = True, build: str = "auto"):
+        _core._lane_path(build)
+        try:
+            return ar.sweep(
+                base, vary=vary, samples=args.runs, seed=0, threads=threads, progress=False,
+                lanes=lanes,
+            )  # fmt: skip
+        finally:
+            _core._lane_path("auto")
 
     kernel = _compile()
     # Agreement first, on every run of the sweep.
@@ -149,6 +161,10 @@ def main() -> None:
         print(f"lanes vs scalar {name}: max relative difference {rel:.1e}")
         if not rel <= 1e-9:
             raise SystemExit(f"lanes differ from the scalar path by {rel:.1e}: not timing")
+    for build in builds:
+        if not admit(max(args.threads), build=build).equals(table):
+            raise SystemExit(f"the {build} lane build's table differs: not timing")
+    print(f"lane builds {builds} (default {_core._lane_path()}): the same table, bit for bit")
     stiffness = table["wall.stiffness"].to_numpy().copy()
     error = table["wall.position_error"].to_numpy().copy()
     start = time.perf_counter()
@@ -173,6 +189,13 @@ def main() -> None:
             start = time.perf_counter()
             admit(threads, lanes)
             elapsed = time.perf_counter() - start
+            rates[name, threads] = args.runs / elapsed
+            print(f"{name:38s} {threads:7d} {elapsed:9.2f} {args.runs / elapsed:8.1f}")
+        for build in builds:
+            start = time.perf_counter()
+            admit(threads, build=build)
+            elapsed = time.perf_counter() - start
+            name = f"admit_rs ({8 if build == 'avx512' else 4} lanes, {build})"
             rates[name, threads] = args.runs / elapsed
             print(f"{name:38s} {threads:7d} {elapsed:9.2f} {args.runs / elapsed:8.1f}")
         numba.set_num_threads(threads)

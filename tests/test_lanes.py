@@ -344,3 +344,115 @@ def test_lane_promise_is_what_the_twin_measures():
     scalar = ar.sweep(bouncing, vary=stiff, samples=8, seed=7, twin=True, lanes=False,
                       progress=False)  # fmt: skip
     assert np.array_equal(scalar["lane_gap"].to_numpy(), mf["lane_gap"].to_numpy())
+
+
+# Issue #25: the lane loop's builds (portable 4-wide, AVX2 4-wide, AVX-512 8-wide) give the
+# same bits. Each test forces a build through the hidden `_core._lane_path` (or, for Dask's
+# worker processes, `ADMIT_RS_LANES`) and checks with `_core._lane_runs` that the sweep's lane
+# groups really ran on it; a build this CPU cannot run is skipped with a message.
+LANE_BUILDS = ["portable", "avx2", "avx512"]
+
+
+def _on_build(build: str, run):
+    """`run()` with the lane build `build` forced; asserts that its lane runs took that
+    build and no other (skips a build the CPU lacks), and restores the default after."""
+    from admit_rs import _core
+
+    if build not in _core._lane_runs():
+        pytest.skip(f"this CPU cannot run the {build} lane build")
+    before = _core._lane_runs()
+    try:
+        assert _core._lane_path(build) == build
+        out = run()
+    finally:
+        _core._lane_path("auto")
+    after = _core._lane_runs()
+    ran = {p: after[p] - before[p] for p in after}
+    assert ran[build] > 0 and all(n == 0 for p, n in ran.items() if p != build), ran
+    return out
+
+
+def _fig19_sweep(**kw) -> pl.DataFrame:
+    """203 fig. 19 runs (a ragged tail for 4 and 8 lanes): walls, wall errors, sensor noise."""
+    base = ar.paper.scenario("fig19").replace(duration=1.5)
+    vary = {"wall.stiffness": ar.LogUniform(1e4, 1e6), "wall.position_error": ar.Uniform(0, 0.01),
+            "sensor.noise_std": ar.Uniform(0, 0.3)}  # fmt: skip
+    return ar.sweep(base, vary=vary, samples=203, seed=25, progress=False, **kw)
+
+
+def _panda_sweep(**kw) -> pl.DataFrame:
+    """19 Panda runs under its tuned TDC and under model-free control (a grid of two)."""
+    arm = _urdf_arms()["panda"]
+    controllers = _urdf_controllers(arm)
+    base = ar.paper.scenario("fig19").replace(robot=arm, duration=0.2)
+    return ar.sweep(
+        base, grid={"controller": [controllers["tdc"], controllers["model_free"]]},
+        vary=URDF_VARY | {"actuator.delay": ar.Choice([0])}, samples=19, seed=25,
+        progress=False, **kw,
+    )  # fmt: skip
+
+
+_REFERENCE: dict[str, pl.DataFrame] = {}
+
+
+def _portable(name: str, sweep) -> pl.DataFrame:
+    """The portable build's table (computed once per session)."""
+    if name not in _REFERENCE:
+        _REFERENCE[name] = _on_build("portable", lambda: sweep(threads=1))
+    return _REFERENCE[name]
+
+
+@pytest.mark.parametrize("build", LANE_BUILDS)
+@pytest.mark.parametrize(("name", "sweep"), [("fig19", _fig19_sweep), ("panda", _panda_sweep)])
+def test_every_lane_build_gives_the_same_table(build, name, sweep):
+    """Fig. 19 on the three-link arm and the Panda: each build's table, on 2 threads, is the
+    portable build's on 1 thread, bit for bit."""
+    reference = _portable(name, sweep)
+    table = _on_build(build, lambda: sweep(threads=2))
+    assert table.equals(reference)
+    assert (~table["diverged"]).any()
+
+
+@pytest.mark.parametrize("build", ["avx2", "avx512"])
+def test_a_lane_build_is_the_same_bits_in_any_chunking_and_on_resume(build, tmp_path):
+    """The mixed ragged sweep (three controllers, two substep counts, two contact laws) on a
+    dispatched build equals the portable build's on 1 thread, in chunks of 7 and resumed."""
+    ref = _portable("mixed", _mixed)
+
+    def run():
+        ck = tmp_path / "ck"
+        assert _mixed(threads=2, chunk_size=7).equals(ref)
+        first = _mixed(threads=2, chunk_size=64, checkpoint=ck)
+        (ck / "chunk-000004.parquet").unlink()  # recomputed on resume
+        return first, _mixed(threads=1, chunk_size=64, checkpoint=ck)
+
+    first, resumed = _on_build(build, run)
+    assert first.equals(ref) and resumed.equals(ref)
+
+
+def test_dask_workers_on_the_8_wide_build_give_the_portable_table(monkeypatch):
+    """Dask's worker processes read ``ADMIT_RS_LANES``: the 8-wide build there gives the
+    portable build's table."""
+    from admit_rs import _core
+    from dask import distributed
+
+    if "avx512" not in _core._lane_runs():
+        pytest.skip("this CPU cannot run the avx512 lane build")
+    ref = _portable("mixed", _mixed)
+    monkeypatch.setenv("ADMIT_RS_LANES", "avx512")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:  # fmt: skip
+        paths = client.run(lambda: __import__("admit_rs")._core._lane_path())
+        assert set(paths.values()) == {"avx512"}, paths
+        remote = _mixed(chunk_size=64, client=client)
+    assert remote.equals(ref)
+
+
+def test_lane_build_names_are_checked():
+    from admit_rs import _core
+
+    assert "portable" in _core._lane_runs()
+    with pytest.raises(ValueError, match="one of auto"):
+        _core._lane_path("sse9")
+    assert _core._lane_path() == _core._lane_path("auto")

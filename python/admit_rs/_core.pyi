@@ -103,14 +103,23 @@ def filter_response(
     """Run the discrete filter (adaptive when ``sigma`` > 0): ``x_a``, ``xa_dot``,
     ``xa_ddot`` per sample."""
 
+def _lane_path(path: str | None = None) -> str:
+    """Hidden (tests, benches; issue #25): force the lane loop's build ("portable", "avx2",
+    "avx512"; "auto": the default) in this process; returns the build in effect. ValueError
+    for an unknown name or a build this CPU cannot run."""
+
+def _lane_runs() -> dict[str, int]:
+    """Hidden: the builds this CPU runs and, for each, the runs whose stages ran in lanes on
+    it since the process started."""
+
 def simulate_batch(
     scenarios: list[dict[str, Any]],
     threads: int | None = None,
     traces: bool = False,
     lanes: bool = True,
 ) -> dict[str, Any]:
-    """Run a batch on ``threads`` threads (None: all cores), GIL released; ``lanes``: the
-    three-link arm's runs four at a time in SIMD lanes (within 1e-9 of the scalar path).
+    """Run a batch on ``threads`` threads (None: all cores), GIL released; ``lanes``: runs
+    four or eight at a time in SIMD lanes (within 1e-9 of the scalar path).
 
     Returns ``{"metrics": {name: ndarray}, "stable": list[bool | None], "verdict": list[str],
     "diverged": ndarray[bool],

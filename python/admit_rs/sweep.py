@@ -718,8 +718,9 @@ def sweep(
         client: a ``dask.distributed.Client``: chunks run as tasks on its workers.
         chunk_size: runs per checkpoint file and per Dask task.
         progress: show a tqdm bar (runs/s, ETA).
-        lanes: run the runs four at a time in SIMD lanes (SPEC §13, about 2.4x the scalar
-            path). The table is the same bits on any threads, chunking, resume or Dask.
+        lanes: run the runs four or eight at a time in SIMD lanes (SPEC §13, about 2.4x the
+            scalar path). The table is the same bits on any threads, chunking, resume, Dask
+            or CPU (AVX2 or AVX-512 build, docs/performance.md §14).
             ``False``: the scalar path, each run ``ar.simulate``'s bits. A lane run's
             arithmetic is the scalar run's except ``exp`` (and sin/cos on URDF chains),
             within 2 ulp; how far that moves its metrics is the run's own sensitivity
@@ -903,7 +904,9 @@ def _run_local(
     # a call (configs in, tables out) stays a few per cent. The first call runs one lane
     # group per thread; later ones are sized from the rate measured so far. Results do not
     # depend on the sizes (every run's numbers depend on its scenario alone).
-    group = 4 * (threads or os.cpu_count() or 1)
+    # A lane group is 8 runs on the AVX-512 build, else 4 (issue #25).
+    width = 8 if lanes and _core._lane_path() == "avx512" else 4
+    group = width * (threads or os.cpu_count() or 1)
     step, done, spent = group, 0, 0.0
     for index, ids in todo:
         pieces = partial.setdefault(index, [])

@@ -1,5 +1,6 @@
-//! The scalar the stage math is written over (SPEC §13): `f64` for one run, or [`F64x4`],
-//! four runs advancing together in SIMD lanes. One source serves both; data-dependent
+//! The scalar the stage math is written over (SPEC §13): `f64` for one run, or a lane type,
+//! [`F64x4`] or [`F64x8`], four or eight runs advancing together in SIMD lanes. One source
+//! serves all three (lane code is generic over [`Wide`]); data-dependent
 //! branches become lane selects (`SimdValue::select`), with the scalar branch kept where all
 //! lanes agree (see [`Real::all`]).
 //!
@@ -18,10 +19,24 @@ pub type F64x4 = simba::simd::AutoF64x4;
 /// Lanes in an [`F64x4`].
 pub const LANES: usize = 4;
 
+/// Eight f64 lanes, the same array-backed type as [`F64x4`]: one AVX-512 register inside
+/// the `avx512f` build of the lane loop, two AVX2 registers elsewhere (issue #25).
+pub type F64x8 = simba::simd::AutoF64x8;
+
+/// A lane type carrying `L` runs: [`F64x4`] (`L` = 4) or [`F64x8`] (`L` = 8). The lane
+/// code is written once over it; `L` sizes the arrays of runs a group packs from, so a
+/// width that does not match its lane type does not compile.
+pub trait Wide<const L: usize>: Real {}
+
+impl Wide<4> for F64x4 {}
+impl Wide<8> for F64x8 {}
+
 /// A scalar for the stage math: nalgebra's `SimdRealField` over `f64` elements, plus the
 /// few operations whose lane version is written here.
 pub trait Real:
-    SimdRealField<Element = f64, SimdBool: std::fmt::Debug + PartialEq> + Copy + Default
+    SimdRealField<Element = f64, SimdBool: std::fmt::Debug + PartialEq + SimdValue<Element = bool>>
+    + Copy
+    + Default
 {
     /// Number of runs this scalar carries.
     const LANES: usize;
@@ -87,43 +102,51 @@ impl Real for f64 {
     }
 }
 
-impl Real for F64x4 {
-    const LANES: usize = LANES;
+/// The lane types' `Real`: one body for every width (element-wise array code).
+macro_rules! real_lanes {
+    ($t:ty, $l:literal) => {
+        impl Real for $t {
+            const LANES: usize = $l;
 
-    #[inline(always)]
-    fn exp_fast(self) -> Self {
-        simba::simd::AutoSimd(exp_lanes(self.0))
-    }
+            #[inline(always)]
+            fn exp_fast(self) -> Self {
+                simba::simd::AutoSimd(exp_lanes(self.0))
+            }
 
-    #[inline(always)]
-    fn sin_cos_each(self) -> (Self, Self) {
-        let sc = self.0.map(libm::sincos);
-        (
-            simba::simd::AutoSimd(sc.map(|p| p.0)),
-            simba::simd::AutoSimd(sc.map(|p| p.1)),
-        )
-    }
+            #[inline(always)]
+            fn sin_cos_each(self) -> (Self, Self) {
+                let sc = self.0.map(libm::sincos);
+                (
+                    simba::simd::AutoSimd(sc.map(|p| p.0)),
+                    simba::simd::AutoSimd(sc.map(|p| p.1)),
+                )
+            }
 
-    #[inline(always)]
-    fn sin_cos_fast(self) -> (Self, Self) {
-        let (s, c) = sin_cos_lanes(self.0);
-        (simba::simd::AutoSimd(s), simba::simd::AutoSimd(c))
-    }
+            #[inline(always)]
+            fn sin_cos_fast(self) -> (Self, Self) {
+                let (s, c) = sin_cos_lanes(self.0);
+                (simba::simd::AutoSimd(s), simba::simd::AutoSimd(c))
+            }
 
-    #[inline(always)]
-    fn from_lanes(f: impl FnMut(usize) -> f64) -> Self {
-        simba::simd::AutoSimd(std::array::from_fn(f))
-    }
+            #[inline(always)]
+            fn from_lanes(f: impl FnMut(usize) -> f64) -> Self {
+                simba::simd::AutoSimd(std::array::from_fn(f))
+            }
 
-    #[inline(always)]
-    fn mat3_vec(a: &Matrix3<F64x4>, v: &Vector3<F64x4>) -> Vector3<F64x4> {
-        Vector3::new(
-            a[(0, 0)] * v[0] + a[(0, 1)] * v[1] + a[(0, 2)] * v[2],
-            a[(1, 0)] * v[0] + a[(1, 1)] * v[1] + a[(1, 2)] * v[2],
-            a[(2, 0)] * v[0] + a[(2, 1)] * v[1] + a[(2, 2)] * v[2],
-        )
-    }
+            #[inline(always)]
+            fn mat3_vec(a: &Matrix3<$t>, v: &Vector3<$t>) -> Vector3<$t> {
+                Vector3::new(
+                    a[(0, 0)] * v[0] + a[(0, 1)] * v[1] + a[(0, 2)] * v[2],
+                    a[(1, 0)] * v[0] + a[(1, 1)] * v[1] + a[(1, 2)] * v[2],
+                    a[(2, 0)] * v[0] + a[(2, 1)] * v[1] + a[(2, 2)] * v[2],
+                )
+            }
+        }
+    };
 }
+
+real_lanes!(F64x4, 4);
+real_lanes!(F64x8, 8);
 
 /// Lane `i` of `x` (lane 0 of a scalar).
 #[inline(always)]
@@ -231,18 +254,27 @@ pub fn mask_from<T: Real>(f: impl FnMut(usize) -> bool) -> T::SimdBool {
 
 /// Sets lane `l` of `x` to `v`: how a lane takes a new run's parameters and state.
 #[inline(always)]
-pub fn put(x: &mut F64x4, l: usize, v: f64) {
+pub fn put<T: Real>(x: &mut T, l: usize, v: f64) {
     x.replace(l, v);
 }
 
 /// [`put`] for each component of a vector.
 #[inline(always)]
-pub fn put_vector<const R: usize, const C: usize>(
-    x: &mut SMatrix<F64x4, R, C>,
+pub fn put_vector<T: Real, const R: usize, const C: usize>(
+    x: &mut SMatrix<T, R, C>,
     l: usize,
     v: &SMatrix<f64, R, C>,
 ) {
     x.zip_apply(v, |a, b| a.replace(l, b));
+}
+
+/// Every lane's value, if every lane has one (how a group packs its optional stages).
+#[inline]
+pub fn every<T: Copy, const L: usize>(a: [Option<T>; L]) -> Option<[T; L]> {
+    let first = a.iter().flatten().next().copied()?;
+    a.iter()
+        .all(Option::is_some)
+        .then(|| a.map(|x| x.unwrap_or(first)))
 }
 
 /// Lane `l` of a vector.
@@ -256,13 +288,14 @@ pub fn lane_of<T: Real, const R: usize, const C: usize>(
 
 /// A vector of lanes from one vector per lane.
 #[inline(always)]
-pub fn pack_vector<const R: usize, const C: usize>(
-    v: [&SMatrix<f64, R, C>; LANES],
-) -> SMatrix<F64x4, R, C> {
-    SMatrix::<F64x4, R, C>::from_fn(|r, c| F64x4::from_lanes(|i| v[i][(r, c)]))
+pub fn pack_vector<W: Wide<L>, const L: usize, const R: usize, const C: usize>(
+    v: [&SMatrix<f64, R, C>; L],
+) -> SMatrix<W, R, C> {
+    SMatrix::<W, R, C>::from_fn(|r, c| W::from_lanes(|i| v[i][(r, c)]))
 }
 
-/// e^x in four lanes at once, with no branch and no table, so it vectorises.
+/// e^x in `L` lanes at once, with no branch and no table, so it vectorises. Element-wise:
+/// a lane's bits do not depend on `L` nor on the other lanes.
 ///
 /// x = n ln 2 + r with n = round(x / ln 2) (by the 1.5·2⁵² rounding trick) and
 /// |r| ≤ ln 2 / 2 (Cody–Waite: ln 2 split in a high part with trailing zero bits, exact
@@ -271,7 +304,7 @@ pub fn pack_vector<const R: usize, const C: usize>(
 /// bits. Within 2 ulp of libm's e^x over the normal range (tested); 0 below −745.2,
 /// +∞ above 709.78, NaN for NaN.
 #[inline(always)]
-pub fn exp_lanes(x: [f64; 4]) -> [f64; 4] {
+pub fn exp_lanes<const L: usize>(x: [f64; L]) -> [f64; L] {
     const LOG2_E: f64 = std::f64::consts::LOG2_E;
     // 1.5·2⁵²: adding it rounds to an integer held in the low mantissa bits.
     const ROUND: f64 = 6_755_399_441_055_744.0;
@@ -284,7 +317,7 @@ pub fn exp_lanes(x: [f64; 4]) -> [f64; 4] {
     let xc = x.map(|v| v.clamp(LOW, HIGH));
     let t = xc.map(|v| v * LOG2_E + ROUND);
     let n = t.map(|v| v - ROUND);
-    let r: [f64; 4] = std::array::from_fn(|i| (xc[i] - n[i] * LN2_HI) - n[i] * LN2_LO);
+    let r: [f64; L] = std::array::from_fn(|i| (xc[i] - n[i] * LN2_HI) - n[i] * LN2_LO);
     // Estrin: e^r = Σ rᵏ/k!, k ≤ 13, paired so independent products run side by side.
     let poly = r.map(|r| {
         let r2 = r * r;
@@ -308,8 +341,8 @@ pub fn exp_lanes(x: [f64; 4]) -> [f64; 4] {
     // k sits in the low bits of k + ROUND, two's complement), so both stay normal over the
     // clamped range and a subnormal result rounds once, in the last product.
     let t1 = n.map(|v| v * 0.5 + ROUND);
-    let t2: [f64; 4] = std::array::from_fn(|i| (n[i] - (t1[i] - ROUND)) + ROUND);
-    let pow2 = |t: [f64; 4]| {
+    let t2: [f64; L] = std::array::from_fn(|i| (n[i] - (t1[i] - ROUND)) + ROUND);
+    let pow2 = |t: [f64; L]| {
         t.map(|v| {
             f64::from_bits(v.to_bits().wrapping_sub(ROUND.to_bits()).wrapping_add(1023) << 52)
         })
@@ -327,33 +360,55 @@ pub fn exp_lanes(x: [f64; 4]) -> [f64; 4] {
     })
 }
 
-/// (sin x, cos x) in four lanes at once, with no branch and no table, so it vectorises.
+/// (sin x, cos x) in `L` lanes at once, with no branch and no table, so it vectorises.
 ///
 /// x = n π/2 + r with n = round(2x/π) and |r| ≤ π/4 (Cody–Waite: π/2 split in three parts,
 /// the first two with 33 bits so n·part is exact for |n| < 2²⁰); sin r and cos r by their
 /// Taylor series to r¹⁷ and r¹⁸ (truncation below 1e-19), Horner in r²; the quadrant n mod 4
 /// swaps and negates them. Within 2 ulp of libm over the range joint angles take (tested).
-/// If any lane is beyond ±2¹⁹ or not finite, all four take `f64::sin_cos` instead.
+/// A lane beyond ±2¹⁹ or not finite takes `f64::sin_cos` instead, alone: every lane's bits
+/// are its own, whatever `L` and its neighbours (a 4-wide and an 8-wide table agree).
 #[inline(always)]
-pub fn sin_cos_lanes(x: [f64; 4]) -> ([f64; 4], [f64; 4]) {
+pub fn sin_cos_lanes<const L: usize>(x: [f64; L]) -> ([f64; L], [f64; L]) {
+    if !x.iter().all(|v| v.abs() <= SIN_COS_LIMIT) {
+        return sin_cos_beyond(x);
+    }
+    sin_cos_reduced(x)
+}
+
+/// Beyond the reduction's limit (a diverging run): libm in the lanes beyond it, the
+/// polynomial in the others (at 0 in the lanes replaced, then overwritten).
+#[cold]
+#[inline(never)]
+fn sin_cos_beyond<const L: usize>(x: [f64; L]) -> ([f64; L], [f64; L]) {
+    let inside = x.map(|v| v.abs() <= SIN_COS_LIMIT);
+    let (mut s, mut c) =
+        sin_cos_reduced(std::array::from_fn(|i| if inside[i] { x[i] } else { 0.0 }));
+    for i in (0..L).filter(|&i| !inside[i]) {
+        (s[i], c[i]) = x[i].sin_cos();
+    }
+    (s, c)
+}
+
+/// 2¹⁹: below it n·PIO2_1 and n·PIO2_2 are exact.
+const SIN_COS_LIMIT: f64 = 524_288.0;
+
+/// [`sin_cos_lanes`] for |x| ≤ 2¹⁹ in every lane.
+#[inline(always)]
+fn sin_cos_reduced<const L: usize>(x: [f64; L]) -> ([f64; L], [f64; L]) {
     const FRAC_2_PI: f64 = std::f64::consts::FRAC_2_PI;
     // 1.5·2⁵²: adding it rounds to an integer held in the low mantissa bits.
     const ROUND: f64 = 6_755_399_441_055_744.0;
     const PIO2_1: f64 = f64::from_bits(0x3ff9_21fb_5440_0000); // 1.5707963267341256
     const PIO2_2: f64 = f64::from_bits(0x3dd0_b461_1a60_0000); // 6.077100506303966e-11
     const PIO2_3: f64 = f64::from_bits(0x3ba3_198a_2e03_7073); // 2.0222662487959506e-21
-    const LIMIT: f64 = 524_288.0; // 2¹⁹
-    if !x.iter().all(|v| v.abs() <= LIMIT) {
-        let sc = x.map(f64::sin_cos);
-        return (sc.map(|p| p.0), sc.map(|p| p.1));
-    }
     let t = x.map(|v| v * FRAC_2_PI + ROUND);
     let n = t.map(|v| v - ROUND);
-    let r: [f64; 4] =
+    let r: [f64; L] =
         std::array::from_fn(|i| ((x[i] - n[i] * PIO2_1) - n[i] * PIO2_2) - n[i] * PIO2_3);
     let z = r.map(|r| r * r);
     // sin r = r + r z S(z), S = Σ (−1)ᵏ z^(k−1) / (2k+1)!, k = 1…8.
-    let sin_r: [f64; 4] = std::array::from_fn(|i| {
+    let sin_r: [f64; L] = std::array::from_fn(|i| {
         let z = z[i];
         let s = 1.0 / 355_687_428_096_000.0;
         let s = -1.0 / 1_307_674_368_000.0 + z * s;
@@ -468,12 +523,38 @@ mod tests {
         assert!(s[1].is_sign_negative());
         assert_eq!(c[..3], [1.0, 1.0, 1.0]);
         assert!(ulps(s[3], 1.0) <= 1 && c[3].abs() < 1e-16);
+        // A lane beyond the limit takes libm alone; its neighbours keep their own bits.
+        let inside = sin_cos_lanes([0.5, 1.0, -0.5, 2.0]);
         for edge in [f64::INFINITY, f64::NAN, 1e300, -6e5] {
             let (s, c) = sin_cos_lanes([0.5, edge, -0.5, 2.0]);
             let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
             assert!(same(s[1], edge.sin()) && same(c[1], edge.cos()), "{edge}");
-            assert_eq!((s[0], c[2]), (0.5f64.sin(), (-0.5f64).cos()));
+            for i in [0, 2, 3] {
+                assert_eq!((s[i], c[i]), (inside.0[i], inside.1[i]), "{edge}");
+            }
         }
+    }
+
+    /// Four lanes and eight give a lane the same bits: the polynomials are element-wise.
+    #[test]
+    fn four_and_eight_lanes_agree() {
+        let x8: [f64; 8] = std::array::from_fn(|i| -3.7 + 1.3 * i as f64);
+        let e8 = exp_lanes(x8);
+        let (s8, c8) = sin_cos_lanes(x8);
+        for half in 0..2 {
+            let x4: [f64; 4] = std::array::from_fn(|i| x8[4 * half + i]);
+            let (s4, c4) = sin_cos_lanes(x4);
+            for i in 0..4 {
+                assert_eq!(exp_lanes(x4)[i].to_bits(), e8[4 * half + i].to_bits());
+                assert_eq!(s4[i].to_bits(), s8[4 * half + i].to_bits());
+                assert_eq!(c4[i].to_bits(), c8[4 * half + i].to_bits());
+            }
+        }
+        let a = F64x8::from_lanes(|i| x8[i]);
+        assert_eq!(
+            lane(a.exp_fast(), 5),
+            lane(F64x4::from_lanes(|i| x8[4 + i]).exp_fast(), 1)
+        );
     }
 
     /// Lanes are independent: a lane's value does not depend on its neighbours.

@@ -32,7 +32,7 @@ use crate::control::filter::ForceControl;
 use crate::control::reference::Sample;
 use crate::control::task::{Desired, TaskFrame};
 use crate::error::{check, Result};
-use crate::scalar::{put, F64x4, Real, LANES};
+use crate::scalar::{put, Real, Wide};
 
 /// `Scenario.approach`: a guarded approach through free space before force control.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -134,9 +134,12 @@ impl Approach {
     }
 }
 
-impl Approach<F64x4> {
-    pub fn pack(a: [&Approach; LANES]) -> Self {
-        let p = |f: fn(&Approach) -> f64| F64x4::from_lanes(|i| f(a[i]));
+impl<W: Real> Approach<W> {
+    pub fn pack<const L: usize>(a: [&Approach; L]) -> Self
+    where
+        W: Wide<L>,
+    {
+        let p = |f: fn(&Approach) -> f64| W::from_lanes(|i| f(a[i]));
         Self {
             speed: p(|a| a.speed),
             contact_speed: p(|a| a.contact_speed),

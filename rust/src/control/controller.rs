@@ -17,7 +17,7 @@ use crate::control::params::{constant_inertia, ControllerParams, PositionGains, 
 use crate::control::task::Desired;
 use crate::robot::chain::arm::rotation_vector;
 use crate::robot::{ArmModel, JointVector, Kinematics, Orientation, RobotModel, TaskOptions};
-use crate::scalar::{finite, mask_from, no_lane, put, put_vector, F64x4, Real, LANES};
+use crate::scalar::{finite, mask_from, no_lane, put, put_vector, Real, Wide};
 
 /// What the controller reads at t_k: the encoders' state, the tip kinematics the plant
 /// evaluated once, the tip orientation terms when the task holds the orientation, and the
@@ -408,13 +408,16 @@ impl<T: Real, M, const N: usize> Controller<T, M, N> {
     }
 }
 
-impl<M, const N: usize> Controller<F64x4, M, N> {
+impl<W: Real, M, const N: usize> Controller<W, M, N> {
     /// Four runs' controllers of one structure in lanes (`None` if their structures differ);
     /// `models` packs computed torque's four models.
-    pub fn pack<R>(
-        c: [&Controller<f64, R, N>; LANES],
-        models: impl FnOnce([&R; LANES]) -> M,
-    ) -> Option<Self> {
+    pub fn pack<R, const L: usize>(
+        c: [&Controller<f64, R, N>; L],
+        models: impl FnOnce([&R; L]) -> M,
+    ) -> Option<Self>
+    where
+        W: Wide<L>,
+    {
         if !c.iter().all(|x| x.lane_key() == c[0].lane_key()) {
             return None;
         }
@@ -429,24 +432,24 @@ impl<M, const N: usize> Controller<F64x4, M, N> {
             Law::ModelFree => Law::ModelFree,
             Law::TimeDelay(m) => Law::TimeDelay(TdcMemory {
                 law: m.law,
-                period: F64x4::splat(0.0),
+                period: W::splat(0.0),
                 initial_torque: SVector::zeros(),
                 tau_prev: SVector::zeros(),
                 qd_prev: SVector::zeros(),
-                started: mask_from::<F64x4>(|_| false),
+                started: mask_from::<W>(|_| false),
             }),
         };
         let mut packed = Self {
             law,
             gains: PositionGains::pack(c.map(|x| &x.gains)),
-            inertia: F64x4::splat(0.0),
+            inertia: W::splat(0.0),
             dbar: SMatrix::zeros(),
-            torque_constant: F64x4::splat(0.0),
+            torque_constant: W::splat(0.0),
             task: c[0].task.map(|t| TaskSetup {
                 start_rotation: t.start_rotation.map(|_| Matrix3::zeros()),
-                orientation_gains: (F64x4::splat(0.0), F64x4::splat(0.0)),
+                orientation_gains: (W::splat(0.0), W::splat(0.0)),
                 posture: t.posture.map(|_| SVector::zeros()),
-                damping: F64x4::splat(0.0),
+                damping: W::splat(0.0),
             }),
         };
         for (l, x) in c.iter().enumerate() {
@@ -516,6 +519,7 @@ mod tests {
     use crate::control::params::{ComputedTorqueParams, ModelFreeParams, TimeDelayParams};
     use crate::robot::three_link::{ClosedForm, Kinematics, Trig, Vec3};
     use crate::robot::{RobotParams, TaskVector, ThreeLinkArm};
+    use crate::scalar::F64x4;
     use crate::scalar::{lane_of, pack_vector};
 
     type Ctl = Controller<f64, ClosedForm, 3>;

@@ -29,7 +29,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{check, Error, Result};
-use crate::scalar::{pack_vector, put, put_vector, F64x4, Real, LANES};
+use crate::scalar::{every, pack_vector, put, put_vector, Real, Wide};
 
 /// Largest b·T/m, k·T²/m or k_a·T/m accepted (see `AdmittanceParams::validate_for_period`).
 pub const MAX_DISCRETE_RATE: f64 = 1e6;
@@ -198,14 +198,17 @@ impl AdmittanceFilter {
     }
 }
 
-impl AdmittanceFilter<F64x4> {
+impl<W: Real> AdmittanceFilter<W> {
     /// Four filters in lanes.
-    pub fn pack(f: [&AdmittanceFilter; LANES]) -> Self {
+    pub fn pack<const L: usize>(f: [&AdmittanceFilter; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         Self {
-            m: F64x4::from_lanes(|i| f[i].m),
-            b: F64x4::from_lanes(|i| f[i].b),
-            k: F64x4::from_lanes(|i| f[i].k),
-            ka: F64x4::from_lanes(|i| f[i].ka),
+            m: W::from_lanes(|i| f[i].m),
+            b: W::from_lanes(|i| f[i].b),
+            k: W::from_lanes(|i| f[i].k),
+            ka: W::from_lanes(|i| f[i].ka),
             ad: pack_vector(f.map(|f| &f.ad)),
             bd: pack_vector(f.map(|f| &f.bd)),
             state: pack_vector(f.map(|f| &f.state)),
@@ -275,12 +278,15 @@ impl AdaptiveFilter {
     }
 }
 
-impl AdaptiveFilter<F64x4> {
-    pub fn pack(f: [&AdaptiveFilter; LANES]) -> Self {
+impl<W: Real> AdaptiveFilter<W> {
+    pub fn pack<const L: usize>(f: [&AdaptiveFilter; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         Self {
             filter: AdmittanceFilter::pack(f.map(|f| &f.filter)),
-            sigma: F64x4::from_lanes(|i| f[i].sigma),
-            psi: F64x4::from_lanes(|i| f[i].psi),
+            sigma: W::from_lanes(|i| f[i].sigma),
+            psi: W::from_lanes(|i| f[i].psi),
         }
     }
 
@@ -379,35 +385,34 @@ impl<T: Real> ForceControl<T> {
     }
 }
 
-impl ForceControl<F64x4> {
-    /// Four outer loops of one kind in lanes; `None` if the kinds differ.
-    pub fn pack(f: [&ForceControl; LANES]) -> Option<Self> {
-        match f {
-            [ForceControl::Admittance(a0), ForceControl::Admittance(a1), ForceControl::Admittance(a2), ForceControl::Admittance(a3)] => {
-                Some(ForceControl::Admittance(AdmittanceFilter::pack([
-                    a0, a1, a2, a3,
-                ])))
-            }
-            [ForceControl::Adaptive(a0), ForceControl::Adaptive(a1), ForceControl::Adaptive(a2), ForceControl::Adaptive(a3)] => {
-                Some(ForceControl::Adaptive(AdaptiveFilter::pack([
-                    a0, a1, a2, a3,
-                ])))
-            }
-            [ForceControl::Impedance {
-                effective_stiffness: k0,
-            }, ForceControl::Impedance {
-                effective_stiffness: k1,
-            }, ForceControl::Impedance {
-                effective_stiffness: k2,
-            }, ForceControl::Impedance {
-                effective_stiffness: k3,
-            }] => {
-                let k = [k0, k1, k2, k3];
-                Some(ForceControl::Impedance {
-                    effective_stiffness: F64x4::from_lanes(|i| *k[i]),
-                })
-            }
+impl<W: Real> ForceControl<W> {
+    /// `L` outer loops of one kind in lanes; `None` if the kinds differ.
+    pub fn pack<const L: usize>(f: [&ForceControl; L]) -> Option<Self>
+    where
+        W: Wide<L>,
+    {
+        let admittance = f.map(|x| match x {
+            ForceControl::Admittance(a) => Some(a),
             _ => None,
+        });
+        let adaptive = f.map(|x| match x {
+            ForceControl::Adaptive(a) => Some(a),
+            _ => None,
+        });
+        let impedance = f.map(|x| match x {
+            ForceControl::Impedance {
+                effective_stiffness,
+            } => Some(*effective_stiffness),
+            _ => None,
+        });
+        if let Some(a) = every(admittance) {
+            Some(ForceControl::Admittance(AdmittanceFilter::pack(a)))
+        } else if let Some(a) = every(adaptive) {
+            Some(ForceControl::Adaptive(AdaptiveFilter::pack(a)))
+        } else {
+            every(impedance).map(|k| ForceControl::Impedance {
+                effective_stiffness: W::from_lanes(|i| k[i]),
+            })
         }
     }
 

@@ -785,7 +785,7 @@ mod tests {
                 }
             });
             let rs = axes.map(|a| nalgebra::Rotation3::from_scaled_axis(a).into_inner());
-            let lanes = rotation_vector(&pack_vector(rs.each_ref()));
+            let lanes = rotation_vector(&pack_vector::<F64x4, 4, 3, 3>(rs.each_ref()));
             for (l, r) in rs.iter().enumerate() {
                 let got = rotation_vector(r);
                 let err = (got - axes[l]).norm();

@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 use crate::control::task::Desired;
 use crate::error::{check, Error, Result};
 use crate::robot::{JointMatrix, JointVector, RobotModel};
-use crate::scalar::{F64x4, Real, LANES};
+use crate::scalar::{Real, Wide};
 
 /// Gains of eq. (39): V = K_A⁻¹ (Ẍ_d + K_D (Ẋ_d − Ẋ) + K_P (X_d − X)), each a scalar times I.
 /// Over `f64`, or four runs' gains in lanes (one `scale_feedforward`). Serialised flat into
@@ -54,13 +54,16 @@ impl PositionGains {
     }
 }
 
-impl PositionGains<F64x4> {
+impl<W: Real> PositionGains<W> {
     /// Four runs' gains in lanes (they share `scale_feedforward`: the lane key).
-    pub fn pack(g: [&PositionGains; LANES]) -> Self {
+    pub fn pack<const L: usize>(g: [&PositionGains; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         Self {
-            ka: F64x4::from_lanes(|i| g[i].ka),
-            kd: F64x4::from_lanes(|i| g[i].kd),
-            kp: F64x4::from_lanes(|i| g[i].kp),
+            ka: W::from_lanes(|i| g[i].ka),
+            kd: W::from_lanes(|i| g[i].kd),
+            kp: W::from_lanes(|i| g[i].kp),
             scale_feedforward: g[0].scale_feedforward,
         }
     }

@@ -4,7 +4,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{check, Error, Result};
-use crate::scalar::{F64x4, Real, LANES};
+use crate::scalar::{Real, Wide};
 
 /// A value with its first and second time derivatives: over `f64`, or over lanes.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -26,14 +26,17 @@ impl<T: Real> Sample<T> {
     }
 }
 
-impl Sample<F64x4> {
+impl<W: Real> Sample<W> {
     /// Four lanes' samples (each lane's signal evaluated at its own time).
     #[inline]
-    pub fn pack(s: [&Sample; LANES]) -> Self {
+    pub fn pack<const L: usize>(s: [&Sample; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         Self {
-            value: F64x4::from_lanes(|i| s[i].value),
-            rate: F64x4::from_lanes(|i| s[i].rate),
-            accel: F64x4::from_lanes(|i| s[i].accel),
+            value: W::from_lanes(|i| s[i].value),
+            rate: W::from_lanes(|i| s[i].rate),
+            accel: W::from_lanes(|i| s[i].accel),
         }
     }
 }

@@ -8,7 +8,7 @@ use nalgebra::Vector3;
 
 use crate::control::reference::Sample;
 use crate::robot::TaskVector;
-use crate::scalar::{pack_vector, put, put_vector, F64x4, Real, LANES};
+use crate::scalar::{pack_vector, put, put_vector, Real, Wide};
 
 /// Desired tip position, velocity and acceleration at one sample (over `f64` or lanes).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -51,16 +51,19 @@ pub struct TaskFrame<T: Real = f64> {
     pub force_projection: T,
 }
 
-impl TaskFrame<F64x4> {
+impl<W: Real> TaskFrame<W> {
     /// Four runs' frames in lanes.
-    pub fn pack(f: [&TaskFrame; LANES]) -> Self {
+    pub fn pack<const L: usize>(f: [&TaskFrame; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         Self {
             normal: pack_vector(f.map(|f| &f.normal)),
             tangent: pack_vector(f.map(|f| &f.tangent)),
             start: pack_vector(f.map(|f| &f.start)),
             in_plane: pack_vector(f.map(|f| &f.in_plane)),
-            wall_estimate: F64x4::from_lanes(|i| f[i].wall_estimate),
-            force_projection: F64x4::from_lanes(|i| f[i].force_projection),
+            wall_estimate: W::from_lanes(|i| f[i].wall_estimate),
+            force_projection: W::from_lanes(|i| f[i].force_projection),
         }
     }
 

@@ -49,6 +49,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(params::surface_directions, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate::lane_path, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate::lane_runs, m)?)?;
     m.add_function(wrap_pyfunction!(robot::robot_terms, m)?)?;
     m.add_function(wrap_pyfunction!(robot::forward_dynamics, m)?)?;
     m.add_function(wrap_pyfunction!(robot::urdf_terms, m)?)?;

@@ -4,7 +4,7 @@
 use std::sync::{Mutex, MutexGuard, TryLockError};
 
 use numpy::PyArray1;
-use pyo3::exceptions::PyTypeError;
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -173,7 +173,7 @@ fn trace_dict<'py>(py: Python<'py>, trace: Trace) -> PyResult<Bound<'py, PyDict>
 /// True, False or None: not assessed), `verdict` (words), `diverged`,
 /// `diverged_at` (NaN when stable), `divergence_cause` and, with `traces`, one column
 /// dict per run. An invalid scenario raises before anything runs, naming its index.
-/// `lanes`: three-link runs advance four at a time in SIMD lanes (within 1e-9 of off).
+/// `lanes`: runs advance four or eight at a time in SIMD lanes (within 1e-9 of off).
 #[pyfunction]
 #[pyo3(signature = (scenarios, threads=None, traces=false, lanes=true))]
 pub(super) fn simulate_batch<'py>(
@@ -255,5 +255,46 @@ pub(super) fn simulate_batch<'py>(
             py.None().into_bound(py)
         },
     )?;
+    Ok(out)
+}
+
+/// Hidden, for tests and benches (issue #25): the build of the lane loop sweeps take.
+/// `path` ("portable", "avx2", "avx512"; "auto": the default) forces it from now on, in
+/// this process; returns the name of the build in effect. A name this CPU cannot run, or
+/// none of these, raises ValueError. `ADMIT_RS_LANES` sets the same at import time.
+#[pyfunction]
+#[pyo3(name = "_lane_path", signature = (path=None))]
+pub(super) fn lane_path(path: Option<&str>) -> PyResult<&'static str> {
+    use crate::sim::lanes::{set_lane_path, LanePath};
+    if let Some(name) = path {
+        let forced = match name {
+            "auto" => None,
+            _ => Some(LanePath::parse(name).ok_or_else(|| {
+                PyValueError::new_err(format!(
+                    "lane path {name:?}: one of auto, portable, avx2, avx512"
+                ))
+            })?),
+        };
+        if !set_lane_path(forced) {
+            return Err(PyValueError::new_err(format!(
+                "lane path {name:?}: this CPU cannot run it"
+            )));
+        }
+    }
+    Ok(crate::sim::lanes::lane_path().name())
+}
+
+/// Hidden: the builds of the lane loop this CPU runs, and the number of runs whose stages
+/// ran in lanes on each since the process started (how tests see which build ran).
+#[pyfunction]
+#[pyo3(name = "_lane_runs")]
+pub(super) fn lane_runs(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    use crate::sim::lanes::{lane_runs, LanePath};
+    let out = PyDict::new(py);
+    for (p, n) in LanePath::ALL.into_iter().zip(lane_runs()) {
+        if p.available() {
+            out.set_item(p.name(), n)?;
+        }
+    }
     Ok(out)
 }

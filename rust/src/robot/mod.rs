@@ -10,7 +10,7 @@
 use nalgebra::{SMatrix, SVector, Vector3};
 
 use crate::contact::{Contact, Surface};
-use crate::scalar::{F64x4, Real, LANES};
+use crate::scalar::{Real, Wide};
 
 pub mod chain;
 pub mod three_link;
@@ -80,7 +80,8 @@ pub struct Dynamics<const N: usize, T: Real = f64> {
     pub gravity: SVector<T, N>,
 }
 
-/// An arm's equations over a scalar `T`: `f64` for one arm, [`F64x4`] for four arms of
+/// An arm's equations over a scalar `T`: `f64` for one arm, a lane type
+/// ([`crate::scalar::F64x4`], [`crate::scalar::F64x8`]) for four or eight arms of
 /// one structure advancing in SIMD lanes (SPEC §13, §14). The three-link closed form
 /// (`three_link::ClosedForm`) and a URDF chain (`chain::Chain`) implement it once; the
 /// plant, the controllers, the stages and the lanes are written against it.
@@ -164,9 +165,9 @@ pub trait ArmModel<T: Real, const N: usize>: Clone + Send + Sync + std::fmt::Deb
 
 /// The configuration values of robot `R`'s model.
 pub type ConfigOf<R, const N: usize> = <<R as RobotModel<N>>::Model as ArmModel<f64, N>>::Config;
-/// The configuration values of four of robot `R`'s models in lanes.
-pub type LaneConfigOf<R, const N: usize> =
-    <<R as RobotModel<N>>::Lanes as ArmModel<F64x4, N>>::Config;
+/// The configuration values of robot `R`'s models in lanes of `W`.
+pub type LaneConfigOf<R, W, const N: usize> =
+    <<R as RobotModel<N>>::Lanes<W> as ArmModel<W, N>>::Config;
 
 /// An arm as a scenario builds it: its [`ArmModel`] in `f64` (what the plant integrates
 /// and a controller believes in), its start, limits and task options, the model a
@@ -174,8 +175,8 @@ pub type LaneConfigOf<R, const N: usize> =
 pub trait RobotModel<const N: usize>: Clone + Send + Sync + std::fmt::Debug + 'static {
     /// The arm's equations for one run.
     type Model: ArmModel<f64, N> + 'static;
-    /// Four runs' equations in lanes.
-    type Lanes: ArmModel<F64x4, N>;
+    /// Runs' equations in lanes of `W` (four or eight runs).
+    type Lanes<W: Real>: ArmModel<W, N>;
 
     /// Whether the lanes' configuration values are packed from each run's own (its
     /// plant's `config`, kept fresh at every write-back; the three-link arm's libm sincos)
@@ -189,18 +190,18 @@ pub trait RobotModel<const N: usize>: Clone + Send + Sync + std::fmt::Debug + 's
     /// Whether `other` can share lanes with this arm (same joint structure).
     fn same_structure(&self, other: &Self) -> bool;
 
-    /// Four models of one structure in lanes.
-    fn pack(models: [&Self::Model; LANES]) -> Self::Lanes;
+    /// `L` models of one structure in lanes.
+    fn pack<W: Wide<L>, const L: usize>(models: [&Self::Model; L]) -> Self::Lanes<W>;
 
     /// Lane `l` takes the model `model` (a new run's).
-    fn put_lane(lanes: &mut Self::Lanes, l: usize, model: &Self::Model);
+    fn put_lane<W: Real>(lanes: &mut Self::Lanes<W>, l: usize, model: &Self::Model);
 
     /// The lanes' configuration values at `q`, given each lane's own (`configs`, at q).
-    fn pack_config(
-        lanes: &Self::Lanes,
-        q: &SVector<F64x4, N>,
-        configs: [&ConfigOf<Self, N>; LANES],
-    ) -> LaneConfigOf<Self, N>;
+    fn pack_config<W: Wide<L>, const L: usize>(
+        lanes: &Self::Lanes<W>,
+        q: &SVector<W, N>,
+        configs: [&ConfigOf<Self, N>; L],
+    ) -> LaneConfigOf<Self, W, N>;
 
     /// The model a controller believes in: masses (and inertias) scaled by `mass_scale`,
     /// friction by `friction_scale`; geometry shared with the plant.

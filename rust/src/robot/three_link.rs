@@ -9,8 +9,7 @@ use nalgebra::{Matrix3, Vector3};
 use super::{ArmModel, RobotModel};
 use crate::contact::{Contact, Surface, TipMotion};
 use crate::error::{check, Error, Result};
-use crate::scalar::{F64x4, Real, LANES};
-use simba::simd::SimdValue;
+use crate::scalar::{Real, Wide};
 
 pub type Vec3 = Vector3<f64>;
 pub type Mat3 = Matrix3<f64>;
@@ -216,10 +215,13 @@ impl<T: Real> Trig<T> {
     }
 }
 
-impl Trig<F64x4> {
+impl<W: Real> Trig<W> {
     /// Four configurations' trig in four lanes.
-    pub fn pack(t: [&Trig; LANES]) -> Self {
-        let p = |f: fn(&Trig) -> f64| F64x4::from_lanes(|i| f(t[i]));
+    pub fn pack<const L: usize>(t: [&Trig; L]) -> Self
+    where
+        W: Wide<L>,
+    {
+        let p = |f: fn(&Trig) -> f64| W::from_lanes(|i| f(t[i]));
         Self {
             s1: p(|t| t.s1),
             c1: p(|t| t.c1),
@@ -309,13 +311,15 @@ impl ClosedForm {
     }
 }
 
-impl ClosedForm<F64x4> {
+impl<W: Real> ClosedForm<W> {
     /// Four arms' closed forms in four lanes.
-    pub fn pack(arms: [&ClosedForm; LANES]) -> Self {
-        let p = |f: fn(&ClosedForm) -> f64| F64x4::from_lanes(|i| f(arms[i]));
-        let v = |f: fn(&ClosedForm) -> &Vec3| {
-            Vector3::from_fn(|j, _| F64x4::from_lanes(|i| f(arms[i])[j]))
-        };
+    pub fn pack<const L: usize>(arms: [&ClosedForm; L]) -> Self
+    where
+        W: Wide<L>,
+    {
+        let p = |f: fn(&ClosedForm) -> f64| W::from_lanes(|i| f(arms[i]));
+        let v =
+            |f: fn(&ClosedForm) -> &Vec3| Vector3::from_fn(|j, _| W::from_lanes(|i| f(arms[i])[j]));
         Self {
             l1: p(|a| a.l1),
             l2: p(|a| a.l2),
@@ -343,10 +347,10 @@ impl ClosedForm<F64x4> {
     }
 }
 
-impl ClosedForm<F64x4> {
+impl<W: Real> ClosedForm<W> {
     /// Lane `l` takes the arm `a` (a new run's, or its controller's model).
     pub fn put_lane(&mut self, l: usize, a: &ClosedForm) {
-        let one = |x: &mut F64x4, v: f64| x.replace(l, v);
+        let one = |x: &mut W, v: f64| x.replace(l, v);
         one(&mut self.l1, a.l1);
         one(&mut self.l2, a.l2);
         one(&mut self.l3, a.l3);
@@ -747,7 +751,7 @@ impl ThreeLinkArm {
 
 impl RobotModel<3> for ThreeLinkArm {
     type Model = ClosedForm;
-    type Lanes = ClosedForm<F64x4>;
+    type Lanes<W: Real> = ClosedForm<W>;
     const READS_EACH_CONFIG: bool = true;
 
     #[inline(always)]
@@ -759,20 +763,20 @@ impl RobotModel<3> for ThreeLinkArm {
         true
     }
 
-    fn pack(models: [&ClosedForm; LANES]) -> ClosedForm<F64x4> {
+    fn pack<W: Wide<L>, const L: usize>(models: [&ClosedForm; L]) -> ClosedForm<W> {
         ClosedForm::pack(models)
     }
 
-    fn put_lane(lanes: &mut ClosedForm<F64x4>, l: usize, model: &ClosedForm) {
+    fn put_lane<W: Real>(lanes: &mut ClosedForm<W>, l: usize, model: &ClosedForm) {
         lanes.put_lane(l, model);
     }
 
     #[inline(always)]
-    fn pack_config(
-        _: &ClosedForm<F64x4>,
-        _: &Vector3<F64x4>,
-        configs: [&Trig; LANES],
-    ) -> Trig<F64x4> {
+    fn pack_config<W: Wide<L>, const L: usize>(
+        _: &ClosedForm<W>,
+        _: &Vector3<W>,
+        configs: [&Trig; L],
+    ) -> Trig<W> {
         // Each lane's own fresh evaluation (libm's sincos), as the scalar plant starts from.
         Trig::pack(configs)
     }

@@ -16,7 +16,7 @@ use crate::control::filter::{ForceControl, ForceControlKey};
 use crate::control::reference::Sample;
 use crate::control::task::{Desired, TaskFrame};
 use crate::robot::{ArmModel, Kinematics, Orientation};
-use crate::scalar::{F64x4, Real, LANES};
+use crate::scalar::{every, Real, Wide};
 use crate::world::actuator::Actuator;
 use crate::world::contact_law::tangential;
 use crate::world::sensor::ForceSensor;
@@ -254,24 +254,24 @@ impl<T: Real, M, const N: usize> Pipeline<T, M, N> {
     }
 }
 
-impl<M, const N: usize> Pipeline<F64x4, M, N> {
+impl<W: Real, M, const N: usize> Pipeline<W, M, N> {
     /// Four runs' stages of one structure in lanes, from their current state (`None` if
     /// their [`StageKey`]s differ); `models` packs computed torque's four models.
-    pub fn pack<R>(
-        p: [&Pipeline<f64, R, N>; LANES],
-        models: impl FnOnce([&R; LANES]) -> M,
-    ) -> Option<Self> {
+    pub fn pack<R, const L: usize>(
+        p: [&Pipeline<f64, R, N>; L],
+        models: impl FnOnce([&R; L]) -> M,
+    ) -> Option<Self>
+    where
+        W: Wide<L>,
+    {
         if !p.iter().all(|x| x.lane_key() == p[0].lane_key()) {
             return None;
         }
-        let force_control = match p.map(|x| x.force_control.as_ref()) {
-            [Some(a), Some(b), Some(c), Some(d)] => Some(ForceControl::pack([a, b, c, d])?),
-            _ => None,
+        let force_control = match every(p.map(|x| x.force_control.as_ref())) {
+            Some(f) => Some(ForceControl::pack(f)?),
+            None => None,
         };
-        let approach = match p.map(|x| x.approach.as_ref()) {
-            [Some(a), Some(b), Some(c), Some(d)] => Some(Approach::pack([a, b, c, d])),
-            _ => None,
-        };
+        let approach = every(p.map(|x| x.approach.as_ref())).map(Approach::pack);
         Some(Self {
             sensor: ForceSensor::pack(p.map(|x| &x.sensor)),
             approach,

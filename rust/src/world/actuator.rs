@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use simba::simd::SimdValue;
 
 use crate::robot::JointVector;
-use crate::scalar::{choose_vector, mask_from, pack_vector, put, put_vector, F64x4, Real, LANES};
+use crate::scalar::{choose_vector, mask_from, pack_vector, put, put_vector, Real, Wide};
 
 /// Longest delay accepted, in samples.
 pub const MAX_DELAY: usize = 100_000;
@@ -107,15 +107,18 @@ impl<const N: usize> Actuator<N> {
     }
 }
 
-impl<const N: usize> Actuator<N, F64x4> {
+impl<W: Real, const N: usize> Actuator<N, W> {
     /// Four actuators of one delay in lanes.
-    pub fn pack(a: [&Actuator<N>; LANES]) -> Self {
+    pub fn pack<const L: usize>(a: [&Actuator<N>; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         debug_assert!(a.iter().all(|x| x.in_flight.len() == a[0].in_flight.len()));
         Self {
-            limited: mask_from::<F64x4>(|i| a[i].limited),
+            limited: mask_from::<W>(|i| a[i].limited),
             limit: pack_vector(a.map(|a| &a.limit)),
-            rate_limited: mask_from::<F64x4>(|i| a[i].rate_limited),
-            max_step: F64x4::from_lanes(|i| a[i].max_step),
+            rate_limited: mask_from::<W>(|i| a[i].rate_limited),
+            max_step: W::from_lanes(|i| a[i].max_step),
             in_flight: (0..a[0].in_flight.len())
                 .map(|d| pack_vector(a.map(|a| &a.in_flight[d])))
                 .collect(),

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::contact::{Contact, TipMotion};
 use crate::error::{check, Error, Result};
-use crate::scalar::{F64x4, Real, LANES};
+use crate::scalar::{Real, Wide};
 
 /// How the contact force grows with penetration δ and its rate δ̇.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
@@ -162,11 +162,14 @@ pub struct ContactLawKey {
     pub friction: bool,
 }
 
-impl ContactLaw<F64x4> {
-    /// Four laws of one key in lanes.
-    pub fn pack(laws: [&ContactLaw; LANES]) -> Self {
+impl<W: Real> ContactLaw<W> {
+    /// L laws of one key in lanes.
+    pub fn pack<const L: usize>(laws: [&ContactLaw; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         debug_assert!(laws.iter().all(|l| l.key() == laws[0].key()));
-        let p = |f: fn(&ContactLaw) -> f64| F64x4::from_lanes(|i| f(laws[i]));
+        let p = |f: fn(&ContactLaw) -> f64| W::from_lanes(|i| f(laws[i]));
         Self {
             stiffness: p(|l| l.stiffness),
             damping: p(|l| l.damping),

@@ -4,7 +4,7 @@
 use crate::contact::{Contact, Surface, TipMotion};
 use crate::error::{check, Error, Result};
 use crate::robot::TaskVector;
-use crate::scalar::{F64x4, Real, LANES};
+use crate::scalar::{Real, Wide};
 use crate::world::contact_law::{surface_params, ContactLaw};
 pub use crate::world::contact_law::{ContactModel, MAX_EXPONENT};
 use nalgebra::Vector3;
@@ -65,14 +65,17 @@ pub struct Wall<T: Real = f64> {
     pub position_error: T,
 }
 
-impl Wall<F64x4> {
-    /// Four walls of one contact-law key in four lanes.
-    pub fn pack(walls: [&Wall; LANES]) -> Self {
+impl<W: Real> Wall<W> {
+    /// L walls of one contact-law key in lanes.
+    pub fn pack<const L: usize>(walls: [&Wall; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         Self {
             law: ContactLaw::pack(walls.map(|w| &w.law)),
-            normal: Vector3::from_fn(|j, _| F64x4::from_lanes(|i| walls[i].normal[j])),
-            position: F64x4::from_lanes(|i| walls[i].position),
-            position_error: F64x4::from_lanes(|i| walls[i].position_error),
+            normal: Vector3::from_fn(|j, _| W::from_lanes(|i| walls[i].normal[j])),
+            position: W::from_lanes(|i| walls[i].position),
+            position_error: W::from_lanes(|i| walls[i].position_error),
         }
     }
 }

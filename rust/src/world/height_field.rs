@@ -16,7 +16,7 @@ use crate::contact::{Contact, Surface, TipMotion};
 use crate::error::{check, Error, Result};
 use crate::jet::{self, Smooth, V3};
 use crate::robot::TaskVector;
-use crate::scalar::{F64x4, Real, LANES};
+use crate::scalar::{Real, Wide};
 use crate::world::contact_law::{surface_params, ContactLaw, ContactLawKey};
 use crate::world::environment::unit_normal;
 
@@ -244,13 +244,16 @@ impl HeightField {
     }
 }
 
-impl HeightField<F64x4> {
-    /// Four height fields of one key in lanes.
-    pub fn pack(f: [&HeightField; LANES]) -> Self {
+impl<W: Real> HeightField<W> {
+    /// L height fields of one key in lanes.
+    pub fn pack<const L: usize>(f: [&HeightField; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         debug_assert!(f.iter().all(|x| x.key() == f[0].key()));
-        let p = |g: fn(&HeightField) -> f64| F64x4::from_lanes(|i| g(f[i]));
+        let p = |g: fn(&HeightField) -> f64| W::from_lanes(|i| g(f[i]));
         let v = |g: fn(&HeightField) -> TaskVector| {
-            Vector3::from_fn(|j, _| F64x4::from_lanes(|i| g(f[i])[j]))
+            Vector3::from_fn(|j, _| W::from_lanes(|i| g(f[i])[j]))
         };
         Self {
             law: ContactLaw::pack(f.map(|x| &x.law)),

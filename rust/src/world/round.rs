@@ -14,7 +14,7 @@ use crate::contact::{Contact, Surface, TipMotion};
 use crate::error::{check, Error, Result};
 use crate::jet::{self, Smooth, V3};
 use crate::robot::TaskVector;
-use crate::scalar::{F64x4, Real, LANES};
+use crate::scalar::{Real, Wide};
 use crate::world::contact_law::{surface_params, ContactLaw, ContactLawKey};
 use crate::world::environment::{unit_normal, unit_vector};
 
@@ -207,14 +207,16 @@ impl Round {
     }
 }
 
-impl Round<F64x4> {
-    /// Four round surfaces of one key in lanes.
-    pub fn pack(r: [&Round; LANES]) -> Self {
+impl<W: Real> Round<W> {
+    /// L round surfaces of one key in lanes.
+    pub fn pack<const L: usize>(r: [&Round; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         debug_assert!(r.iter().all(|x| x.key() == r[0].key()));
-        let p = |f: fn(&Round) -> f64| F64x4::from_lanes(|i| f(r[i]));
-        let v = |f: fn(&Round) -> TaskVector| {
-            Vector3::from_fn(|j, _| F64x4::from_lanes(|i| f(r[i])[j]))
-        };
+        let p = |f: fn(&Round) -> f64| W::from_lanes(|i| f(r[i]));
+        let v =
+            |f: fn(&Round) -> TaskVector| Vector3::from_fn(|j, _| W::from_lanes(|i| f(r[i])[j]));
         Self {
             law: ContactLaw::pack(r.map(|x| &x.law)),
             start: v(|x| x.start),

@@ -11,7 +11,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{check, Error, Result};
-use crate::scalar::{choose, mask_from, put, F64x4, Real, LANES};
+use crate::scalar::{choose, mask_from, put, Real, Wide};
 use simba::simd::SimdValue;
 
 /// Longest latency accepted, in samples.
@@ -130,20 +130,23 @@ impl ForceSensor {
     }
 }
 
-impl ForceSensor<F64x4> {
+impl<W: Real> ForceSensor<W> {
     /// Four sensors of one latency in lanes.
-    pub fn pack(s: [&ForceSensor; LANES]) -> Self {
+    pub fn pack<const L: usize>(s: [&ForceSensor; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         debug_assert!(s.iter().all(|x| x.in_flight.len() == s[0].in_flight.len()));
         Self {
-            bias: F64x4::from_lanes(|i| s[i].bias),
-            noise_std: F64x4::from_lanes(|i| s[i].noise_std),
-            resolution: F64x4::from_lanes(|i| s[i].resolution),
-            filtering: mask_from::<F64x4>(|i| s[i].filtering),
+            bias: W::from_lanes(|i| s[i].bias),
+            noise_std: W::from_lanes(|i| s[i].noise_std),
+            resolution: W::from_lanes(|i| s[i].resolution),
+            filtering: mask_from::<W>(|i| s[i].filtering),
             seed: s[0].seed,
-            alpha: F64x4::from_lanes(|i| s[i].alpha),
-            filtered: F64x4::from_lanes(|i| s[i].filtered),
+            alpha: W::from_lanes(|i| s[i].alpha),
+            filtered: W::from_lanes(|i| s[i].filtered),
             in_flight: (0..s[0].in_flight.len())
-                .map(|d| F64x4::from_lanes(|i| s[i].in_flight[d]))
+                .map(|d| W::from_lanes(|i| s[i].in_flight[d]))
                 .collect(),
         }
     }

@@ -11,7 +11,7 @@ use crate::contact::{Contact, FreeSpace, Surface, TipMotion};
 use crate::error::Result;
 use crate::jet::{self, Smooth, V3};
 use crate::robot::TaskVector;
-use crate::scalar::{F64x4, Real, LANES};
+use crate::scalar::{Real, Wide};
 use crate::world::contact_law::ContactLawKey;
 use crate::world::environment::{Wall, WallParams};
 use crate::world::height_field::{HeightField, HeightFieldParams};
@@ -237,9 +237,12 @@ impl Environment {
     }
 }
 
-impl Environment<F64x4> {
+impl<W: Real> Environment<W> {
     /// Four environments of one [`EnvironmentKey`] in lanes; `None` if their keys differ.
-    pub fn pack(e: [&Environment; LANES]) -> Option<Self> {
+    pub fn pack<const L: usize>(e: [&Environment; L]) -> Option<Self>
+    where
+        W: Wide<L>,
+    {
         if !e.iter().all(|x| x.lane_key() == e[0].lane_key()) {
             return None;
         }
@@ -268,6 +271,7 @@ impl Environment<F64x4> {
 mod tests {
     use super::*;
     use crate::contact::KnownTip;
+    use crate::scalar::F64x4;
     use crate::world::environment::WallParams;
     use nalgebra::{SMatrix, SVector, Vector3};
 
@@ -305,10 +309,13 @@ mod tests {
         let free = Environment::<f64>::Free.contact(&tip);
         assert_eq!(free.normal_force, 0.0);
         assert!(free.penetration.is_nan());
-        assert!(
-            Environment::pack([&plane(1.0), &plane(2.0), &Environment::Free, &plane(3.0)])
-                .is_none()
-        );
+        assert!(Environment::<F64x4>::pack([
+            &plane(1.0),
+            &plane(2.0),
+            &Environment::Free,
+            &plane(3.0)
+        ])
+        .is_none());
         let four = [plane(1e4), plane(2e4), plane(3e4), plane(4e4)];
         let packed = Environment::pack(four.each_ref()).unwrap();
         let lanes = |x: f64| F64x4::from_lanes(|_| x);

@@ -13,7 +13,7 @@ use crate::error::{check, Error, Result};
 use crate::robot::chain::spatial::Real;
 use crate::robot::three_link::friction_sign;
 use crate::robot::{ArmModel, Dynamics, JointVector, Kinematics, Orientation, RobotModel};
-use crate::scalar::{put, put_vector, zeros, F64x4, LANES};
+use crate::scalar::{put, put_vector, zeros, Wide};
 
 /// What the task space holds.
 #[derive(
@@ -167,17 +167,26 @@ impl<T: Real, const N: usize> JointFriction<T, N> {
         let mut tau = zeros::<T, N, 1>();
         for i in 0..N {
             let viscous = self.fv[i] * qd[i];
-            tau[i] = if T::all(self.fc[i].simd_eq(T::zero())) {
+            let none = self.fc[i].simd_eq(T::zero());
+            tau[i] = if T::all(none) {
                 viscous
             } else {
-                viscous + self.fc[i] * friction_sign(qd[i], qd[i] / self.eps, self.eps)
+                let coulomb =
+                    viscous + self.fc[i] * friction_sign(qd[i], qd[i] / self.eps, self.eps);
+                // A lane without Coulomb friction keeps its bits (viscous + 0 would turn
+                // −0 into +0), whatever its neighbours: 4- and 8-wide groups agree.
+                if T::none(none) {
+                    coulomb
+                } else {
+                    viscous.select(none, coulomb)
+                }
             };
         }
         tau
     }
 }
 
-impl<const N: usize> JointFriction<F64x4, N> {
+impl<W: Real, const N: usize> JointFriction<W, N> {
     /// Lane `l` takes the friction `f`.
     pub fn put_lane(&mut self, l: usize, f: &JointFriction<f64, N>) {
         put_vector(&mut self.fv, l, &f.fv);
@@ -186,14 +195,17 @@ impl<const N: usize> JointFriction<F64x4, N> {
     }
 
     /// Four arms' friction in four lanes.
-    pub fn pack(f: [&JointFriction<f64, N>; LANES]) -> Self {
+    pub fn pack<const L: usize>(f: [&JointFriction<f64, N>; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         let v = |g: fn(&JointFriction<f64, N>) -> &SVector<f64, N>| {
-            SVector::<F64x4, N>::from_fn(|j, _| F64x4::from_lanes(|l| g(f[l])[j]))
+            SVector::<W, N>::from_fn(|j, _| W::from_lanes(|l| g(f[l])[j]))
         };
         Self {
             fv: v(|f| &f.fv),
             fc: v(|f| &f.fc),
-            eps: F64x4::from_lanes(|l| f[l].eps),
+            eps: W::from_lanes(|l| f[l].eps),
         }
     }
 }
@@ -208,9 +220,12 @@ pub struct Chain<T: Real, const N: usize> {
     pub pose: bool,
 }
 
-impl<const N: usize> Chain<F64x4, N> {
+impl<W: Real, const N: usize> Chain<W, N> {
     /// Four chains of one structure (joint kinds and task) in four lanes.
-    pub fn pack(c: [&Chain<f64, N>; LANES]) -> Self {
+    pub fn pack<const L: usize>(c: [&Chain<f64, N>; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         Self {
             chain: SerialChain::pack(c.map(|c| &c.chain)),
             friction: JointFriction::pack(c.map(|c| &c.friction)),
@@ -448,7 +463,7 @@ impl<const N: usize> UrdfArm<N> {
 
 impl<const N: usize> RobotModel<N> for UrdfArm<N> {
     type Model = Chain<f64, N>;
-    type Lanes = Chain<F64x4, N>;
+    type Lanes<W: Real> = Chain<W, N>;
     const READS_EACH_CONFIG: bool = false;
 
     #[inline(always)]
@@ -460,20 +475,20 @@ impl<const N: usize> RobotModel<N> for UrdfArm<N> {
         self.model.chain.same_structure(&other.model.chain) && self.task == other.task
     }
 
-    fn pack(models: [&Chain<f64, N>; LANES]) -> Chain<F64x4, N> {
+    fn pack<W: Wide<L>, const L: usize>(models: [&Chain<f64, N>; L]) -> Chain<W, N> {
         Chain::pack(models)
     }
 
-    fn put_lane(lanes: &mut Chain<F64x4, N>, l: usize, model: &Chain<f64, N>) {
+    fn put_lane<W: Real>(lanes: &mut Chain<W, N>, l: usize, model: &Chain<f64, N>) {
         lanes.put_lane(l, model);
     }
 
     #[inline(always)]
-    fn pack_config(
-        lanes: &Chain<F64x4, N>,
-        q: &SVector<F64x4, N>,
-        _: [&Frames<f64, N>; LANES],
-    ) -> Frames<F64x4, N> {
+    fn pack_config<W: Wide<L>, const L: usize>(
+        lanes: &Chain<W, N>,
+        q: &SVector<W, N>,
+        _: [&Frames<f64, N>; L],
+    ) -> Frames<W, N> {
         // The chain evaluates its frames afresh at every stage anyway.
         lanes.chain.frames(q)
     }

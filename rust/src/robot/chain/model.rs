@@ -7,7 +7,7 @@
 use nalgebra::{Matrix3, Vector3};
 
 use super::spatial::{Pose, Real, RigidInertia};
-use crate::scalar::{put, put_vector, F64x4, LANES};
+use crate::scalar::{put, put_vector, Wide};
 
 /// The joint kinds the algorithms support (fixed joints are merged away by the loader).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -109,15 +109,17 @@ impl<const N: usize> SerialChain<f64, N> {
     }
 }
 
-impl<const N: usize> SerialChain<F64x4, N> {
+impl<W: Real, const N: usize> SerialChain<W, N> {
     /// Four chains of one structure (joint kinds) in four lanes; every number may differ.
-    pub fn pack(chains: [&SerialChain<f64, N>; LANES]) -> Self {
+    pub fn pack<const L: usize>(chains: [&SerialChain<f64, N>; L]) -> Self
+    where
+        W: Wide<L>,
+    {
         debug_assert!(chains.iter().all(|c| c.same_structure(chains[0])));
-        let v = |f: &dyn Fn(usize) -> Vector3<f64>| {
-            Vector3::from_fn(|r, _| F64x4::from_lanes(|l| f(l)[r]))
-        };
+        let v =
+            |f: &dyn Fn(usize) -> Vector3<f64>| Vector3::from_fn(|r, _| W::from_lanes(|l| f(l)[r]));
         let m = |f: &dyn Fn(usize) -> Matrix3<f64>| {
-            Matrix3::from_fn(|r, c| F64x4::from_lanes(|l| f(l)[(r, c)]))
+            Matrix3::from_fn(|r, c| W::from_lanes(|l| f(l)[(r, c)]))
         };
         let pose = |f: &dyn Fn(usize) -> Pose<f64>| Pose {
             rot: m(&|l| f(l).rot),
@@ -129,18 +131,18 @@ impl<const N: usize> SerialChain<F64x4, N> {
                 axis: v(&|l| chains[l].bodies[i].axis),
                 tree: pose(&|l| chains[l].bodies[i].tree),
                 inertia: RigidInertia {
-                    mass: F64x4::from_lanes(|l| chains[l].bodies[i].inertia.mass),
+                    mass: W::from_lanes(|l| chains[l].bodies[i].inertia.mass),
                     h: v(&|l| chains[l].bodies[i].inertia.h),
                     ibar: m(&|l| chains[l].bodies[i].inertia.ibar),
                 },
             }),
             tip: pose(&|l| chains[l].tip),
-            gravity: F64x4::from_lanes(|l| chains[l].gravity),
+            gravity: W::from_lanes(|l| chains[l].gravity),
         }
     }
 }
 
-impl<const N: usize> SerialChain<F64x4, N> {
+impl<W: Real, const N: usize> SerialChain<W, N> {
     /// Lane `l` takes the chain `c` (of this structure).
     pub fn put_lane(&mut self, l: usize, c: &SerialChain<f64, N>) {
         debug_assert!(self
@@ -148,7 +150,7 @@ impl<const N: usize> SerialChain<F64x4, N> {
             .iter()
             .zip(&c.bodies)
             .all(|(a, b)| a.kind == b.kind));
-        let pose = |p: &mut Pose<F64x4>, v: &Pose<f64>| {
+        let pose = |p: &mut Pose<W>, v: &Pose<f64>| {
             put_vector(&mut p.rot, l, &v.rot);
             put_vector(&mut p.pos, l, &v.pos);
         };

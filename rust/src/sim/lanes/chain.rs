@@ -8,6 +8,7 @@ use crate::control::params::{
 };
 use crate::robot::chain::{UrdfArm, UrdfArmParams};
 use crate::robot::{ArmModel, RobotModel};
+use crate::scalar::F64x4;
 use crate::sim::dispatch::simulate;
 use crate::sim::lanes::run_lanes;
 use crate::sim::lanes::stages::tests::{varied, worst_trace_gap};
@@ -56,7 +57,7 @@ fn lanes<const N: usize>(arm: &UrdfArmParams, configs: &[ScenarioConfig]) -> Vec
         })
         .collect();
     let four: [&Simulation<UrdfArm<N>, N>; 4] = std::array::from_fn(|l| &sims[l % sims.len()]);
-    assert!(LaneStages::pack(four).is_some());
+    assert!(LaneStages::<F64x4, _, N>::pack(four).is_some());
     run_lanes(&mut sims)
 }
 

@@ -1,16 +1,22 @@
-//! SIMD lanes for sweeps (SPEC §13): runs of one structure advance four at a time.
+//! SIMD lanes for sweeps (SPEC §13): runs of one structure advance four or eight at a time.
 //!
 //! Each lane is one ordinary `Simulation`, built by the ordinary constructor; it keeps the
 //! run's trace, online metrics and outcome. Stage 9, the plant's RK4 substeps, runs once
-//! for all four lanes on [`F64x4`]: the same `rk4_period` and the same [`ArmModel`] code
-//! (the three-link closed form, a chain's ABA) and `Wall` code the scalar plant runs, with
-//! the four arms' and walls' parameters packed ([`RobotModel::pack`]). Stages 1–8
-//! (environment, sensor, references, filter, controller, actuator, record) run in lanes
-//! too, for every arm (`stages::LaneStages`: the same `sim::pipeline::Pipeline` a scalar
-//! run steps, over [`F64x4`]). An arm brings nothing else: what runs in lanes is its
-//! `ArmModel<F64x4, N>`. A group whose runs do not share one stage structure (a caller's
-//! mixed group; sweeps group by [`LaneKey`]) runs its stages lane by lane through
-//! `Simulation::step_to_plant`.
+//! for all lanes on a lane type `W` ([`F64x4`] or [`F64x8`], see [`LanePath`]): the same
+//! `rk4_period` and the same [`ArmModel`] code (the three-link closed form, a chain's ABA)
+//! and `Wall` code the scalar plant runs, with the arms' and walls' parameters packed
+//! ([`RobotModel::pack`]). Stages 1–8 (environment, sensor, references, filter, controller,
+//! actuator, record) run in lanes too, for every arm (`stages::LaneStages`: the same
+//! `sim::pipeline::Pipeline` a scalar run steps, over `W`). An arm brings nothing else:
+//! what runs in lanes is its `ArmModel<W, N>`. A group whose runs do not share one stage
+//! structure (a caller's mixed group; sweeps group by [`LaneKey`]) runs its stages lane by
+//! lane through `Simulation::step_to_plant`.
+//!
+//! The loop is written once, generic over the lane type and its width `L`, and compiled
+//! three times (issue #25): portable 4-wide, AVX2 + FMA 4-wide, AVX-512 8-wide; a runtime
+//! check picks one ([`lane_path`]). Every operation is element-wise IEEE arithmetic (Rust
+//! never fuses a multiply and an add on its own) and no lane's value depends on another's,
+//! so the three give the same bits.
 //!
 //! A lane whose run ends (completed or diverged) takes the next run at the next period; at
 //! the tail an idle lane repeats an active one and is discarded. No operation mixes lanes,
@@ -18,11 +24,13 @@
 //! on grouping, threads or chunking. They differ from `simulate` of the same run only
 //! through `exp` (a lane polynomial, within 2 ulp of libm's), far below SPEC §13's 1e-9.
 
+use std::sync::atomic::{AtomicU64, AtomicU8, Ordering};
+
 use nalgebra::SVector;
 
 use crate::robot::chain::TaskKind;
 use crate::robot::{ArmModel, RobotModel};
-use crate::scalar::{F64x4, Real, LANES};
+use crate::scalar::{F64x4, F64x8, Real, Wide};
 use crate::sim::pipeline::StageKey;
 use crate::sim::plant::{rk4_period, Plant, PlantState, Stages};
 use crate::sim::simulation::{RunResult, Simulation};
@@ -31,6 +39,8 @@ use stages::LaneStages;
 
 #[cfg(test)]
 mod chain;
+#[cfg(test)]
+mod paths;
 pub mod stages;
 
 /// What runs must share to advance in one group of lanes, each part given by its block:
@@ -70,44 +80,49 @@ pub enum StagePath {
     PerLane,
 }
 
-/// Four plants' parameters in lanes, rebuilt whenever a lane takes a new run.
-pub struct PackedPlant<A> {
+/// The plants' parameters in lanes of `W`, rebuilt whenever a lane takes a new run.
+pub struct PackedPlant<W: Real, A> {
     pub(crate) arm: A,
-    pub(crate) environment: Environment<F64x4>,
-    substep: F64x4,
+    pub(crate) environment: Environment<W>,
+    substep: W,
     substeps: usize,
 }
 
-impl<A> PackedPlant<A> {
+impl<W: Real, A> PackedPlant<W, A> {
     /// Out of line and cold, as every step below that runs only when a lane takes a new
     /// run: inlined, they spread the lane loop's hot code over more instruction cache
     /// (cachegrind: 47 % more L1i misses in `lanes_avx2` than before issue #20).
     #[cold]
     #[inline(never)]
-    fn new<R: RobotModel<N, Lanes = A>, const N: usize>(plants: [&Plant<R, N>; LANES]) -> Self {
+    fn new<R: RobotModel<N, Lanes<W> = A>, const N: usize, const L: usize>(
+        plants: [&Plant<R, N>; L],
+    ) -> Self
+    where
+        W: Wide<L>,
+    {
         let environment = match Environment::pack(plants.map(|p| p.environment())) {
             Some(e) => e,
             None => unreachable!("run_lanes_on checked one environment key"),
         };
         Self {
-            arm: R::pack(plants.map(|p| p.arm().model())),
+            arm: R::pack::<W, L>(plants.map(|p| p.arm().model())),
             environment,
-            substep: F64x4::from_lanes(|i| plants[i].substep()),
+            substep: W::from_lanes(|i| plants[i].substep()),
             substeps: plants[0].substeps(),
         }
     }
 }
 
-impl<A: ArmModel<F64x4, N>, const N: usize> Stages<F64x4, N> for PackedPlant<A> {
+impl<W: Real, A: ArmModel<W, N>, const N: usize> Stages<W, N> for PackedPlant<W, A> {
     type Config = A::Config;
 
     #[inline(always)]
     fn acceleration(
         &self,
         c: &A::Config,
-        qd: &SVector<F64x4, N>,
-        tau: &SVector<F64x4, N>,
-    ) -> SVector<F64x4, N> {
+        qd: &SVector<W, N>,
+        tau: &SVector<W, N>,
+    ) -> SVector<W, N> {
         self.arm.accelerate(c, qd, tau, &self.environment).0
     }
 
@@ -115,16 +130,17 @@ impl<A: ArmModel<F64x4, N>, const N: usize> Stages<F64x4, N> for PackedPlant<A> 
     fn shift(
         &self,
         c: &A::Config,
-        delta: &SVector<F64x4, N>,
-        shifted: &SVector<F64x4, N>,
+        delta: &SVector<W, N>,
+        shifted: &SVector<W, N>,
         out: &mut A::Config,
     ) {
         self.arm.configure_shifted(c, delta, shifted, out);
     }
 }
 
-/// Runs every simulation of `sims` from its start to its end, four at a time, and returns
-/// their results in order. All must share one [`LaneKey`] (the scheduler's grouping).
+/// Runs every simulation of `sims` from its start to its end, four or eight at a time (on
+/// the [`lane_path`]), and returns their results in order. All must share one [`LaneKey`]
+/// (the scheduler's grouping).
 pub fn run_lanes<R: RobotModel<N>, const N: usize>(
     sims: &mut [Simulation<R, N>],
 ) -> Vec<RunResult> {
@@ -134,6 +150,15 @@ pub fn run_lanes<R: RobotModel<N>, const N: usize>(
 /// `run_lanes`, saying how stages 1–8 advanced ([`StagePath`]).
 pub fn run_lanes_on<R: RobotModel<N>, const N: usize>(
     sims: &mut [Simulation<R, N>],
+) -> (Vec<RunResult>, StagePath) {
+    run_lanes_via(sims, lane_path())
+}
+
+/// `run_lanes_on` on the build `path`, which this CPU must run ([`LanePath::available`];
+/// one it cannot runs portably instead).
+pub fn run_lanes_via<R: RobotModel<N>, const N: usize>(
+    sims: &mut [Simulation<R, N>],
+    path: LanePath,
 ) -> (Vec<RunResult>, StagePath) {
     // Plants of different structures cannot share RK4 lanes: a caller's mixed group runs
     // one by one (sweeps group by `LaneKey`, which holds these).
@@ -152,38 +177,177 @@ pub fn run_lanes_on<R: RobotModel<N>, const N: usize>(
     for s in sims.iter_mut() {
         s.reset();
     }
-    #[cfg(target_arch = "x86_64")]
-    if crate::sim::plant::has_avx2_fma() {
-        // SAFETY: the features `lanes_avx2` is compiled for were detected just above.
-        let path = unsafe { lanes_avx2(sims) };
-        return (sims.iter_mut().map(|s| s.take_result()).collect(), path);
+    let path = if path.available() {
+        path
+    } else {
+        LanePath::Portable
+    };
+    let stages = match path {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `available` detected the features `lanes_avx2` is compiled for.
+        LanePath::Avx2 => unsafe { lanes_avx2(sims) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as above, for `lanes_avx512`'s.
+        LanePath::Avx512 => unsafe { lanes_avx512(sims) },
+        _ => lanes_loop::<F64x4, 4, R, N>(sims),
+    };
+    if stages == StagePath::Lanes {
+        RUNS[path as usize].fetch_add(sims.len() as u64, Ordering::Relaxed);
     }
-    let path = lanes_loop(sims);
-    (sims.iter_mut().map(|s| s.take_result()).collect(), path)
+    (sims.iter_mut().map(|s| s.take_result()).collect(), stages)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn lanes_avx2<R: RobotModel<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> StagePath {
-    lanes_loop(sims)
+    lanes_loop::<F64x4, 4, R, N>(sims)
+}
+
+/// Eight lanes in AVX-512 registers (F for the 512-bit arithmetic, DQ for the 64-bit
+/// integer conversions and masks of `exp_lanes`' exponent bits, VL for the narrower ops).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
+unsafe fn lanes_avx512<R: RobotModel<N>, const N: usize>(
+    sims: &mut [Simulation<R, N>],
+) -> StagePath {
+    lanes_loop::<F64x8, 8, R, N>(sims)
+}
+
+/// A build of the lane loop: the lane type it runs and the instructions it may use. All
+/// three give the same bits (tested); they differ only in speed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LanePath {
+    /// [`F64x4`] in baseline x86-64 (SSE2) or the target's own code: any CPU.
+    Portable = 0,
+    /// [`F64x4`] with AVX2 and FMA instructions available (the compiler never contracts a
+    /// multiply and an add: FMA only speeds up what it emits on its own, e.g. none).
+    Avx2 = 1,
+    /// [`F64x8`] with AVX-512 F, DQ and VL.
+    Avx512 = 2,
+}
+
+impl LanePath {
+    pub const ALL: [LanePath; 3] = [LanePath::Portable, LanePath::Avx2, LanePath::Avx512];
+
+    /// The name `ADMIT_RS_LANES` and `_core._lane_path` take.
+    pub fn name(self) -> &'static str {
+        match self {
+            LanePath::Portable => "portable",
+            LanePath::Avx2 => "avx2",
+            LanePath::Avx512 => "avx512",
+        }
+    }
+
+    /// The path of a name (`None` for any other).
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|p| p.name() == name)
+    }
+
+    /// Runs per lane group.
+    pub fn width(self) -> usize {
+        match self {
+            LanePath::Avx512 => 8,
+            _ => 4,
+        }
+    }
+
+    /// Whether this CPU runs this build (std caches the feature checks).
+    pub fn available(self) -> bool {
+        match self {
+            LanePath::Portable => true,
+            #[cfg(target_arch = "x86_64")]
+            LanePath::Avx2 => crate::sim::plant::has_avx2_fma(),
+            #[cfg(target_arch = "x86_64")]
+            LanePath::Avx512 => {
+                crate::sim::plant::has_avx2_fma()
+                    && std::arch::is_x86_feature_detected!("avx512f")
+                    && std::arch::is_x86_feature_detected!("avx512dq")
+                    && std::arch::is_x86_feature_detected!("avx512vl")
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            _ => false,
+        }
+    }
+
+    /// The default on this CPU: AVX2 wherever it exists. The 8-wide AVX-512 build was not
+    /// measured faster on the Zen 4 machine at hand (which splits each 512-bit operation in
+    /// two 256-bit halves; docs/performance.md §14), so it is chosen only when forced.
+    pub fn fastest() -> Self {
+        [LanePath::Avx2, LanePath::Portable]
+            .into_iter()
+            .find(|p| p.available())
+            .unwrap_or(LanePath::Portable)
+    }
+}
+
+/// The forced path: `FORCE_UNSET` until `set_lane_path` or the first `lane_path` (which
+/// reads `ADMIT_RS_LANES`), `FORCE_AUTO` for the default, else a `LanePath` as u8.
+static FORCED: AtomicU8 = AtomicU8::new(FORCE_UNSET);
+const FORCE_UNSET: u8 = u8::MAX;
+const FORCE_AUTO: u8 = u8::MAX - 1;
+
+/// Runs whose stages ran in lanes, per [`LanePath`] (since the process started): how tests
+/// check which build a sweep really took.
+static RUNS: [AtomicU64; 3] = [AtomicU64::new(0), AtomicU64::new(0), AtomicU64::new(0)];
+
+/// The build lane groups take: the one forced by [`set_lane_path`] or, at the first call,
+/// by the environment variable `ADMIT_RS_LANES` (`portable`, `avx2`, `avx512`; `auto`,
+/// unset, unknown or one this CPU lacks: the default), else [`LanePath::fastest`].
+pub fn lane_path() -> LanePath {
+    let mut forced = FORCED.load(Ordering::Relaxed);
+    if forced == FORCE_UNSET {
+        let from_env = std::env::var("ADMIT_RS_LANES")
+            .ok()
+            .and_then(|v| LanePath::parse(v.trim()))
+            .filter(|p| p.available());
+        let value = from_env.map_or(FORCE_AUTO, |p| p as u8);
+        // A concurrent `set_lane_path` wins over the environment.
+        forced =
+            match FORCED.compare_exchange(FORCE_UNSET, value, Ordering::Relaxed, Ordering::Relaxed)
+            {
+                Ok(_) => value,
+                Err(current) => current,
+            };
+    }
+    LanePath::ALL
+        .into_iter()
+        .find(|p| *p as u8 == forced)
+        .unwrap_or_else(LanePath::fastest)
+}
+
+/// Forces the build lane groups take from now on (`None`: the default). False, with
+/// nothing changed, if this CPU cannot run `path`.
+pub fn set_lane_path(path: Option<LanePath>) -> bool {
+    if path.is_some_and(|p| !p.available()) {
+        return false;
+    }
+    FORCED.store(path.map_or(FORCE_AUTO, |p| p as u8), Ordering::Relaxed);
+    true
+}
+
+/// Runs whose stages 1–8 ran in lanes on each path, in [`LanePath::ALL`]'s order.
+pub fn lane_runs() -> [u64; 3] {
+    RUNS.each_ref().map(|r| r.load(Ordering::Relaxed))
 }
 
 #[inline(always)]
-fn lanes_loop<R: RobotModel<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> StagePath {
+fn lanes_loop<W: Wide<L>, const L: usize, R: RobotModel<N>, const N: usize>(
+    sims: &mut [Simulation<R, N>],
+) -> StagePath {
     // Stages 1–8 in lanes only if every run of the group has one stage structure (sweeps
     // group by it; a caller's mixed group still runs, its stages lane by lane).
     let one_structure = sims
         .iter()
         .all(|s| s.stages().lane_key() == sims[0].stages().lane_key());
     let mut next = 0;
-    let mut slot: [Option<usize>; LANES] = [None; LANES];
-    let mut packed: Option<(PackedPlant<R::Lanes>, [usize; LANES])> = None;
+    let mut slot: [Option<usize>; L] = [None; L];
+    let mut packed: Packed<W, L, R, N> = None;
     // The lane stages, once packed; `tried`: whether this group's structure has them (the
     // lane key makes it the same for every run of the group).
-    let (mut front, mut tried): (Option<LaneStages<R, N>>, bool) = (None, false);
+    let (mut front, mut tried): (Option<LaneStages<W, R, N>>, bool) = (None, false);
     loop {
         // A lane whose run is over takes the next one.
-        let mut fresh = [false; LANES];
+        let mut fresh = [false; L];
         for (l, s) in slot.iter_mut().enumerate() {
             while s.is_none() && next < sims.len() {
                 if sims[next].outcome().is_none() {
@@ -197,7 +361,7 @@ fn lanes_loop<R: RobotModel<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -
             break;
         };
         // Idle lanes repeat an active run (their results are discarded).
-        let run: [usize; LANES] = slot.map(|s| s.or(slot[first]).unwrap_or(0));
+        let run: [usize; L] = slot.map(|s| s.or(slot[first]).unwrap_or(0));
         let plant = repack(&mut packed, sims, run);
         if !tried {
             front = if one_structure {
@@ -207,7 +371,7 @@ fn lanes_loop<R: RobotModel<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -
             };
             tried = true;
         } else if let Some(f) = &mut front {
-            for l in (0..LANES).filter(|&l| fresh[l]) {
+            for l in (0..L).filter(|&l| fresh[l]) {
                 let fits = put_lane(f, l, &sims[run[l]]);
                 // Every run of the group was checked to fit one pack before it began.
                 debug_assert!(fits, "a run that does not fit its lane group");
@@ -226,15 +390,14 @@ fn lanes_loop<R: RobotModel<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -
         let Some(first) = slot.iter().position(Option::is_some) else {
             continue;
         };
-        let run: [usize; LANES] = slot.map(|s| s.or(slot[first]).unwrap_or(0));
-        let lane_tau: [SVector<f64, N>; LANES] = std::array::from_fn(|l| {
+        let run: [usize; L] = slot.map(|s| s.or(slot[first]).unwrap_or(0));
+        let lane_tau: [SVector<f64, N>; L] = std::array::from_fn(|l| {
             tau[if slot[l].is_some() { l } else { first }].unwrap_or_else(SVector::zeros)
         });
         let plant = repack(&mut packed, sims, run);
         // Stage 9 in lanes.
-        let pack = |v: [&SVector<f64, N>; LANES]| {
-            SVector::<F64x4, N>::from_fn(|j, _| F64x4::from_lanes(|i| v[i][j]))
-        };
+        let pack =
+            |v: [&SVector<f64, N>; L]| SVector::<W, N>::from_fn(|j, _| W::from_lanes(|i| v[i][j]));
         let states = run.map(|i| sims[i].plant().state());
         let q = pack(states.map(|s| &s.q));
         let config = R::pack_config(&plant.arm, &q, run.map(|i| sims[i].plant().config()));
@@ -251,7 +414,7 @@ fn lanes_loop<R: RobotModel<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -
         let deferred = !R::READS_EACH_CONFIG && front.is_some();
         for (l, s) in slot.iter_mut().enumerate() {
             if let Some(i) = *s {
-                let unpack = |v: &SVector<F64x4, N>| v.map(|x| crate::scalar::lane(x, l));
+                let unpack = |v: &SVector<W, N>| v.map(|x| crate::scalar::lane(x, l));
                 let state = PlantState {
                     q: unpack(&q),
                     qd: unpack(&qd),
@@ -283,31 +446,35 @@ fn lanes_loop<R: RobotModel<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -
 /// The explicit fallback's stages 1–8, lane by lane (cold: see `PackedPlant::new`).
 #[cold]
 #[inline(never)]
-fn per_lane<R: RobotModel<N>, const N: usize>(
+fn per_lane<R: RobotModel<N>, const N: usize, const L: usize>(
     sims: &mut [Simulation<R, N>],
-    slot: &[Option<usize>; LANES],
-) -> [Option<SVector<f64, N>>; LANES] {
+    slot: &[Option<usize>; L],
+) -> [Option<SVector<f64, N>>; L] {
     std::array::from_fn(|l| slot[l].and_then(|i| sims[i].step_to_plant()))
 }
 
 /// Lane `l` of the stages takes the fresh run `sim` (cold: see `PackedPlant::new`).
 #[cold]
 #[inline(never)]
-fn put_lane<R: RobotModel<N>, const N: usize>(
-    stages: &mut LaneStages<R, N>,
+fn put_lane<W: Real, R: RobotModel<N>, const N: usize>(
+    stages: &mut LaneStages<W, R, N>,
     l: usize,
     sim: &Simulation<R, N>,
 ) -> bool {
     stages.put_lane(l, sim)
 }
 
+/// The packed plants and the runs they were packed from.
+type Packed<W, const L: usize, R, const N: usize> =
+    Option<(PackedPlant<W, <R as RobotModel<N>>::Lanes<W>>, [usize; L])>;
+
 /// The plants of `run` packed, rebuilt only when the lanes' runs changed.
 #[inline(always)]
-fn repack<'a, R: RobotModel<N>, const N: usize>(
-    packed: &'a mut Option<(PackedPlant<R::Lanes>, [usize; LANES])>,
+fn repack<'a, W: Wide<L>, const L: usize, R: RobotModel<N>, const N: usize>(
+    packed: &'a mut Packed<W, L, R, N>,
     sims: &[Simulation<R, N>],
-    run: [usize; LANES],
-) -> &'a PackedPlant<R::Lanes> {
+    run: [usize; L],
+) -> &'a PackedPlant<W, R::Lanes<W>> {
     if packed.as_ref().is_some_and(|(_, runs)| *runs != run) {
         *packed = None;
     }
@@ -344,7 +511,7 @@ pub(crate) mod tests {
     }
 
     /// Every metric and every trace value, as bits.
-    fn bits(runs: &[RunResult]) -> Vec<u64> {
+    pub(crate) fn bits(runs: &[RunResult]) -> Vec<u64> {
         runs.iter()
             .flat_map(|r| {
                 let trace = r.trace.clone().into_named_columns().into_iter();
@@ -367,23 +534,6 @@ pub(crate) mod tests {
             .expect("a test thread")
             .join()
             .expect("the test passes");
-    }
-
-    /// The portable build of the lane loop (what a CPU without AVX2, or aarch64, runs) gives
-    /// the dispatched build's bits: Rust never fuses a multiply and an add on its own.
-    #[test]
-    fn baseline_build_equals_the_dispatched_one() {
-        with_stack(baseline_equals_dispatched);
-    }
-
-    fn baseline_equals_dispatched() {
-        let stiffness = [1e4, 3e4, 1e5, 2e5, 5e4];
-        let dispatched = run_lanes(&mut sims(&stiffness));
-        let mut baseline = sims(&stiffness);
-        baseline.iter_mut().for_each(|s| s.reset());
-        assert_eq!(lanes_loop(&mut baseline), StagePath::Lanes);
-        let baseline: Vec<RunResult> = baseline.iter_mut().map(|s| s.take_result()).collect();
-        assert_eq!(bits(&dispatched), bits(&baseline));
     }
 
     /// A run's result does not depend on the runs sharing its lanes, nor on its lane.

@@ -1,11 +1,11 @@
-//! Stages 1–8 of a period in lanes (SPEC §10, §13, §14): four runs' stages 2–7 packed into
-//! one [`Pipeline`] over [`F64x4`], the same code a scalar run steps as `Pipeline<f64>`,
-//! with computed torque's four models packed as the plant's are ([`RobotModel::pack`]).
-//! What is here is only what is per lane: gathering the four runs' plant states, their
+//! Stages 1–8 of a period in lanes (SPEC §10, §13, §14): `L` runs' stages 2–7 packed into
+//! one [`Pipeline`] over a lane type `W` (`F64x4`, `F64x8`), the same code a scalar run steps
+//! as `Pipeline<f64>`, with computed torque's models packed as the plant's are
+//! ([`RobotModel::pack`]). What is here is only what is per lane: gathering the runs' plant states, their
 //! noise draws (each run's own seeded generator at its own sample index) and references
 //! (each a function of that lane's own t), and closing each lane's sample in its own
 //! `Simulation` (`close_sample`: the record and online metrics exist once). Stage 1 is the
-//! arm's `ArmModel::measure` over [`F64x4`], at the lanes' configuration values
+//! arm's `ArmModel::measure` over `W`, at the lanes' configuration values
 //! ([`RobotModel::pack_config`]), as a scalar run's is over `f64`.
 
 use nalgebra::SVector;
@@ -13,24 +13,27 @@ use simba::simd::SimdValue;
 
 use crate::control::reference::Sample;
 use crate::robot::{ArmModel, RobotModel};
-use crate::scalar::{lane, lane_of, mask_from, pack_vector, F64x4, Real, LANES};
+use crate::scalar::{lane, lane_of, mask_from, pack_vector, Real, Wide};
 use crate::sim::lanes::PackedPlant;
 use crate::sim::outcome::Divergence;
 use crate::sim::pipeline::{Inputs, Pipeline};
 use crate::sim::simulation::Simulation;
 use crate::sim::trace::Row;
 
-/// Four runs' stages 1–8 in lanes, for any arm.
-pub struct LaneStages<R: RobotModel<N>, const N: usize> {
-    pub(crate) stages: Pipeline<F64x4, R::Lanes, N>,
+/// Runs' stages 1–8 in lanes of `W`, for any arm.
+pub struct LaneStages<W: Real, R: RobotModel<N>, const N: usize> {
+    pub(crate) stages: Pipeline<W, R::Lanes<W>, N>,
 }
 
-impl<R: RobotModel<N>, const N: usize> LaneStages<R, N> {
+impl<W: Real, R: RobotModel<N>, const N: usize> LaneStages<W, R, N> {
     /// The four runs' stages packed, from their fresh state; `None` if their structures
     /// differ (their stages then run per lane, `step_to_plant`). The lane key
     /// (`AnySimulation::lane_key`) groups runs of one structure; checked again here so that
     /// a caller's group that is not uniform still runs, per lane.
-    pub fn pack(sims: [&Simulation<R, N>; LANES]) -> Option<Self> {
+    pub fn pack<const L: usize>(sims: [&Simulation<R, N>; L]) -> Option<Self>
+    where
+        W: Wide<L>,
+    {
         Pipeline::pack(sims.map(|s| s.stages()), R::pack).map(|stages| Self { stages })
     }
 
@@ -45,16 +48,19 @@ impl<R: RobotModel<N>, const N: usize> LaneStages<R, N> {
     /// repeats an active one). Each lane's torque to hold, or `None` where the run ended
     /// at this sample; samples are recorded in the lanes' own simulations.
     #[inline(always)]
-    pub fn step(
+    pub fn step<const L: usize>(
         &mut self,
-        plant: &PackedPlant<R::Lanes>,
+        plant: &PackedPlant<W, R::Lanes<W>>,
         sims: &mut [Simulation<R, N>],
-        slot: &[Option<usize>; LANES],
-        run: &[usize; LANES],
-    ) -> [Option<SVector<f64, N>>; LANES] {
+        slot: &[Option<usize>; L],
+        run: &[usize; L],
+    ) -> [Option<SVector<f64, N>>; L]
+    where
+        W: Wide<L>,
+    {
         let lanes = run.map(|i| &sims[i]);
         let k = lanes.map(|s| s.sample());
-        let t = F64x4::from_lanes(|l| k[l] as f64 * lanes[l].config().period);
+        let t = W::from_lanes(|l| k[l] as f64 * lanes[l].config().period);
         // 1. plant state (the encoders) and the tip's kinematics at it
         let states = lanes.map(|s| *s.plant().state());
         let q = pack_vector(states.each_ref().map(|s| &s.q));
@@ -62,15 +68,14 @@ impl<R: RobotModel<N>, const N: usize> LaneStages<R, N> {
         let at = R::pack_config(&plant.arm, &q, lanes.map(|s| s.plant().config()));
         let (kin, orientation) = plant.arm.measure(&at, &qd, self.stages.controller.pose());
         // Each run's noise draw at its own sample, its references at its own t.
-        let noise = F64x4::from_lanes(|l| lanes[l].stages().sensor.noise_draw(k[l]));
-        let f_d: [Sample; LANES] =
+        let noise = W::from_lanes(|l| lanes[l].stages().sensor.noise_draw(k[l]));
+        let f_d: [Sample; L] =
             std::array::from_fn(|l| lanes[l].config().force_reference.at(lane(t, l)));
-        let s: [Sample; LANES] =
-            std::array::from_fn(|l| lanes[l].config().z_reference.at(lane(t, l)));
+        let s: [Sample; L] = std::array::from_fn(|l| lanes[l].config().z_reference.at(lane(t, l)));
         // 2.–7.
         let out = self.stages.step(
             &Inputs {
-                first: mask_from::<F64x4>(|l| k[l] == 0),
+                first: mask_from::<W>(|l| k[l] == 0),
                 q: &q,
                 qd: &qd,
                 kinematics: &kin,
@@ -125,6 +130,7 @@ impl<R: RobotModel<N>, const N: usize> LaneStages<R, N> {
 pub(crate) mod tests {
     use super::*;
     use crate::robot::ThreeLinkArm;
+    use crate::scalar::F64x4;
 
     type Sim = Simulation<ThreeLinkArm, 3>;
     use crate::control::params::{ControllerParams, TimeDelayParams};
@@ -259,7 +265,7 @@ pub(crate) mod tests {
             .collect();
         for c in runs {
             let sims: Vec<Sim> = c.iter().map(|c| Sim::new(c).unwrap()).collect();
-            let packed = LaneStages::pack([&sims[0], &sims[1], &sims[2], &sims[3]]);
+            let packed = LaneStages::<F64x4, _, 3>::pack([&sims[0], &sims[1], &sims[2], &sims[3]]);
             assert!(packed.is_some_and(|p| p.stages.controller.task_path()));
             for (cfg, r) in c.iter().zip(lanes(&c)) {
                 let alone = crate::sim::dispatch::simulate(cfg).unwrap();
