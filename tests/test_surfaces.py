@@ -203,3 +203,21 @@ def test_the_linearised_analysis_at_a_frozen_contact_point():
     stuck = ar.analysis.predict(base.replace(wall=ar.Wall(friction=0.3)))
     assert stuck["overshoot_pct"] > plane["overshoot_pct"] + 1.0
     assert abs(stuck["force_ss_error"]) < 1e-9
+
+
+def test_a_stepped_simulation_on_a_curved_part_resumes_from_its_state():
+    """ar.Simulation on a sphere with friction and a curved belief: stepping, saving the
+    state, running on and restoring it gives the same samples again (the belief holds no
+    state of its own), and the whole stepped run is ar.simulate's."""
+    sc = BASE.replace(wall=ar.Sphere(radius=0.2, friction=0.3), duration=1.0)
+    sim = ar.Simulation(sc)
+    sim.step(400)
+    saved = sim.state_vector()
+    sim.step(300)
+    later = sim.trace["f"].to_numpy()[400:700]
+    sim.set_state(saved)
+    sim.step(300)
+    assert np.array_equal(sim.trace["f"].to_numpy()[400:700], later)
+    sim.step(10_000)
+    whole = ar.simulate(sc).trace
+    assert sim.trace["f"].equals(whole["f"]) and sim.trace["f_t"].equals(whole["f_t"])
