@@ -59,11 +59,11 @@ def main() -> None:
     print(f"{'variant':24} {'path':7} {'time [s]':>10} {'× plane':>8}")
     for path, job in jobs.items():
         times: dict[str, list[float]] = {name: [] for name in scenarios}
-        for name, sc in scenarios.items():
+        for sc in scenarios.values():
             job(sc)  # warm-up
         for _ in range(args.repeats):
             for name, sc in scenarios.items():  # alternated, so that load drifts hit all
-                times[name].append(timed(lambda sc=sc: job(sc)))
+                times[name].append(timed(lambda sc=sc, job=job: job(sc)))
         plane = statistics.median(times["plane"])
         for name in scenarios:
             t = statistics.median(times[name])
