@@ -10,8 +10,8 @@
    1 / (n·J D⁻¹ Jᵀ·n)).
 2. fig. 19 (the estimate 1 cm beyond the wall) without an approach, with a guarded approach,
    with and without re-anchoring.
-3. Scheme 2 against the adaptive filter sliding over a plane tilted 3° from the estimate
-   (curved surfaces are issue #22: not in this library yet).
+3. Scheme 2 against the adaptive filter sliding over a plane tilted 3° from the estimate,
+   and over a ball and a shaft believed flat or believed right.
 
 Writes first_contact.png, first_contact.md (the tables) and the sweep tables (Parquet).
 """
@@ -114,6 +114,32 @@ def tilted_cases() -> pl.DataFrame:
     return pl.DataFrame(rows)
 
 
+def curved_cases() -> pl.DataFrame:
+    """Scheme 2 and the adaptive filter sliding 0.1 m at 0.01 m/s over a ball (R = 0.3 m) and
+    along a shaft (a cylinder of R = 0.3 m whose axis is the motion's direction), believed
+    flat or believed right. (A shaft slid across its axis in this plane is the ball.)"""
+    rows = []
+    parts = {"ball R = 0.3 m": ar.Sphere(radius=0.3),
+             "shaft R = 0.3 m, along its axis": ar.Cylinder(radius=0.3, axis=(0.0, 0.0, 1.0))}
+    for part, wall in parts.items():
+        for belief_name, belief in (("flat", ar.Wall()), ("right shape", wall)):
+            sc = ar.paper.scenario("fig8").replace(
+                controller=ar.ComputedTorque(command_divisor=1.0, kd=200.0, kp=1e4,
+                                             contact_compensation=True),
+                wall=wall, wall_estimate=belief,
+                z_reference=ar.Sampled(times=(0.0, 10.0), values=(0.0, 0.1)),
+            )
+            for name, filt in (("Scheme 2", ar.AdmittanceFilter.scheme2(b=800.0, ka=1.0)),
+                               ("adaptive σ = 0.005", ar.AdmittanceFilter.adaptive(sigma=0.005))):
+                res = ar.simulate(sc.replace(admittance=filt))
+                fm = res.trace["f_measured"].to_numpy()
+                rows.append({"part": part, "belief": belief_name, "filter": name,
+                             "e_f at s = 0.1 m [N]": float(10.0 - fm[-1]),
+                             "force_rms_error": res.metrics["force_rms_error"],
+                             "verdict": res.verdict})
+    return pl.DataFrame(rows)
+
+
 def main(out: Path, quick: bool = False) -> dict[str, pl.DataFrame]:
     out.mkdir(parents=True, exist_ok=True)
     speeds = [0.005, 0.01, 0.02, 0.05, 0.1] if quick else list(np.geomspace(0.002, 0.2, 11))
@@ -123,6 +149,7 @@ def main(out: Path, quick: bool = False) -> dict[str, pl.DataFrame]:
     m_eff = effective_mass(maps["base"])
     fig19 = fig19_cases()
     tilted = tilted_cases()
+    curved = curved_cases()
 
     fig, axes = plt.subplots(1, 3, figsize=(16, 4.8))
     ax = axes[0]
@@ -168,11 +195,12 @@ def main(out: Path, quick: bool = False) -> dict[str, pl.DataFrame]:
     maps["stiffness"].write_parquet(out / "speed_by_stiffness.parquet")
     maps["latency"].write_parquet(out / "speed_by_latency.parquet")
     text = ["# first_contact.py tables", "", f"m_eff = {m_eff:.3f} kg along n at q0", ""]
-    for title, table in (("fig. 19", fig19), ("tilted plane, v = 0.01 m/s, θ = 3°", tilted)):
+    for title, table in (("fig. 19", fig19), ("tilted plane, v = 0.01 m/s, θ = 3°", tilted),
+                         ("curved parts, v = 0.01 m/s", curved)):
         text += [f"## {title}", "", _markdown(table), ""]
     (out / "first_contact.md").write_text("\n".join(text))
     return {"stiffness": maps["stiffness"], "latency": maps["latency"], "fig19": fig19,
-            "tilted": tilted, "m_eff": pl.DataFrame({"m_eff": [m_eff]})}
+            "tilted": tilted, "curved": curved, "m_eff": pl.DataFrame({"m_eff": [m_eff]})}
 
 
 def _markdown(table: pl.DataFrame) -> str:
@@ -192,4 +220,5 @@ if __name__ == "__main__":
     tables = main(args.out, args.quick)
     print(tables["fig19"])
     print(tables["tilted"])
+    print(tables["curved"])
     print(f"wrote {args.out}/first_contact.png and first_contact.md")

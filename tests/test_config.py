@@ -245,7 +245,7 @@ def test_block_docstrings_give_units_and_defaults():
     )
     assert (
         "    noise_std (float, default 0.0)\n"
-        "        Standard deviation of white Gaussian noise [N]."
+        "        Standard deviation of white Gaussian noise [N], on each axis."
     ) in ar.ForceSensor.__doc__
     assert (
         "    torque_limit (float | tuple[float, ...] | None, default None)\n"

@@ -224,3 +224,17 @@ def test_control_frame_rotation_for_any_normal(normal):
         np.testing.assert_allclose(r @ [0, 0, 1], t, atol=2e-6)
         np.testing.assert_allclose(r.T @ r, np.eye(3), atol=2e-6)
         assert np.linalg.det(r) == pytest.approx(1.0, abs=1e-5)
+
+
+def test_a_tool_is_exported_as_gravity_compensation(tmp_path):
+    """The tool the controller believes (SPEC §15) is the controller's gravity compensation:
+    CoG.force = m̂_t g at the tip origin; none is written without a tool."""
+    sc = ar.paper.scenario("fig8")
+    assert "gravity_compensation" not in _params_text_full(ar.export.ros2_admittance(sc, None))
+    tooled = sc.replace(sensor=ar.ForceSensor(tool_mass=1.5, tool_mass_estimate=1.2))
+    text = ar.export.ros2_admittance(tooled, tmp_path / "a.yaml")
+    p = yaml.safe_load(text)["admittance_controller"]["ros__parameters"]
+    cog = p["gravity_compensation"]["CoG"]
+    assert cog["force"] == pytest.approx(1.2 * 9.81)
+    assert cog["pos"] == [0.0, 0.0, 0.0]
+    assert "1.2 kg" in text

@@ -64,6 +64,12 @@ WORKER = f"URDF_PATH = {URDF_PATH!r}\n" + textwrap.dedent(
                                 friction=0.5, stiction_velocity=0.01),
             duration=0.3,
         ),
+        "tool": ar.paper.scenario("fig14").replace(
+            sensor=ar.ForceSensor(frame="tip", bias=(0.1, 0.0, -0.2), noise_std=0.1,
+                                  cutoff=50.0, latency=1, tool_mass=0.5,
+                                  tool_mass_estimate=0.6),
+            wall=ar.Wall(normal=(0, 0, -1)), duration=0.3,
+        ),
     }
 
     def apply(sc, path, value):
@@ -175,6 +181,13 @@ def test_every_numeric_field_survives_hostile_values():
             wall=ar.HeightField(heights=[[0.0, 0.001, 0.0], [0.0, -0.001, 0.002]],
                                 friction=0.5, stiction_velocity=0.01),
         ),
+        # The 3-axis sensor with a tool on a table (SPEC §15).
+        "tool": ar.paper.scenario("fig14").replace(
+            sensor=ar.ForceSensor(frame="tip", bias=(0.1, 0.0, -0.2), noise_std=0.1,
+                                  cutoff=50.0, latency=1, tool_mass=0.5,
+                                  tool_mass_estimate=0.6),
+            wall=ar.Wall(normal=(0, 0, -1)),
+        ),
     }
     cases = [
         (base, path, value)
@@ -191,7 +204,8 @@ def test_every_numeric_field_survives_hostile_values():
             "wall_estimate.normal", "wall_estimate.position_error", "wall_estimate.gap",
             "approach.speed", "approach.contact_speed", "approach.slowdown_distance",
             "approach.threshold", "wall.friction", "wall.stiction_velocity", "wall.radius",
-            "wall_estimate.radius", "wall_estimate.axis", "wall.spacing"} <= paths
+            "wall_estimate.radius", "wall_estimate.axis", "wall.spacing", "sensor.bias",
+            "sensor.tool_mass", "sensor.tool_mass_estimate"} <= paths
     failures = []
     worker = Worker()
     warmed = False

@@ -341,6 +341,10 @@ class UrdfArm(_Block):
     kp, kd (both divided by its command_divisor K_A, as in eq. 39)."""
     damping: float = 1e-3
     """λ of the damped pseudo-inverse J⁺ = Jᵀ(J Jᵀ + λ² I)⁻¹ of eqs. 7 and 17."""
+    orientation: Literal["hold", "surface"] = "hold"
+    """A pose task's orientation: ``"hold"`` (its start value R0) or ``"surface"`` (R0
+    turned by the rotation that takes the estimated surface's normal at the start to its
+    normal at the tip, so the tool stays normal to the part as it curves; SPEC §15)."""
     urdf: str = field(default="", repr=False, compare=True)
     """The URDF document (read from ``path`` when not given)."""
 
@@ -718,32 +722,65 @@ Surface: TypeAlias = Wall | Sphere | Cylinder | HeightField
 
 @dataclass(frozen=True, kw_only=True)
 class ForceSensor(_Block):
-    """The force sensor (SPEC §10): bias, noise, resolution, low-pass, latency, in that order.
+    """The force sensor (SPEC §10, §15): bias, noise, resolution, low-pass, latency, in that
+    order, on one axis along the estimated normal n̂ or on the three axes of the tip frame.
 
     u_k = f_k + bias + noise, rounded to a multiple of ``resolution``; y_k = y_{k−1} +
     α (u_k − y_{k−1}) with α = 1 − exp(−2π f_c T) and y_0 = u_0; the output is y delayed by
     ``latency`` samples (holding y_0 before). The default reads the force exactly. Noise is
     drawn from (``Scenario.seed``, sample index), so runs are reproducible.
 
+    ``frame="tip"`` is a 3-axis F/T sensor: the force on the surface (plus a tool's weight)
+    in the tip frame, each axis with its own bias, noise, rounding and low-pass, one latency;
+    the controller rotates the reading to the world with the current tip rotation and feeds
+    its component along n̂ to the filter. A tool of ``tool_mass`` between the sensor and the
+    tip adds its weight m_t g to the reading and its mass to the arm; the controller takes
+    off the weight of ``tool_mass_estimate`` (docs/surfaces.md).
+
     Example:
         >>> import admit_rs as ar
         >>> ar.ForceSensor(noise_std=0.5, cutoff=30.0, latency=2)
-        ForceSensor(bias=0.0, noise_std=0.5, resolution=0.0, cutoff=30.0, latency=2)
+        ForceSensor(bias=0.0, noise_std=0.5, resolution=0.0, cutoff=30.0, latency=2, \
+frame='normal', tool_mass=0.0, tool_mass_estimate=None)
+        >>> ar.ForceSensor(frame="tip", bias=(0.2, 0.0, -0.1), tool_mass=0.8).bias
+        (0.2, 0.0, -0.1)
     """
 
-    bias: float = 0.0
-    """Constant offset added to the reading [N]."""
+    bias: float | Vector3 = 0.0
+    """Constant offset added to the reading [N]: one number (along n̂), or one per axis of
+    the tip frame (``frame="tip"``)."""
     noise_std: float = 0.0
-    """Standard deviation of white Gaussian noise [N]."""
+    """Standard deviation of white Gaussian noise [N], on each axis."""
     resolution: float = 0.0
-    """Quantisation step [N]; 0: none."""
+    """Quantisation step [N] of each axis; 0: none."""
     cutoff: float | None = None
-    """First-order low-pass cut-off f_c [Hz], at most the Nyquist frequency 1/(2·period)
-    (a scenario with a higher one is rejected); ``None``: no filter."""
+    """First-order low-pass cut-off f_c [Hz] of each axis, at most the Nyquist frequency
+    1/(2·period) (a scenario with a higher one is rejected); ``None``: no filter."""
     latency: int = 0
     """Delay of the output in whole controller periods (0 to 100 000)."""
+    frame: Literal["normal", "tip"] = "normal"
+    """``"normal"``: one axis along the estimated normal n̂ (a load cell); ``"tip"``: three
+    axes in the tip frame (an F/T sensor; the three-link arm's link 3 frame, x along the
+    link, y along the pitch axes; a URDF arm's tip link frame), rotated to the world with
+    the current tip rotation, the component along n̂ fed to the filter."""
+    tool_mass: float = 0.0
+    """Mass of a tool between the sensor and the tip [kg]: its weight adds to the reading
+    and its mass to the arm's tip."""
+    tool_mass_estimate: float | None = None
+    """The tool mass the controller believes [kg]: it subtracts this weight from the
+    reading and its computed-torque model carries this mass; ``None``: ``tool_mass``."""
 
     _check: ClassVar[str] = "sensor"
+
+    def __post_init__(self) -> None:
+        bias = self.bias
+        if not isinstance(bias, numbers.Real) or isinstance(bias, bool):
+            if isinstance(bias, str | bytes) or not isinstance(bias, Iterable):
+                raise TypeError(
+                    f"bias must be a number or a sequence of 3 numbers, got {shown(bias)}"
+                )
+            self._set("bias", _vec3("bias", bias))
+        self._validate()
 
 
 @dataclass(frozen=True, kw_only=True)

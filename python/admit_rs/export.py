@@ -296,6 +296,13 @@ def ros2_admittance(
     if wall is not None and wall.friction:
         notes.append(f"Not exported: the surface's friction (mu = {wall.friction:g}) is part of"
                      " the simulated world, not of the controller.")  # fmt: skip
+    sensor = scenario.sensor
+    tool = sensor.tool_mass if sensor.tool_mass_estimate is None else sensor.tool_mass_estimate
+    weight = tool * _gravity(scenario)
+    if weight > 0.0:
+        notes.append(f"gravity_compensation: the tool the controller believes, {tool:g} kg at"
+                     f" the tip origin (CoG.force = m g = {weight:g} N); set"
+                     " gravity_compensation.frame.id to the tool (tip) frame.")  # fmt: skip
     notes.append("Not exported (see docs/export.md): f_d, the inner loop, the period"
                  f" T = {scenario.period:g} s (the controller manager's update_rate).")  # fmt: skip
     lines = [line for note in notes for line in _wrap(note)]
@@ -311,10 +318,22 @@ def ros2_admittance(
     ]
     if alpha is not None:
         lines += ["    ft_sensor:", f"      filter_coefficient: {_yaml_float(alpha)}"]
+    if weight > 0.0:
+        lines += [
+            "    gravity_compensation:",
+            "      CoG:",
+            f"        pos: {_yaml_list([0.0, 0.0, 0.0])}",
+            f"        force: {_yaml_float(weight)}",
+        ]
     text = "\n".join(lines) + "\n"
     if path is not None:
         Path(path).write_text(text, encoding="utf-8")
     return text
+
+
+def _gravity(scenario: Scenario) -> float:
+    """The arm's gravity [m/s²] (both arm blocks have the field)."""
+    return float(getattr(scenario.robot, "gravity", 9.81))
 
 
 def _bad(name: str, value: str, allowed: str) -> ParameterError:

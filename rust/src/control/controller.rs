@@ -64,6 +64,9 @@ pub enum Law<T: Real, M, const N: usize> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TaskSetup<T: Real, const N: usize> {
     start_rotation: Option<Matrix3<T>>,
+    /// n̂ at the start, for a pose task that keeps the tool normal to the estimated surface
+    /// (`UrdfArm(orientation="surface")`, SPEC §15): R_d turns R0 as n̂ turns.
+    start_normal: Option<Vector3<T>>,
     orientation_gains: (T, T),
     posture: Option<SVector<T, N>>,
     damping: T,
@@ -74,6 +77,8 @@ pub struct TaskSetup<T: Real, const N: usize> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TaskAtStart<const N: usize> {
     pub start_rotation: Option<Matrix3<f64>>,
+    /// The estimated normal at the start, when the orientation follows the surface.
+    pub start_normal: Option<Vector3<f64>>,
     pub posture: Option<JointVector<N>>,
     pub options: TaskOptions,
 }
@@ -88,9 +93,19 @@ impl<const N: usize> TaskAtStart<N> {
         let task_dimension = if start_rotation.is_some() { 6 } else { 3 };
         Self {
             start_rotation,
+            start_normal: None,
             posture: (N > task_dimension).then_some(q0),
             options: robot.task_options(),
         }
+    }
+
+    /// The task with the estimated normal at the start, `normal`, which a pose task whose
+    /// arm asks for it (`TaskOptions::follow_surface`) keeps the tool normal to.
+    pub fn with_surface_normal(mut self, normal: &Vector3<f64>) -> Self {
+        if self.options.follow_surface && self.start_rotation.is_some() {
+            self.start_normal = Some(*normal);
+        }
+        self
     }
 }
 
@@ -163,6 +178,7 @@ impl<M: ArmModel<f64, N>, const N: usize> Controller<f64, M, N> {
             torque_constant,
             task: task_path.then(|| TaskSetup {
                 start_rotation: task.start_rotation,
+                start_normal: task.start_normal,
                 orientation_gains: task
                     .options
                     .orientation_gains
@@ -263,13 +279,20 @@ impl<T: Real, M, const N: usize> Controller<T, M, N> {
         let Some(task) = &self.task else {
             return self.square(m, at, &v);
         };
-        // e_o = log(R0 Rᵀ): the orientation is held at its start R0.
+        // e_o = log(R_d Rᵀ): the orientation is held at its start R0, or (following the
+        // surface) at R0 turned by the rotation that takes n̂ at the start to n̂ now.
         let orientation = match (&task.start_rotation, m.orientation) {
-            (Some(r0), Some(o)) => Some(OrientationTask {
-                error: rotation_vector(&(r0 * o.rotation.transpose())),
-                jacobian: o.jacobian,
-                jdot_qd: o.jdot_qd,
-            }),
+            (Some(r0), Some(o)) => {
+                let target = match &task.start_normal {
+                    Some(n0) => shortest_turn(n0, m.normal) * r0,
+                    None => *r0,
+                };
+                Some(OrientationTask {
+                    error: rotation_vector(&(target * o.rotation.transpose())),
+                    jacobian: o.jacobian,
+                    jdot_qd: o.jdot_qd,
+                })
+            }
             _ => None,
         };
         let gains = &self.gains;
@@ -386,6 +409,8 @@ pub enum LawKey {
 pub struct TaskKey {
     pub pose: bool,
     pub posture: bool,
+    /// The orientation follows the estimated surface's normal.
+    pub follow_surface: bool,
 }
 
 impl<T: Real, M, const N: usize> Controller<T, M, N> {
@@ -402,6 +427,7 @@ impl<T: Real, M, const N: usize> Controller<T, M, N> {
             task: self.task.as_ref().map(|t| TaskKey {
                 pose: t.start_rotation.is_some(),
                 posture: t.posture.is_some(),
+                follow_surface: t.start_normal.is_some(),
             }),
             scale_feedforward: self.gains.scale_feedforward,
         }
@@ -447,6 +473,7 @@ impl<W: Real, M, const N: usize> Controller<W, M, N> {
             torque_constant: W::splat(0.0),
             task: c[0].task.map(|t| TaskSetup {
                 start_rotation: t.start_rotation.map(|_| Matrix3::zeros()),
+                start_normal: t.start_normal.map(|_| Vector3::zeros()),
                 orientation_gains: (W::splat(0.0), W::splat(0.0)),
                 posture: t.posture.map(|_| SVector::zeros()),
                 damping: W::splat(0.0),
@@ -493,6 +520,9 @@ impl<W: Real, M, const N: usize> Controller<W, M, N> {
             if let (Some(p), Some(q0)) = (&mut t.posture, &theirs.posture) {
                 put_vector(p, l, q0);
             }
+            if let (Some(n), Some(n0)) = (&mut t.start_normal, &theirs.start_normal) {
+                put_vector(n, l, n0);
+            }
             put(&mut t.orientation_gains.0, l, theirs.orientation_gains.0);
             put(&mut t.orientation_gains.1, l, theirs.orientation_gains.1);
             put(&mut t.damping, l, theirs.damping);
@@ -505,6 +535,28 @@ impl<W: Real, M, const N: usize> Controller<W, M, N> {
             m.started.replace(l, theirs.started);
         }
     }
+}
+
+/// The rotation that takes the unit vector `a` to the unit vector `b` about a × b, by the
+/// least angle: I + [v]× + [v]×² / (1 + c), v = a × b, c = a·b (Rodrigues). Exact I when
+/// a = b; 1 + c is kept from 0 (a normal turned by π names no one rotation).
+#[inline(always)]
+pub(crate) fn shortest_turn<T: Real>(a: &Vector3<T>, b: &Vector3<T>) -> Matrix3<T> {
+    let v = a.cross(b);
+    let c = a.dot(b);
+    let k = Matrix3::new(
+        T::zero(),
+        -v[2],
+        v[1],
+        v[2],
+        T::zero(),
+        -v[0],
+        -v[1],
+        v[0],
+        T::zero(),
+    );
+    let scale = T::one() / (T::one() + c).simd_max(T::splat(1e-12));
+    Matrix3::identity() + k + k * k * scale
 }
 
 /// The lanes where any entry of `v` is not finite.

@@ -50,6 +50,8 @@ pub struct Kinematics<const N: usize, T: Real = f64> {
 pub struct TaskOptions {
     pub orientation_gains: Option<(f64, f64)>,
     pub damping: f64,
+    /// A pose task keeps the tool normal to the estimated surface (SPEC §15).
+    pub follow_surface: bool,
 }
 
 impl Default for TaskOptions {
@@ -57,6 +59,7 @@ impl Default for TaskOptions {
         Self {
             orientation_gains: None,
             damping: 1e-3,
+            follow_surface: false,
         }
     }
 }
@@ -111,6 +114,10 @@ pub trait ArmModel<T: Real, const N: usize>: Clone + Send + Sync + std::fmt::Deb
 
     /// Tip position (forward kinematics).
     fn tip_position(&self, c: &Self::Config) -> Vector3<T>;
+
+    /// The tip frame's rotation R (its axes in the world): what a tip-frame force sensor
+    /// is rotated by (SPEC §15).
+    fn tip_rotation(&self, c: &Self::Config) -> nalgebra::Matrix3<T>;
 
     /// Tip position, Jacobian and J̇q̇.
     fn kinematics(&self, c: &Self::Config, qd: &SVector<T, N>) -> Kinematics<N, T>;
@@ -206,6 +213,14 @@ pub trait RobotModel<const N: usize>: Clone + Send + Sync + std::fmt::Debug + 's
     /// The model a controller believes in: masses (and inertias) scaled by `mass_scale`,
     /// friction by `friction_scale`; geometry shared with the plant.
     fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self;
+
+    /// The arm with a point mass `mass` [kg] at the tip origin (a tool, SPEC §15): in its
+    /// inertia, its gravity and so in its dynamics, the plant's or a controller's model.
+    /// Not scaled by a later `with_model_error` (the tool's mass is believed on its own).
+    fn with_tool(&self, mass: f64) -> Self;
+
+    /// Gravity along −z [m/s²].
+    fn gravity(&self) -> f64;
 
     /// The initial joint positions q0.
     fn initial_position(&self) -> JointVector<N>;

@@ -274,12 +274,24 @@ struct InertiaConstants<T: Real> {
 }
 
 impl ClosedForm {
-    fn new(p: &RobotParams) -> Self {
+    /// The closed form of `p` with a tool of mass `tool` [kg] at the tip.
+    fn new(p: &RobotParams, tool: f64) -> Self {
         let [l1, l2, l3] = p.lengths;
         let [_, m2, m3] = p.masses;
         let (a2, a3, i2, i3) = match p.mass_model {
             MassModel::Rod => (l2 / 2.0, l3 / 2.0, m2 * l2 * l2 / 12.0, m3 * l3 * l3 / 12.0),
             MassModel::Point => (l2, l3, 0.0, 0.0),
+        };
+        // A tool is a point mass on link 3's line at l3: link 3 and the tool are one body
+        // on that line, of mass m3 + m_t, first moment m3 a3 + m_t l3 and second moment
+        // m3 a3² + i3 + m_t l3² about joint 3, which is all the closed form reads.
+        let (m3, a3, i3) = if tool > 0.0 {
+            let mass = m3 + tool;
+            let com = (m3 * a3 + tool * l3) / mass;
+            let second = m3 * a3 * a3 + i3 + tool * l3 * l3;
+            (mass, com, second - mass * com * com)
+        } else {
+            (m3, a3, i3)
         };
         let g = p.gravity;
         let k2 = m2 * a2 * a2 + i2;
@@ -527,6 +539,24 @@ impl<T: Real> ArmModel<T, 3> for ClosedForm<T> {
         )
     }
 
+    /// Link 3's frame: x along the link, y = (−sin q1, cos q1, 0) along the pitch axes
+    /// (positive pitch turns about −y), z = x × y.
+    #[inline]
+    fn tip_rotation(&self, t: &Trig<T>) -> Matrix3<T> {
+        let zero = T::zero();
+        Matrix3::new(
+            t.c1 * t.c23,
+            -t.s1,
+            -t.c1 * t.s23,
+            t.s1 * t.c23,
+            t.c1,
+            -t.s1 * t.s23,
+            t.s23,
+            zero,
+            t.c23,
+        )
+    }
+
     #[inline]
     fn kinematics(&self, t: &Trig<T>, qd: &Vector3<T>) -> super::Kinematics<3, T> {
         let (l2, l3) = (self.l2, self.l3);
@@ -727,14 +757,21 @@ fn solve_block_inertia<T: Real>(d: &Matrix3<T>, rhs: &Vector3<T>) -> Vector3<T> 
 pub struct ThreeLinkArm {
     /// The parameters it was built from (model-error copies start from them).
     params: RobotParams,
+    /// A tool's mass at the tip [kg] (SPEC §15).
+    tool: f64,
     form: ClosedForm,
 }
 
 impl ThreeLinkArm {
     pub fn new(p: &RobotParams) -> Self {
+        Self::with_tool_mass(p, 0.0)
+    }
+
+    fn with_tool_mass(p: &RobotParams, tool: f64) -> Self {
         Self {
             params: p.clone(),
-            form: ClosedForm::new(p),
+            tool,
+            form: ClosedForm::new(p, tool),
         }
     }
 
@@ -782,7 +819,16 @@ impl RobotModel<3> for ThreeLinkArm {
     }
 
     fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {
-        ThreeLinkArm::new(&self.params.with_model_error(mass_scale, friction_scale))
+        let p = self.params.with_model_error(mass_scale, friction_scale);
+        ThreeLinkArm::with_tool_mass(&p, self.tool)
+    }
+
+    fn with_tool(&self, mass: f64) -> Self {
+        ThreeLinkArm::with_tool_mass(&self.params, mass)
+    }
+
+    fn gravity(&self) -> f64 {
+        self.params.gravity
     }
 
     fn initial_position(&self) -> Vec3 {

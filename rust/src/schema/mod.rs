@@ -39,6 +39,8 @@ pub fn enum_field(first_variant: &str) -> &'static str {
         "jacobian_transpose" => "law",
         "kelvin_voigt" => "model",
         "position" => "task",
+        "hold" => "orientation",
+        "normal" => "frame",
         _ => "kind",
     }
 }
@@ -226,9 +228,41 @@ mod tests {
             ("jacobian_transpose", "law"),
             ("kelvin_voigt", "model"),
             ("position", "task"),
+            ("hold", "orientation"),
+            ("normal", "frame"),
         ] {
             assert_eq!(enum_field(first), field);
             assert!(s.contains(&format!("\"{first}\"")), "{first}");
+        }
+        // Every string enum of every block is in that table (a new one fails here until
+        // its field is named): its first variant, from `enum` or a `oneOf` of consts.
+        fn firsts(v: &Value, out: &mut Vec<String>) {
+            match v {
+                Value::Object(m) => {
+                    if let Some(Value::Array(e)) = m.get("enum") {
+                        if let Some(Value::String(f)) = e.first() {
+                            out.push(f.clone());
+                        }
+                    }
+                    if let Some(Value::Array(alts)) = m.get("oneOf") {
+                        let consts: Vec<_> = alts.iter().filter_map(|a| a.get("const")).collect();
+                        if consts.len() == alts.len() && consts.len() > 1 {
+                            if let Some(Value::String(f)) = consts.first() {
+                                out.push(f.clone());
+                            }
+                        }
+                    }
+                    m.values().for_each(|x| firsts(x, out));
+                }
+                Value::Array(a) => a.iter().for_each(|x| firsts(x, out)),
+                _ => {}
+            }
+        }
+        let mut found = Vec::new();
+        firsts(&schemas(), &mut found);
+        assert!(found.len() >= 6, "{found:?}");
+        for first in found {
+            assert_ne!(enum_field(&first), "kind", "an enum whose first variant is {first}");
         }
     }
 

@@ -6,7 +6,7 @@
 //! plant state and kinematics, each run's noise draw and references at its own t) and record
 //! each run's sample; no stage or law is written twice.
 
-use nalgebra::{SVector, Vector3};
+use nalgebra::{Matrix3, SVector, Vector3};
 
 use crate::contact::{Contact, KnownTip, Surface, TipMotion};
 use crate::control::approach::Approach;
@@ -19,7 +19,7 @@ use crate::robot::{ArmModel, Kinematics, Orientation};
 use crate::scalar::{every, Real, Wide};
 use crate::world::actuator::Actuator;
 use crate::world::contact_law::tangential;
-use crate::world::sensor::ForceSensor;
+use crate::world::sensor::{ForceSensor, Reading, SensorKey};
 use crate::world::surface::Environment;
 
 /// The state machines of stages 3–7 and the task frame, over `T`; `M`: computed torque's
@@ -43,7 +43,7 @@ pub struct Pipeline<T: Real, M, const N: usize> {
 /// cut-offs, D̄, λ, …) and every on/off limit is per lane.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StageKey {
-    pub sensor_latency: usize,
+    pub sensor: SensorKey,
     pub actuator_delay: usize,
     /// `None`: position control only.
     pub force_control: Option<ForceControlKey>,
@@ -64,8 +64,11 @@ pub struct Inputs<'a, T: Real, const N: usize> {
     pub kinematics: &'a Kinematics<N, T>,
     /// The tip's rotation terms, for a pose task (`Controller::pose`).
     pub orientation: Option<&'a Orientation<N, T>>,
+    /// The tip rotation R, for a tip-frame sensor (`ForceSensor::needs_rotation`).
+    pub rotation: Option<&'a Matrix3<T>>,
     pub environment: &'a Environment<T>,
-    pub noise: T,
+    /// The sample's standard normal draws, one per sensor axis.
+    pub noise: [T; 3],
     /// f_d(t_k).
     pub force_reference: Sample<T>,
     /// s(t_k), the motion along t̂.
@@ -112,7 +115,8 @@ impl<T: Real, M: ArmModel<T, N>, const N: usize> Pipeline<T, M, N> {
         let (force, penetration) = (contact.normal_force, contact.penetration);
         let (surface_force, f_t, slip_speed) = surface_record(&contact, &tip, input.environment);
         // 3. force sensor: the component along n̂ (for a plane × 1 exactly unless the
-        // estimated normal is tilted; for a curved estimate n̂ at the tip)
+        // estimated normal is tilted; for a curved estimate n̂ at the tip), read on one axis
+        // or on the tip axes, with the tool's weight (SPEC §15)
         let (normal, along) = match &self.belief {
             Some(b) => {
                 let n = b.normal_at(&kin.position);
@@ -121,7 +125,14 @@ impl<T: Real, M: ArmModel<T, N>, const N: usize> Pipeline<T, M, N> {
             }
             None => (self.frame.normal, force * self.frame.force_projection),
         };
-        let measured = self.sensor.read(input.first, along, input.noise);
+        let measured = self.sensor.sense(&Reading {
+            first: input.first,
+            along,
+            surface_force: &surface_force,
+            normal: &normal,
+            rotation: input.rotation,
+            noise: input.noise,
+        });
         // 4.–5. force control, fed by the measured force; then the task reference
         let s = &input.motion_reference;
         let (x_a, desired) = match (&mut self.force_control, &mut self.approach) {
@@ -231,7 +242,7 @@ impl<T: Real, M, const N: usize> Pipeline<T, M, N> {
     /// The stages' structure (see [`StageKey`]).
     pub fn lane_key(&self) -> StageKey {
         StageKey {
-            sensor_latency: self.sensor.latency(),
+            sensor: self.sensor.lane_key(),
             actuator_delay: self.actuator.delay(),
             force_control: self.force_control.as_ref().map(ForceControl::lane_key),
             approach: self.approach.is_some(),

@@ -105,6 +105,11 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
         self.arm.model().measure(&self.config, &self.state.qd, pose)
     }
 
+    /// The tip frame's rotation at the current state (a tip-frame sensor's R).
+    pub fn tip_rotation(&self) -> nalgebra::Matrix3<f64> {
+        self.arm.model().tip_rotation(&self.config)
+    }
+
     /// One control period: `substeps` classical RK4 steps with τ held.
     ///
     /// Dispatched like `Simulation::run` (AVX2 + FMA code when the CPU has them, baseline

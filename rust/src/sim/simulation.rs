@@ -101,8 +101,6 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         if let Some(p) = config.controller.joint_inertia() {
             check_inertia_for::<N>(p).map_err(|e| e.within("controller"))?;
         }
-        let task = TaskAtStart::of(&robot);
-        let controller = Controller::new(&config.controller, &robot, config.period, &task);
         let q0 = robot.initial_position();
         let start = robot.model().tip_position(&robot.model().configure(&q0));
         let environment = match &config.wall {
@@ -126,6 +124,25 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             (None, Some((e, x))) => TaskFrame::new(e, start, x),
             (None, None) => TaskFrame::new(TaskVector::x(), start, start[0]),
         };
+        // The task as the run starts: R0, q0 and, for a pose task that follows the
+        // surface, the estimated normal at the start.
+        let task = TaskAtStart::of(&robot).with_surface_normal(&frame.normal);
+        // A tool (SPEC §15): the plant carries its mass, computed torque's model the mass
+        // the controller believes (an arm without one is the arm as built, to the bit).
+        let tool = config.sensor.tool_mass;
+        let tool_believed = config.sensor.believed_tool_mass();
+        let controller = if tool_believed > 0.0 {
+            let model = robot.with_tool(tool_believed);
+            Controller::new(&config.controller, &model, config.period, &task)
+        } else {
+            Controller::new(&config.controller, &robot, config.period, &task)
+        };
+        let robot = if tool > 0.0 {
+            robot.with_tool(tool)
+        } else {
+            robot
+        };
+        let gravity = robot.gravity();
         let curved = match (&config.wall_estimate, &config.wall) {
             (Some(p), _) => Some((p, "wall_estimate")),
             (None, Some(p)) => Some((p, "wall")),
@@ -156,7 +173,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
                 config.substeps,
             ),
             stages: Pipeline {
-                sensor: ForceSensor::new(&config.sensor, config.period, config.seed),
+                sensor: ForceSensor::new(&config.sensor, config.period, config.seed, gravity),
                 approach: config
                     .approach
                     .as_ref()
@@ -315,7 +332,12 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         // 1. plant state (what the encoders give)
         let PlantState { q, qd } = *self.plant.state();
         let (kin, orientation) = self.plant.measure(self.stages.controller.pose());
-        // 2.–7., with this run's noise draw and references at t_k
+        let rotation = self
+            .stages
+            .sensor
+            .needs_rotation()
+            .then(|| self.plant.tip_rotation());
+        // 2.–7., with this run's noise draws and references at t_k
         let f_d = self.config.force_reference.at(t);
         let out = self.stages.step(
             &Inputs {
@@ -324,8 +346,9 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
                 qd: &qd,
                 kinematics: &kin,
                 orientation: orientation.as_ref(),
+                rotation: rotation.as_ref(),
                 environment: self.plant.environment(),
-                noise: self.stages.sensor.noise_draw(k),
+                noise: self.stages.sensor.noise_draws(k),
                 force_reference: f_d,
                 motion_reference: self.config.z_reference.at(t),
             },
@@ -559,7 +582,7 @@ mod tests {
     fn sensor_bias_shifts_the_true_force() {
         let cfg = ScenarioConfig {
             sensor: SensorParams {
-                bias: 1.5,
+                bias: crate::world::sensor::Bias::Along(1.5),
                 ..SensorParams::default()
             },
             ..ScenarioConfig::ideal_inner_loop(AdmittanceParams::scheme2(800.0, 0.1))

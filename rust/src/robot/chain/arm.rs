@@ -27,6 +27,28 @@ pub enum TaskKind {
     Pose,
 }
 
+/// What a pose task holds the tip's orientation at (SPEC §11, §15).
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Default,
+    Hash,
+    serde::Serialize,
+    serde::Deserialize,
+    schemars::JsonSchema,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum OrientationMode {
+    /// Its start value R0.
+    #[default]
+    Hold,
+    /// R0 turned as the estimated surface's normal turns under the tip.
+    Surface,
+}
+
 /// The parameters of `ar.UrdfArm`. Defaults: no friction, g = 9.81, q0 = 0 clipped into the
 /// limits, `task` by joint count (position below 6 joints, pose from 6).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
@@ -61,6 +83,8 @@ pub struct UrdfArmParams {
     pub orientation_gains: Option<(f64, f64)>,
     /// λ of the damped pseudo-inverse J⁺ = Jᵀ(J Jᵀ + λ² I)⁻¹ of eqs. 7 and 17.
     pub damping: f64,
+    /// A pose task's orientation: ``"hold"`` (its start value R0) or ``"surface"`` (R0 turned by the rotation that takes the estimated surface's normal at the start to its normal at the tip, so the tool stays normal to the part as it curves; SPEC §15).
+    pub orientation: OrientationMode,
 }
 
 impl Default for UrdfArmParams {
@@ -77,6 +101,7 @@ impl Default for UrdfArmParams {
             task: None,
             orientation_gains: None,
             damping: 1e-3,
+            orientation: OrientationMode::Hold,
         }
     }
 }
@@ -106,6 +131,16 @@ impl UrdfArmParams {
         }
         let model = urdf::parse(&self.urdf, self.base_link.as_deref(), &self.tip_link)?;
         let n = model.dof();
+        if self.orientation == OrientationMode::Surface && self.task_kind(n) != TaskKind::Pose {
+            return Err(Error::parameter(
+                "orientation",
+                "'surface'",
+                &format!(
+                    "'hold' for a position task (orientation='surface' needs task='pose', \
+                     the default from 6 joints; this chain has {n})"
+                ),
+            ));
+        }
         for (field, v) in [
             ("viscous_friction", &self.viscous_friction),
             ("coulomb_friction", &self.coulomb_friction),
@@ -130,6 +165,15 @@ impl UrdfArmParams {
             }
         }
         Ok(model)
+    }
+
+    /// The task of a chain of `n` joints: `task`, else position below 6 joints, pose from 6.
+    pub fn task_kind(&self, n: usize) -> TaskKind {
+        self.task.unwrap_or(if n >= 6 {
+            TaskKind::Pose
+        } else {
+            TaskKind::Position
+        })
     }
 
     /// The joint count, parsing the URDF.
@@ -266,6 +310,11 @@ impl<T: Real, const N: usize> ArmModel<T, N> for Chain<T, N> {
     }
 
     #[inline(always)]
+    fn tip_rotation(&self, c: &Frames<T, N>) -> nalgebra::Matrix3<T> {
+        c.tip.rot
+    }
+
+    #[inline(always)]
     fn kinematics(&self, c: &Frames<T, N>, qd: &SVector<T, N>) -> Kinematics<N, T> {
         self.measure(c, qd, false).0
     }
@@ -388,6 +437,8 @@ pub struct UrdfArm<const N: usize> {
     pub upper: JointVector<N>,
     pub effort: JointVector<N>,
     pub joint_names: Vec<String>,
+    /// A tool's mass at the tip [kg] (SPEC §15), folded into the last body's inertia.
+    pub tool: f64,
 }
 
 impl<const N: usize> UrdfArm<N> {
@@ -415,11 +466,7 @@ impl<const N: usize> UrdfArm<N> {
         };
         let fv = per_joint("viscous_friction", &params.viscous_friction, N)?;
         let fc = per_joint("coulomb_friction", &params.coulomb_friction, N)?;
-        let task = params.task.unwrap_or(if N >= 6 {
-            TaskKind::Pose
-        } else {
-            TaskKind::Position
-        });
+        let task = params.task_kind(N);
         Ok(Self {
             model: Chain {
                 chain: SerialChain::from_model(model, params.gravity),
@@ -435,11 +482,13 @@ impl<const N: usize> UrdfArm<N> {
             options: crate::robot::TaskOptions {
                 orientation_gains: params.orientation_gains,
                 damping: params.damping,
+                follow_surface: params.orientation == OrientationMode::Surface,
             },
             lower,
             upper,
             effort: v(|j| j.effort),
             joint_names: model.joints.iter().map(|j| j.name.clone()).collect(),
+            tool: 0.0,
         })
     }
 
@@ -495,10 +544,29 @@ impl<const N: usize> RobotModel<N> for UrdfArm<N> {
 
     fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {
         let mut a = self.clone();
-        a.model.chain = self.model.chain.with_mass_scale(mass_scale);
+        // The tool's mass is believed on its own: it is not scaled with the arm's.
+        a.model.chain = if self.tool > 0.0 {
+            let bare = self.model.chain.with_tip_mass(-self.tool);
+            bare.with_mass_scale(mass_scale).with_tip_mass(self.tool)
+        } else {
+            self.model.chain.with_mass_scale(mass_scale)
+        };
         a.model.friction.fv *= friction_scale;
         a.model.friction.fc *= friction_scale;
         a
+    }
+
+    fn with_tool(&self, mass: f64) -> Self {
+        let mut a = self.clone();
+        if mass != self.tool {
+            a.model.chain = self.model.chain.with_tip_mass(mass - self.tool);
+            a.tool = mass;
+        }
+        a
+    }
+
+    fn gravity(&self) -> f64 {
+        self.model.chain.gravity
     }
 
     fn initial_position(&self) -> JointVector<N> {

@@ -99,6 +99,19 @@ impl<const N: usize> SerialChain<f64, N> {
             .all(|(a, b)| a.kind == b.kind)
     }
 
+    /// A point mass `m` [kg] added at the tip origin (a tool; negative takes one off):
+    /// the last body's inertia gains m, m p and m [p]× [p]×ᵀ, p the tip in its frame.
+    pub fn with_tip_mass(&self, m: f64) -> Self {
+        let mut c = *self;
+        if let Some(last) = c.bodies.last_mut() {
+            let tool = RigidInertia::from_com(m, self.tip.pos, Matrix3::zeros());
+            last.inertia.mass += tool.mass;
+            last.inertia.h += tool.h;
+            last.inertia.ibar += tool.ibar;
+        }
+        c
+    }
+
     /// Every inertia scaled by `s` (a controller's mass model error).
     pub fn with_mass_scale(&self, s: f64) -> Self {
         let mut c = *self;
