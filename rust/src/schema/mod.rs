@@ -262,7 +262,11 @@ mod tests {
         firsts(&schemas(), &mut found);
         assert!(found.len() >= 6, "{found:?}");
         for first in found {
-            assert_ne!(enum_field(&first), "kind", "an enum whose first variant is {first}");
+            assert_ne!(
+                enum_field(&first),
+                "kind",
+                "an enum whose first variant is {first}"
+            );
         }
     }
 
