@@ -565,3 +565,13 @@ def test_the_jupyter_path_renders(chrome, tmp_path):
             assert ">stable<" in verdict
         finally:
             chrome.switch_to.default_content()
+
+
+def test_the_spectral_radius_hint_says_what_this_radius_means():
+    """The pole table's hint beside ρ is about the value shown: 1.117 is not called stable."""
+    from admit_rs.ui.page import _radius_words
+
+    assert _radius_words(0.99485) == "(< 1: decays)"
+    assert _radius_words(1.11703) == "(≥ 1: unstable)"
+    assert _radius_words(1.0) == "(≥ 1: unstable)"
+    assert _radius_words(float("nan")) == "" and _radius_words(None) == ""

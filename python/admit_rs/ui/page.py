@@ -621,10 +621,13 @@ class TuningPage:
                 ("dominant pole damping ζ", _number(v.get("dominant_damping"), 3), ""),
             ]
         rows += [
-            ("spectral radius ρ", _number(v.get("spectral_radius"), 6), "(< 1: stable)"),
+            ("spectral radius ρ", _number(v.get("spectral_radius"), 6),
+             _radius_words(v.get("spectral_radius"))),
             ("predicted overshoot", _number(v.get("overshoot_pct"), 3), "%"),
             ("predicted settling time", _number(v.get("settling_time"), 3), "s"),
-            ("predicted force error", _number(v.get("force_ss_error"), 3), "N"),
+            # An unstable loop reaches no steady state: its "steady" error is no prediction.
+            ("predicted force error", _number(v.get("force_ss_error"), 3)
+             if _radius_words(v.get("spectral_radius")) == "(< 1: decays)" else "–", "N"),
         ]
         body = "".join(f"<tr><td>{a}</td><td style='text-align:right'>{b}</td><td>{c}</td></tr>"
                        for a, b, c in rows)  # fmt: skip
@@ -739,3 +742,11 @@ def build(doc: Document, start_name: str | None, start: Scenario) -> None:
     page = TuningPage(doc, start_name, start, query)
     doc.title = "admit_rs tuning"
     page.add_roots()
+
+
+def _radius_words(radius: object) -> str:
+    """What ρ says on its own: below 1 the linear loop decays, at or above 1 it does not (the
+    margins of the verdict line may still fail a loop whose ρ is below 1)."""
+    if not isinstance(radius, int | float) or radius != radius:
+        return ""
+    return "(< 1: decays)" if radius < 1.0 else "(≥ 1: unstable)"
