@@ -414,6 +414,67 @@ mod every_kind {
         groups
     }
 
+    /// Runs `configs` (one lane group on `robot`: the paper's arm, or `arm` for a URDF
+    /// config) through `run_lanes_on`, asserts the stages ran in lanes, and compares each
+    /// run with `simulate`: a completed run within 1e-9 of it, a diverged one at the same
+    /// time. Returns the lane runs that completed.
+    fn lanes_match_simulate(
+        robot: &RobotConfig,
+        arm: &UrdfArm<7>,
+        configs: &[ScenarioConfig],
+        what: &str,
+    ) -> Vec<crate::sim::simulation::RunResult> {
+        let runs = match robot {
+            RobotConfig::Urdf(_) => {
+                let mut sims: Vec<_> = configs
+                    .iter()
+                    .map(|c| Simulation::with_robot(c, arm.clone()).unwrap())
+                    .collect();
+                let (runs, path) = run_lanes_on(&mut sims);
+                assert_eq!(path, StagePath::Lanes, "{what}");
+                runs
+            }
+            _ => {
+                let mut sims: Vec<_> = configs
+                    .iter()
+                    .map(|c| Simulation::new(c).unwrap())
+                    .collect();
+                let (runs, path) = run_lanes_on(&mut sims);
+                assert_eq!(path, StagePath::Lanes, "{what}");
+                runs
+            }
+        };
+        let mut completed = Vec::new();
+        for (c, r) in configs.iter().zip(runs) {
+            let alone = simulate(c).unwrap();
+            match (r.outcome, alone.outcome) {
+                (Outcome::Completed, Outcome::Completed) => {
+                    worst_trace_gap(&alone, &r, 1.0);
+                    completed.push(r);
+                }
+                // The paper's TDC gains do not suit the Panda: its runs may diverge.
+                (Outcome::Diverged { time: a, .. }, Outcome::Diverged { time: b, .. }) => {
+                    assert_eq!(a, b, "{what}")
+                }
+                (a, b) => panic!("{what}: lanes {a:?}, simulate {b:?}"),
+            }
+        }
+        completed
+    }
+
+    /// The Panda to `panda_link8` in a posture facing the wall: its parameters and its arm.
+    fn panda_at_link8() -> (UrdfArmParams, UrdfArm<7>) {
+        let panda = UrdfArmParams {
+            q0: Some(vec![0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.785]),
+            ..urdf(
+                include_str!("../../../../examples/data/panda.urdf"),
+                "panda_link8",
+            )
+        };
+        let arm = UrdfArm::<7>::new(&panda).unwrap();
+        (panda, arm)
+    }
+
     fn urdf(document: &str, tip: &str) -> UrdfArmParams {
         UrdfArmParams {
             urdf: document.to_owned(),
@@ -521,14 +582,7 @@ mod every_kind {
             ]
         };
         let controller = ControllerParams::TimeDelay(TimeDelayParams::default());
-        let panda = UrdfArmParams {
-            q0: Some(vec![0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.785]),
-            ..urdf(
-                include_str!("../../../../examples/data/panda.urdf"),
-                "panda_link8",
-            )
-        };
-        let arm = UrdfArm::<7>::new(&panda).unwrap();
+        let (panda, arm) = panda_at_link8();
         let (mut groups, mut completed) = (0, 0);
         for (friction, damping) in [(0.0, 0.0), (0.3, 0.0), (0.5, 20.0)] {
             for kind in 0..6 {
@@ -547,43 +601,13 @@ mod every_kind {
                             ..varied(i, controller)
                         })
                         .collect();
-                    let runs = match &robot {
-                        RobotConfig::Urdf(_) => {
-                            let mut sims: Vec<_> = configs
-                                .iter()
-                                .map(|c| Simulation::with_robot(c, arm.clone()).unwrap())
-                                .collect();
-                            let (runs, path) = run_lanes_on(&mut sims);
-                            assert_eq!(path, StagePath::Lanes, "{kind} {friction}");
-                            runs
+                    let what = format!("{kind} {friction}");
+                    for r in lanes_match_simulate(&robot, &arm, &configs, &what) {
+                        if friction > 0.0 {
+                            let felt = r.trace.f_t.iter().any(|&f| f > 0.0);
+                            assert!(felt, "{kind}: no friction");
                         }
-                        _ => {
-                            let mut sims: Vec<_> = configs
-                                .iter()
-                                .map(|c| Simulation::new(c).unwrap())
-                                .collect();
-                            let (runs, path) = run_lanes_on(&mut sims);
-                            assert_eq!(path, StagePath::Lanes, "{kind} {friction}");
-                            runs
-                        }
-                    };
-                    for (c, r) in configs.iter().zip(&runs) {
-                        let alone = simulate(c).unwrap();
-                        match (r.outcome, alone.outcome) {
-                            (Outcome::Completed, Outcome::Completed) => {
-                                worst_trace_gap(&alone, r, 1.0);
-                                if friction > 0.0 {
-                                    let felt = r.trace.f_t.iter().any(|&f| f > 0.0);
-                                    assert!(felt, "{kind}: no friction");
-                                }
-                                completed += 1;
-                            }
-                            (
-                                Outcome::Diverged { time: a, .. },
-                                Outcome::Diverged { time: b, .. },
-                            ) => assert_eq!(a, b),
-                            (a, b) => panic!("{kind} {friction}: lanes {a:?}, simulate {b:?}"),
-                        }
+                        completed += 1;
                     }
                     groups += 1;
                 }
@@ -605,14 +629,7 @@ mod every_kind {
     fn every_sensor() {
         use crate::world::environment::WallParams;
         use crate::world::sensor::{Bias, SensorFrame};
-        let panda = UrdfArmParams {
-            q0: Some(vec![0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.785]),
-            ..urdf(
-                include_str!("../../../../examples/data/panda.urdf"),
-                "panda_link8",
-            )
-        };
-        let arm = UrdfArm::<7>::new(&panda).unwrap();
+        let (panda, arm) = panda_at_link8();
         let mut groups = 0;
         for (frame, tool) in [
             (SensorFrame::Normal, true),
@@ -650,39 +667,7 @@ mod every_kind {
                         c
                     })
                     .collect();
-                let runs = match &robot {
-                    RobotConfig::Urdf(_) => {
-                        let mut sims: Vec<_> = configs
-                            .iter()
-                            .map(|c| Simulation::with_robot(c, arm.clone()).unwrap())
-                            .collect();
-                        let (runs, path) = run_lanes_on(&mut sims);
-                        assert_eq!(path, StagePath::Lanes, "{frame:?} {tool}");
-                        runs
-                    }
-                    _ => {
-                        let mut sims: Vec<_> = configs
-                            .iter()
-                            .map(|c| Simulation::new(c).unwrap())
-                            .collect();
-                        let (runs, path) = run_lanes_on(&mut sims);
-                        assert_eq!(path, StagePath::Lanes, "{frame:?} {tool}");
-                        runs
-                    }
-                };
-                for (c, r) in configs.iter().zip(&runs) {
-                    let alone = simulate(c).unwrap();
-                    match (r.outcome, alone.outcome) {
-                        (Outcome::Completed, Outcome::Completed) => {
-                            worst_trace_gap(&alone, r, 1.0);
-                        }
-                        // The paper's TDC gains do not suit the Panda (`every_surface`).
-                        (Outcome::Diverged { time: a, .. }, Outcome::Diverged { time: b, .. }) => {
-                            assert_eq!(a, b)
-                        }
-                        (a, b) => panic!("{frame:?} {tool}: lanes {a:?}, simulate {b:?}"),
-                    }
-                }
+                lanes_match_simulate(&robot, &arm, &configs, &format!("{frame:?} {tool}"));
                 groups += 1;
             }
         }
