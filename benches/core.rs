@@ -126,15 +126,16 @@ fn plant(c: &mut Criterion) {
     // after 10 s), and the time per period is divided by the substeps. This includes each
     // period's share of its one fresh sin/cos evaluation, as in the run.
     let taus: Vec<Vec3> = replay.states.iter().map(|(_, tau)| *tau).collect();
+    let substeps = cfg.substeps.count().unwrap_or(10);
     let mut whole = Plant::new(
         arm,
         Environment::Plane(wall),
         replay.states[0].0,
         cfg.period,
-        cfg.substeps,
+        substeps,
     );
     let mut k = 0;
-    let substeps = cfg.substeps as u64;
+    let substeps = substeps as u64;
     g.bench_function("rk4_substep", |b| {
         b.iter_custom(|iters| {
             let periods = iters.div_ceil(substeps);

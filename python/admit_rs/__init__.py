@@ -47,7 +47,7 @@ from admit_rs.errors import (
     UnknownParameterError,
 )
 from admit_rs.metrics import METRICS, Metric
-from admit_rs.simulation import Result, Simulation, simulate
+from admit_rs.simulation import Result, Simulation, SubstepWarning, simulate
 from admit_rs.sweep import (
     CheckpointMismatchError,
     CheckpointWarning,
@@ -97,6 +97,7 @@ __all__ = [
     "Sine",
     "Sphere",
     "Step",
+    "SubstepWarning",
     "Surface",
     "TimeDelayControl",
     "UnknownNameError",

@@ -58,7 +58,9 @@ def simulate(scenario: dict[str, Any]) -> dict[str, Any]:
     "metrics": {name: float, "stable": bool | None, "diverged": bool},
     "verdict": str, "diverged_at": float | None, "divergence_cause": str | None}``;
     ``stable`` and ``verdict`` are judged by the scenario's ``criteria`` (None: not
-    assessed).
+    assessed). With ``substeps="auto"`` also ``"substeps"`` (the count chosen),
+    ``"substep_error"`` (its estimated largest force error [N]), ``"substep_standing"``
+    ("met", "diverged", "not converging", "limit") and ``"substep_note"`` (a sentence).
     """
 
 def robot_terms(
@@ -124,6 +126,10 @@ def simulate_batch(
     Returns ``{"metrics": {name: ndarray}, "stable": list[bool | None], "verdict": list[str],
     "diverged": ndarray[bool],
     "diverged_at": ndarray (NaN when the run completed), "divergence_cause": list[str | None],
+    "substeps": ndarray[int64] (the count each run was integrated with: its own, or what
+    ``"auto"`` chose), "substep_error": ndarray (``"auto"``: the estimated largest force
+    error [N]; NaN for a fixed count), "substep_standing": list[str | None] ("met",
+    "diverged", "not converging", "limit"; None for a fixed count),
     "traces": list[dict] | None}``.
     An invalid scenario raises ``ParameterError`` (with ``index``) before anything runs.
     """

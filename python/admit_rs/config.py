@@ -1263,8 +1263,13 @@ class Scenario(_Block):
     """Seed of the sensor noise (0 to 2^53). Sweeps derive each run's from (seed, run_id)."""
     period: float = 1e-3
     """Controller period T [s]."""
-    substeps: int = 10
-    """RK4 substeps per period."""
+    substeps: int | Literal["auto"] = 10
+    """RK4 substeps per period (1 to 10000), or ``"auto"``: the fewest whose force trace is
+    within ``tolerance`` of the exact one, estimated by comparing whole runs (Richardson,
+    docs/substeps.md)."""
+    tolerance: float = 1e-4
+    """Largest error [N] on the force trace (f and f_t at every sample) that
+    ``substeps="auto"`` accepts; not read for a fixed count."""
     duration: float = 10.0
     """Run length [s], a multiple of ``period``."""
     velocity_limit: float = 100.0

@@ -3,6 +3,7 @@ step the same loop one period at a time."""
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -53,6 +54,28 @@ class Result:
         >>> ar.simulate(sc.replace(**{"wall.stiffness": 7e5, "admittance.b": 200})).verdict
         'unstable: loss of contact: f = 0 in 88 % of samples after t = 1 s, ...'
     """
+    substeps: int = 0
+    """RK4 substeps per period the trace was integrated with: the scenario's count, or the
+    one ``substeps="auto"`` chose."""
+    substep_error: float | None = None
+    """``substeps="auto"``: the estimated largest error [N] of f and f_t over the run
+    (Richardson's estimate, docs/substeps.md); ``None`` for a fixed count.
+
+    Example:
+        >>> import admit_rs as ar
+        >>> r = ar.simulate(ar.paper.scenario("fig14").replace(substeps="auto", tolerance=1e-4))
+        >>> r.substeps, f"{r.substep_error:.1e}"
+        (3, '3.8e-05')
+    """
+    substep_standing: str | None = None
+    """``substeps="auto"``: how its search ended: ``"met"`` (the estimate is within the
+    tolerance), ``"diverged"`` (the run diverges at every count), ``"not converging"``
+    (the traces stop converging: a bouncing, chaotic contact) or ``"limit"`` (256
+    substeps did not meet it); a :class:`SubstepWarning` says so for all but ``"met"``.
+    ``None`` for a fixed count."""
+    substep_note: str | None = None
+    """``substeps="auto"``: what it chose, the estimate and the counts tried, in words, and
+    why the tolerance is not met when it is not."""
 
     @property
     def diverged(self) -> bool:
@@ -87,7 +110,16 @@ class Result:
         return f"<Result{label}: {self.trace.height} samples, {self.verdict}>"
 
 
+class SubstepWarning(UserWarning):
+    """``substeps="auto"`` could not meet its tolerance; the message says why (the run
+    diverges at every count, its traces stop converging, or the count limit)."""
+
+
 def _result(scenario: Scenario, columns: dict[str, Any], raw: Mapping[str, Any]) -> Result:
+    fixed = scenario.substeps if isinstance(scenario.substeps, int) else 0
+    note = raw.get("substep_note")
+    if note is not None and raw.get("substep_standing") != "met":
+        warnings.warn(note, SubstepWarning, stacklevel=3)
     return Result(
         scenario=scenario,
         trace=pl.DataFrame(columns),
@@ -95,6 +127,10 @@ def _result(scenario: Scenario, columns: dict[str, Any], raw: Mapping[str, Any])
         diverged_at=raw["diverged_at"],
         divergence_cause=raw["divergence_cause"],
         verdict=str(raw["verdict"]),
+        substeps=int(raw.get("substeps", fixed)),
+        substep_error=raw.get("substep_error"),
+        substep_standing=raw.get("substep_standing"),
+        substep_note=note,
     )
 
 

@@ -403,6 +403,12 @@ def _run_chunk(
     columns["diverged"] = raw["diverged"]
     columns["diverged_at"] = raw["diverged_at"]
     columns["divergence_cause"] = pl.Series(raw["divergence_cause"], dtype=pl.String)
+    columns["substeps_used"] = pl.Series("substeps_used", raw["substeps"], dtype=pl.Int64)
+    # NaN (a fixed count) as null: no estimate was made.
+    columns["substep_error"] = pl.Series(
+        "substep_error", raw["substep_error"], dtype=pl.Float64, nan_to_null=True
+    )
+    columns["substep_standing"] = pl.Series(raw["substep_standing"], dtype=pl.String)
     table = pl.DataFrame(columns)
     long = None
     if traces:
@@ -735,8 +741,12 @@ def sweep(
 
     Returns:
         One row per run: ``run_id``, ``seed``, a column per varied path, the metrics of
-        :data:`admit_rs.METRICS`, ``stable``, ``verdict``, ``diverged``, ``diverged_at``
-        and ``divergence_cause``; with ``traces``, the tuple ``(table, traces)``. Each run
+        :data:`admit_rs.METRICS`, ``stable``, ``verdict``, ``diverged``, ``diverged_at``,
+        ``divergence_cause``, ``substeps_used`` (the RK4 substeps the run was integrated
+        with: its own count or what ``substeps="auto"`` chose for it), ``substep_error``
+        and ``substep_standing`` (``"auto"``: the estimated largest force error [N] and
+        ``"met"``, ``"diverged"``, ``"not converging"`` or ``"limit"``; null for a fixed
+        count); with ``traces``, the tuple ``(table, traces)``. Each run
         is judged by its scenario's ``criteria`` (``criteria.*`` paths can be varied too):
         ``stable`` is False for an unstable run (``verdict`` names the failed criteria),
         null for a run too short to assess; ``diverged`` says whether it stopped early.

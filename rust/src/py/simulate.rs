@@ -13,13 +13,27 @@ use super::params::scenario_from;
 use crate::sim::dispatch::AnySimulation;
 use crate::sim::metrics::{Metrics, METRIC_NAMES};
 use crate::sim::simulation::{Outcome, RunResult};
+use crate::sim::substep_choice::SubstepChoice;
 use crate::sim::trace::Trace;
 
 fn run_to_dict<'py>(py: Python<'py>, run: RunResult) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
     out.set_item("columns", trace_dict(py, run.trace)?)?;
     outcome_into(py, &out, run.metrics, run.outcome)?;
+    choice_into(&out, run.choice.as_ref())?;
     Ok(out)
+}
+
+/// What `substeps = "auto"` chose (`substeps`, `substep_error`, `substep_standing`,
+/// `substep_note`); nothing for a fixed count.
+fn choice_into(out: &Bound<'_, PyDict>, choice: Option<&SubstepChoice>) -> PyResult<()> {
+    if let Some(c) = choice {
+        out.set_item("substeps", c.substeps)?;
+        out.set_item("substep_error", c.error)?;
+        out.set_item("substep_standing", c.standing.name())?;
+        out.set_item("substep_note", c.describe())?;
+    }
+    Ok(())
 }
 
 /// Puts a run's metrics, `diverged_at` and `divergence_cause` into `out`.
@@ -204,6 +218,7 @@ pub(super) fn simulate_batch<'py>(
             })
         })
         .collect::<PyResult<Vec<_>>>()?;
+    let counts: Vec<Option<usize>> = configs.iter().map(|c| c.substeps.count()).collect();
     let runs = py
         .detach(move || crate::sim::sweep::run_batch_with(&configs, threads, traces, lanes))
         .map_err(|e| to_py_err(py, e.error))?;
@@ -216,7 +231,24 @@ pub(super) fn simulate_batch<'py>(
     let mut diverged_at = Vec::with_capacity(n);
     let causes = PyList::empty(py);
     let trace_list = PyList::empty(py);
-    for run in runs {
+    // The count each run was integrated with, and for "auto" its estimated error (NaN for
+    // a fixed count) and how its search ended (None for a fixed count).
+    let mut substeps = Vec::with_capacity(n);
+    let mut substep_error = Vec::with_capacity(n);
+    let standings = PyList::empty(py);
+    for (config, run) in counts.iter().zip(runs) {
+        match &run.choice {
+            Some(c) => {
+                substeps.push(c.substeps as i64);
+                substep_error.push(c.error);
+                standings.append(c.standing.name())?;
+            }
+            None => {
+                substeps.push(config.map_or(0, |n| n as i64));
+                substep_error.push(f64::NAN);
+                standings.append(py.None())?;
+            }
+        }
         for (c, v) in columns.iter_mut().zip(run.metrics.values()) {
             c.push(v);
         }
@@ -247,6 +279,9 @@ pub(super) fn simulate_batch<'py>(
     out.set_item("diverged", PyArray1::from_vec(py, diverged))?;
     out.set_item("diverged_at", PyArray1::from_vec(py, diverged_at))?;
     out.set_item("divergence_cause", causes)?;
+    out.set_item("substeps", PyArray1::from_vec(py, substeps))?;
+    out.set_item("substep_error", PyArray1::from_vec(py, substep_error))?;
+    out.set_item("substep_standing", standings)?;
     out.set_item(
         "traces",
         if traces {

@@ -16,8 +16,12 @@ use crate::sim::scenario::{RobotConfig, ScenarioConfig};
 use crate::sim::simulation::{RunResult, Simulation};
 use crate::sim::trace::Trace;
 
-/// Validates, builds and runs one scenario, whatever its arm.
+/// Validates, builds and runs one scenario, whatever its arm; `substeps = "auto"` runs
+/// the candidates of `sim::substep_choice` and returns the chosen one.
 pub fn simulate(config: &ScenarioConfig) -> Result<RunResult> {
+    if config.substeps.count().is_none() {
+        return crate::sim::substep_choice::simulate_auto(config);
+    }
     Ok(AnySimulation::new(config)?.run())
 }
 
@@ -44,6 +48,7 @@ trait TypedRun: Send + Sync + std::fmt::Debug {
     fn config(&self) -> &ScenarioConfig;
     fn metrics(&self, outcome: &Outcome) -> Metrics;
     fn stop_recording(&mut self);
+    fn keep_forces(&mut self);
     fn state(&self) -> Vec<f64>;
     fn state_labels(&self) -> Vec<String>;
     fn set_state(&mut self, values: &[f64]) -> Result<()>;
@@ -95,6 +100,10 @@ impl<R: RobotModel<N>, const N: usize> TypedRun for Simulation<R, N> {
 
     fn stop_recording(&mut self) {
         Simulation::stop_recording(self)
+    }
+
+    fn keep_forces(&mut self) {
+        Simulation::keep_forces(self)
     }
 
     fn state(&self) -> Vec<f64> {
@@ -223,6 +232,12 @@ impl AnySimulation {
     /// Keeps no trace: the run is judged by its online metrics alone.
     pub fn without_trace(mut self) -> Self {
         self.0.stop_recording();
+        self
+    }
+
+    /// Also keeps f and f_t of every sample (`RunResult::forces`), trace or not.
+    pub fn with_forces(mut self) -> Self {
+        self.0.keep_forces();
         self
     }
 

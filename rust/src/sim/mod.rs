@@ -15,5 +15,6 @@ pub mod pipeline;
 pub mod plant;
 pub mod scenario;
 pub mod simulation;
+pub mod substep_choice;
 pub mod sweep;
 pub mod trace;

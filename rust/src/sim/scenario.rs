@@ -86,9 +86,10 @@ pub struct ScenarioConfig {
     pub seed: u64,
     /// Controller period T [s].
     pub period: f64,
-    /// RK4 substeps per period.
-    #[serde(deserialize_with = "substeps")]
-    pub substeps: usize,
+    /// RK4 substeps per period (1 to 10000), or ``"auto"``: the fewest whose force trace is within ``tolerance`` of the exact one, estimated by comparing whole runs (Richardson, docs/substeps.md).
+    pub substeps: Substeps,
+    /// Largest error [N] on the force trace (f and f_t at every sample) that ``substeps="auto"`` accepts; not read for a fixed count.
+    pub tolerance: f64,
     /// Run length [s], a multiple of ``period``.
     #[schemars(extend("x-ui" = {"min": 0.5, "max": 30.0, "scale": "linear", "step": 0.5}))]
     pub duration: f64,
@@ -122,7 +123,8 @@ impl Default for ScenarioConfig {
             actuator: ActuatorParams::default(),
             seed: 0,
             period: 1e-3,
-            substeps: 10,
+            substeps: Substeps::Count(10),
+            tolerance: 1e-4,
             duration: 10.0,
             velocity_limit: 100.0,
             criteria: CriteriaParams::default(),
@@ -186,13 +188,12 @@ impl ScenarioConfig {
         check::positive("duration", self.duration)?;
         check::positive("velocity_limit", self.velocity_limit)?;
         self.criteria.validate().map_err(|e| e.within("criteria"))?;
-        if self.substeps == 0 || self.substeps > MAX_SUBSTEPS {
-            return Err(Error::parameter(
-                "substeps",
-                self.substeps,
-                &format!("an integer from 1 to {MAX_SUBSTEPS}"),
-            ));
+        if let Substeps::Count(n) = self.substeps {
+            if n == 0 || n > MAX_SUBSTEPS {
+                return Err(Error::parameter("substeps", n, SUBSTEPS_ALLOWED));
+            }
         }
+        check::positive("tolerance", self.tolerance)?;
         let periods = self.duration / self.period;
         if periods.round() + 1.0 > MAX_SAMPLES as f64 {
             return Err(Error::parameter(
@@ -219,12 +220,87 @@ impl ScenarioConfig {
     pub fn samples(&self) -> usize {
         (self.duration / self.period).round() as usize + 1
     }
+
+    /// This scenario with `substeps` fixed at `count` (how `"auto"` runs its candidates).
+    pub fn with_substeps(&self, count: usize) -> Self {
+        Self {
+            substeps: Substeps::Count(count),
+            ..self.clone()
+        }
+    }
 }
 
-/// `Scenario.substeps` from serde: a whole number from 1 to `MAX_SUBSTEPS`.
-fn substeps<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<usize, D::Error> {
-    let max = MAX_SUBSTEPS;
-    crate::schema::fields::whole(d, 1, max as u64, &format!("an integer from 1 to {max}"))
+const SUBSTEPS_ALLOWED: &str = "an integer from 1 to 10000, or \"auto\"";
+
+/// `Scenario.substeps`: a fixed count of RK4 substeps per period, or `"auto"`, the fewest
+/// that meet `Scenario.tolerance` (`sim::substep_choice`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Substeps {
+    Count(usize),
+    Auto,
+}
+
+impl schemars::JsonSchema for Substeps {
+    fn schema_name() -> std::borrow::Cow<'static, str> {
+        "Substeps".into()
+    }
+
+    fn json_schema(_: &mut schemars::SchemaGenerator) -> schemars::Schema {
+        schemars::json_schema!({
+            "anyOf": [
+                {"type": "integer", "minimum": 1, "maximum": MAX_SUBSTEPS},
+                {"const": "auto"}
+            ]
+        })
+    }
+}
+
+impl Substeps {
+    /// The fixed count, `None` for `"auto"`.
+    pub fn count(self) -> Option<usize> {
+        match self {
+            Substeps::Count(n) => Some(n),
+            Substeps::Auto => None,
+        }
+    }
+}
+
+impl serde::Serialize for Substeps {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        match self {
+            Substeps::Count(n) => s.serialize_u64(*n as u64),
+            Substeps::Auto => s.serialize_str("auto"),
+        }
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Substeps {
+    /// A whole number from 1 to `MAX_SUBSTEPS` (an integral float too: TOML and NumPy write
+    /// `2.0`), or the word `"auto"`; anything else is a parameter error naming both.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(serde::Deserialize)]
+        #[serde(untagged)]
+        enum Given {
+            Int(u64),
+            Float(f64),
+            Word(String),
+        }
+        let bad =
+            |shown: String| serde::de::Error::custom(Error::parameter("", shown, SUBSTEPS_ALLOWED));
+        let n = match Given::deserialize(d)? {
+            Given::Word(w) if w == "auto" => return Ok(Substeps::Auto),
+            Given::Word(w) => return Err(bad(format!("{w:?}"))),
+            Given::Int(n) => n,
+            Given::Float(v) if v.fract() == 0.0 && (0.0..=MAX_SUBSTEPS as f64).contains(&v) => {
+                v as u64
+            }
+            Given::Float(v) => return Err(bad(short(v))),
+        };
+        if n == 0 || n > MAX_SUBSTEPS as u64 {
+            return Err(bad(n.to_string()));
+        }
+        Ok(Substeps::Count(n as usize))
+    }
 }
 
 #[cfg(test)]

@@ -21,7 +21,8 @@ pub use crate::sim::outcome::{Divergence, Outcome};
 use crate::sim::pipeline::{Inputs, Pipeline};
 use crate::sim::plant::{Plant, PlantState};
 pub use crate::sim::scenario::{ScenarioConfig, MAX_SAMPLES, MAX_SUBSTEPS};
-use crate::sim::trace::{Row, Trace};
+use crate::sim::substep_choice::SubstepChoice;
+use crate::sim::trace::{ForceLog, Row, Trace};
 use crate::world::actuator::Actuator;
 use crate::world::sensor::ForceSensor;
 use crate::world::surface::Environment;
@@ -32,6 +33,11 @@ pub struct RunResult {
     pub trace: Trace,
     pub outcome: Outcome,
     pub metrics: Metrics,
+    /// f and f_t at every sample, when asked for (`keep_forces`: `substeps = "auto"` compares
+    /// runs by them).
+    pub forces: Option<ForceLog>,
+    /// What `substeps = "auto"` chose and why; `None` for a fixed count.
+    pub choice: Option<SubstepChoice>,
 }
 
 /// One run's pipeline over an arm `R` of `N` joints: every stage with its state, the
@@ -51,6 +57,8 @@ pub struct Simulation<R: RobotModel<N>, const N: usize> {
     /// Whether samples are kept in `trace` (sweeps judge runs without one).
     recording: bool,
     trace: Trace,
+    /// f and f_t of every sample, kept apart from the trace (`keep_forces`).
+    forces: Option<ForceLog>,
     /// The metrics so far, accumulated sample by sample.
     metrics: OnlineMetrics,
     /// `metrics` no longer matches the samples (a `set_state` moved the sample counter);
@@ -94,6 +102,14 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
     /// Builds the pipeline for `robot` (its parameters replace `config.robot`). The rest of
     /// `config` must be valid.
     pub fn with_robot(config: &ScenarioConfig, robot: R) -> Result<Self> {
+        let Some(substeps) = config.substeps.count() else {
+            return Err(Error::parameter(
+                "substeps",
+                "\"auto\"",
+                "a count for a stepped run or the analysis (\"auto\" chooses one by \
+                 comparing whole runs: ar.simulate(scenario).substeps is its choice)",
+            ));
+        };
         config
             .actuator
             .validate(N)
@@ -170,7 +186,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
                     qd: JointVector::zeros(),
                 },
                 config.period,
-                config.substeps,
+                substeps,
             ),
             stages: Pipeline {
                 sensor: ForceSensor::new(&config.sensor, config.period, config.seed, gravity),
@@ -192,6 +208,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             outcome: None,
             recording: true,
             trace: Trace::new(N, samples),
+            forces: None,
             metrics,
             metrics_stale: false,
             config: config.clone(),
@@ -203,6 +220,12 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
     pub fn without_trace(mut self) -> Self {
         self.stop_recording();
         self
+    }
+
+    /// Also keeps f and f_t of every sample apart from the trace (what `substeps = "auto"`
+    /// compares when the trace is not kept).
+    pub fn keep_forces(&mut self) {
+        self.forces = Some(ForceLog::with_capacity(self.samples));
     }
 
     /// From here on keeps no trace (see `without_trace`); drops what was recorded.
@@ -247,6 +270,9 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         self.k = 0;
         self.outcome = None;
         self.trace.truncate(0);
+        if let Some(f) = &mut self.forces {
+            f.clear();
+        }
         self.metrics.reset();
         self.metrics_stale = false;
     }
@@ -268,6 +294,8 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             trace,
             outcome,
             metrics,
+            forces: self.forces.take(),
+            choice: None,
         }
     }
 
@@ -417,6 +445,9 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         }
         if self.recording {
             self.trace.push(row);
+        }
+        if let Some(f) = &mut self.forces {
+            f.push(row.f, row.f_t);
         }
     }
 

@@ -8,6 +8,7 @@ use crate::sim::dispatch::AnySimulation;
 use crate::sim::lanes::LaneKey;
 use crate::sim::metrics::Metrics;
 use crate::sim::simulation::{Outcome, RunResult, ScenarioConfig};
+use crate::sim::substep_choice::{run_all, Request, SubstepChoice};
 use crate::sim::trace::Trace;
 
 /// What a batch keeps of one run.
@@ -17,6 +18,8 @@ pub struct RunSummary {
     pub outcome: Outcome,
     /// The full trace, when asked for.
     pub trace: Option<Trace>,
+    /// What `substeps = "auto"` chose; `None` for a fixed count.
+    pub choice: Option<SubstepChoice>,
 }
 
 /// A parameter error in one run of a batch: its index in the batch and the error.
@@ -49,7 +52,7 @@ pub fn run_batch_with(
     // Every config is checked before anything runs; the runs are then built one at a time
     // inside the workers, so a large batch never holds more than one pipeline per thread.
     for (index, c) in configs.iter().enumerate() {
-        AnySimulation::new(c).map_err(|error| BatchError { index, error })?;
+        check(c).map_err(|error| BatchError { index, error })?;
     }
     let workers = threads.unwrap_or_else(rayon::current_num_threads).max(1);
     let size = if lanes {
@@ -91,46 +94,70 @@ fn blocks(n: usize, size: usize) -> Vec<std::ops::Range<usize>> {
         .collect()
 }
 
+/// Validates a config as a run: `"auto"` as its first candidate count.
+fn check(c: &ScenarioConfig) -> Result<()> {
+    match c.substeps.count() {
+        Some(_) => AnySimulation::new(c).map(drop),
+        None => AnySimulation::new(&c.with_substeps(1)).map(drop),
+    }
+}
+
 fn summary(r: RunResult, keep_traces: bool) -> RunSummary {
     RunSummary {
         metrics: r.metrics,
         outcome: r.outcome,
         trace: keep_traces.then_some(r.trace),
+        choice: r.choice,
     }
 }
 
-/// One block's runs. With `lanes`, the runs of each lane key advance in lanes (even a lone
-/// run, in an otherwise idle group, so a run takes the same path in any chunking); the
-/// rest, and every run without `lanes`, one by one. Results come back in run order.
+/// One block's runs, in rounds (`substep_choice::run_all`: a fixed count runs in the
+/// first round, `"auto"` runs its candidates round after round). With `lanes`, a round's
+/// runs of each lane key advance in lanes (even a lone run, in an otherwise idle group, so
+/// a run takes the same path in any chunking); the rest, and every run without `lanes`,
+/// one by one. Results come back in run order.
 fn run_block(
     configs: &[ScenarioConfig],
     block: std::ops::Range<usize>,
     keep_traces: bool,
     lanes: bool,
 ) -> std::result::Result<Vec<RunSummary>, BatchError> {
-    let build = |i: usize| -> std::result::Result<AnySimulation, BatchError> {
-        let sim =
-            AnySimulation::new(&configs[i]).map_err(|error| BatchError { index: i, error })?;
-        // Without traces a run keeps nothing but its online metrics.
+    let start = block.start;
+    let build = |r: &Request| -> std::result::Result<AnySimulation, BatchError> {
+        let i = start + r.index;
+        let config = &configs[i];
+        let sim = match config.substeps.count() {
+            Some(_) => AnySimulation::new(config),
+            None => AnySimulation::new(&config.with_substeps(r.count)),
+        }
+        .map_err(|error| BatchError { index: i, error })?;
+        let sim = if r.forces { sim.with_forces() } else { sim };
+        // Without traces a run keeps nothing but its online metrics (and forces if asked).
         Ok(if keep_traces {
             sim
         } else {
             sim.without_trace()
         })
     };
-    let mut out: Vec<Option<RunSummary>> = (0..block.len()).map(|_| None).collect();
+    let round = |requests: &[Request]| -> std::result::Result<Vec<RunResult>, BatchError> {
+        let sims: Vec<AnySimulation> = requests
+            .iter()
+            .map(build)
+            .collect::<std::result::Result<_, _>>()?;
+        Ok(run_round(sims, lanes))
+    };
+    let runs = run_all(&configs[block], round)?;
+    Ok(runs.into_iter().map(|r| summary(r, keep_traces)).collect())
+}
+
+/// Runs `sims`: with `lanes`, those of one [`LaneKey`] together in lanes (keys grouped in
+/// order of first appearance), else one by one. Results in the order of `sims`.
+fn run_round(sims: Vec<AnySimulation>, lanes: bool) -> Vec<RunResult> {
     if !lanes {
-        for i in block.clone() {
-            out[i - block.start] = Some(summary(build(i)?.run(), keep_traces));
-        }
-        return Ok(out.into_iter().flatten().collect());
+        return sims.into_iter().map(|mut s| s.run()).collect();
     }
     // Each run's key comes from its built stages, so grouping and packing cannot disagree.
-    let mut sims: Vec<Option<AnySimulation>> = block
-        .clone()
-        .map(|i| build(i).map(Some))
-        .collect::<std::result::Result<_, _>>()?;
-    let keys: Vec<LaneKey> = sims.iter().flatten().map(AnySimulation::lane_key).collect();
+    let keys: Vec<LaneKey> = sims.iter().map(AnySimulation::lane_key).collect();
     let mut groups: Vec<Vec<usize>> = Vec::new();
     for (k, key) in keys.iter().enumerate() {
         match groups.iter_mut().find(|g| keys[g[0]] == *key) {
@@ -138,13 +165,15 @@ fn run_block(
             None => groups.push(vec![k]),
         }
     }
+    let mut sims: Vec<Option<AnySimulation>> = sims.into_iter().map(Some).collect();
+    let mut out: Vec<Option<RunResult>> = sims.iter().map(|_| None).collect();
     for members in groups {
         let group: Vec<AnySimulation> = members.iter().filter_map(|&k| sims[k].take()).collect();
         for (&k, r) in members.iter().zip(AnySimulation::run_lanes(group)) {
-            out[k] = Some(summary(r, keep_traces));
+            out[k] = Some(r);
         }
     }
-    Ok(out.into_iter().flatten().collect())
+    out.into_iter().flatten().collect()
 }
 
 fn thread_pool(threads: usize) -> Result<rayon::ThreadPool> {

@@ -66,6 +66,66 @@ pub struct Row<'a> {
     pub tau_cmd: &'a [f64],
 }
 
+/// The forces of a run apart from its trace: the true normal force f and the friction
+/// force's magnitude f_t at every sample (what `substeps = "auto"` compares between runs).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ForceLog {
+    pub f: Vec<f64>,
+    pub f_t: Vec<f64>,
+}
+
+impl ForceLog {
+    pub fn with_capacity(samples: usize) -> Self {
+        Self {
+            f: Vec::with_capacity(samples),
+            f_t: Vec::with_capacity(samples),
+        }
+    }
+
+    pub fn push(&mut self, f: f64, f_t: f64) {
+        self.f.push(f);
+        self.f_t.push(f_t);
+    }
+
+    pub fn clear(&mut self) {
+        self.f.clear();
+        self.f_t.clear();
+    }
+
+    pub fn len(&self) -> usize {
+        self.f.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.f.is_empty()
+    }
+
+    /// The largest difference between two runs' forces, max over samples of |Δf| and
+    /// |Δf_t|: infinite when one run took samples the other did not (it diverged sooner)
+    /// or one value is NaN where the other is not.
+    pub fn distance(&self, other: &ForceLog) -> f64 {
+        if self.len() != other.len() {
+            return f64::INFINITY;
+        }
+        let gap = |a: &[f64], b: &[f64]| {
+            a.iter().zip(b).fold(0.0_f64, |m, (x, y)| {
+                let d = (x - y).abs();
+                if d.is_nan() {
+                    // Both NaN (no such value at this sample) agree; one NaN does not.
+                    if x.is_nan() && y.is_nan() {
+                        m
+                    } else {
+                        f64::INFINITY
+                    }
+                } else {
+                    m.max(d)
+                }
+            })
+        };
+        gap(&self.f, &other.f).max(gap(&self.f_t, &other.f_t))
+    }
+}
+
 /// A recorded run.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Trace {
