@@ -65,7 +65,7 @@ class Result:
         >>> import admit_rs as ar
         >>> r = ar.simulate(ar.paper.scenario("fig14").replace(substeps="auto", tolerance=1e-4))
         >>> r.substeps, f"{r.substep_error:.1e}"
-        (3, '3.8e-05')
+        (3, '3.7e-05')
     """
     substep_standing: str | None = None
     """``substeps="auto"``: how its search ended: ``"met"`` (the estimate is within the

@@ -85,7 +85,8 @@ pub struct SubstepChoice {
     pub error: f64,
     pub tolerance: f64,
     pub standing: Standing,
-    /// The convergence order the estimate used (the observed one, at most 4).
+    /// The convergence order the estimate used (the observed one, at most 4); NaN when two
+    /// runs agreed so closely that none was needed (the estimate credits the slowest, 0.5).
     pub order: f64,
     /// The counts run, in order.
     pub tried: Vec<usize>,
@@ -111,6 +112,10 @@ impl SubstepChoice {
             self.order,
         );
         match self.standing {
+            Standing::Met if p.is_nan() => format!(
+                "substeps=\"auto\" chose {n}: estimated force error {e} N <= tolerance {tol} N \
+                 (Richardson at the slowest order credited, {MIN_ORDER}; tried {tried})"
+            ),
             Standing::Met => format!(
                 "substeps=\"auto\" chose {n}: estimated force error {e} N <= tolerance {tol} N \
                  (Richardson, observed order {p:.1}; tried {tried})"
@@ -220,6 +225,15 @@ impl SubstepSearch {
         self.gaps.push(gap);
         let (coarse, fine) = (&self.climb[j - 1], &self.climb[j]);
         let (c, f) = (coarse.count, fine.count);
+        if j == 1 && coarse.diverged == fine.diverged {
+            // Two runs so close that the coarser meets the tolerance at the slowest order
+            // credited: no third run is needed to measure the order.
+            let e = gap / coarse_factor(c, f, MIN_ORDER);
+            if e <= self.tolerance {
+                let coarse = coarse.clone();
+                return self.finish(&coarse, e, f64::NAN, Standing::Met);
+            }
+        }
         if j >= 2 {
             let order = observed_order(self.climb[j - 2].count, c, f, self.gaps[j - 2], gap);
             self.orders.push(order);
@@ -701,6 +715,18 @@ mod tests {
         assert_eq!(choice.tried, vec![1, 2, 4, 8]);
         let truth = 0.2 * amp / 256.0;
         assert!((choice.error - truth).abs() <= 1e-9 * truth, "{choice:?}");
+    }
+
+    /// Two runs that agree far inside the tolerance settle it: the coarser meets it even
+    /// at the slowest order credited, so no third run measures the order.
+    #[test]
+    fn two_close_runs_settle_it_at_the_slowest_order() {
+        let choice = search(1e-3, |n| (log(n, 1e-6), false));
+        assert_eq!((choice.substeps, choice.tried.clone()), (1, vec![1, 2]));
+        assert!(choice.order.is_nan() && choice.met());
+        let gap = 1e-6 * (1.0 - 1.0 / 16.0);
+        assert!(choice.error >= gap / (1.0 - 0.5_f64.sqrt()) * (1.0 - 1e-3));
+        assert!(choice.describe().contains("slowest order credited, 0.5"));
     }
 
     #[test]
