@@ -65,6 +65,16 @@ def test_a_position_only_scenario_has_no_filter_sliders():
     assert "controller.kp" in paths
 
 
+def test_a_tip_frame_bias_vector_gets_no_slider():
+    """One number for sensor.bias is a bias along n̂; a slider over a per-axis vector would
+    silently turn one into the other (and call its axes joints)."""
+    sc = ar.paper.scenario("fig14")
+    along = sc.replace(sensor=ar.ForceSensor(frame="tip", bias=0.2))
+    vector = sc.replace(sensor=ar.ForceSensor(frame="tip", bias=(0.1, 0.2, 0.3)))
+    assert {c.path: c.value for c in controls.controls(along)}["sensor.bias"] == 0.2
+    assert "sensor.bias" not in {c.path for c in controls.controls(vector)}
+
+
 def test_slider_positions_round_trip_through_values():
     c = {c.path: c for c in controls.controls(ar.paper.scenario("fig14"))}
     b = c["admittance.b"]

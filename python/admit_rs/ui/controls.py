@@ -165,6 +165,10 @@ def _control(
     if isinstance(value, tuple | list):
         if not value or not all(isinstance(v, int | float) for v in value):
             return None  # a matrix (inertia given as rows): no one slider can hold it
+        if path.endswith("sensor.bias"):
+            # A bias per tip-frame axis, not per joint: one number there is a bias along
+            # n̂ (ForceSensor.bias), another thing, so no slider stands for the vector.
+            return None
         per_joint = tuple(float(v) for v in value)
         shown: float | None = max(per_joint) if len(set(per_joint)) > 1 else per_joint[0]
         if len(set(per_joint)) == 1:
