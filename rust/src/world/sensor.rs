@@ -472,29 +472,30 @@ impl<T: Real> ForceSensor<T> {
     /// β, noise, resolution and low-pass as [`Self::read`], then one latency.
     #[inline(always)]
     fn read_tip(&mut self, first: T::SimdBool, force: &Vector3<T>, noise: &[T; 3]) -> Vector3<T> {
-        let Some(previous) = self.tip.as_ref().map(|t| t.filtered) else {
-            return *force;
+        // The tip state is taken out while the conditioning borrows the rest of the sensor.
+        let Some(mut tip) = self.tip.take() else {
+            return *force; // a one-axis sensor has no tip state (its caller reads along n̂)
         };
         let y = Vector3::from_fn(|a, _| {
             let u = self.condition(force[a] + self.bias_tip[a], noise[a]);
-            self.low_pass(first, u, previous[a])
+            self.low_pass(first, u, tip.filtered[a])
         });
-        let Some(tip) = self.tip.as_mut() else {
-            return y;
-        };
         tip.filtered = y;
         let latency = tip.in_flight.len();
-        if latency == 0 {
-            return y;
-        }
-        if !T::none(first) {
-            tip.in_flight.iter_mut().for_each(|v| {
-                *v = Vector3::from_fn(|a, _| choose(first, || y[a], || v[a]));
-            });
-        }
-        let out = tip.in_flight[latency - 1];
-        tip.in_flight.rotate_right(1);
-        tip.in_flight[0] = y;
+        let out = if latency == 0 {
+            y
+        } else {
+            if !T::none(first) {
+                tip.in_flight.iter_mut().for_each(|v| {
+                    *v = Vector3::from_fn(|a, _| choose(first, || y[a], || v[a]));
+                });
+            }
+            let out = tip.in_flight[latency - 1];
+            tip.in_flight.rotate_right(1);
+            tip.in_flight[0] = y;
+            out
+        };
+        self.tip = Some(tip);
         out
     }
 }
