@@ -12,8 +12,8 @@ use super::errors::{to_py_err, AdmitError, ParameterError};
 use super::params::scenario_from;
 use crate::sim::dispatch::AnySimulation;
 use crate::sim::metrics::{Metrics, METRIC_NAMES};
+use crate::sim::outcome::SubstepChoice;
 use crate::sim::simulation::{Outcome, RunResult};
-use crate::sim::substep_choice::SubstepChoice;
 use crate::sim::trace::Trace;
 
 fn run_to_dict<'py>(py: Python<'py>, run: RunResult) -> PyResult<Bound<'py, PyDict>> {

@@ -14,15 +14,29 @@ use crate::sim::metrics::Metrics;
 use crate::sim::outcome::Outcome;
 use crate::sim::scenario::{RobotConfig, ScenarioConfig};
 use crate::sim::simulation::{RunResult, Simulation};
+use crate::sim::substep_choice::run_all;
 use crate::sim::trace::Trace;
 
 /// Validates, builds and runs one scenario, whatever its arm; `substeps = "auto"` runs
 /// the candidates of `sim::substep_choice` and returns the chosen one.
 pub fn simulate(config: &ScenarioConfig) -> Result<RunResult> {
-    if config.substeps.count().is_none() {
-        return crate::sim::substep_choice::simulate_auto(config);
+    if config.substeps.count().is_some() {
+        return Ok(AnySimulation::new(config)?.run());
     }
-    Ok(AnySimulation::new(config)?.run())
+    config.validate()?;
+    // The search's runs one after another; the chosen run, with its `choice`.
+    let runs = run_all(std::slice::from_ref(config), |requests| {
+        requests
+            .iter()
+            .map(|r| {
+                let sim = AnySimulation::new(&config.with_substeps(r.count))?;
+                Ok(if r.forces { sim.with_forces() } else { sim }.run())
+            })
+            .collect::<Result<Vec<_>>>()
+    })?;
+    runs.into_iter()
+        .next()
+        .ok_or_else(|| Error::parameter("substeps", "\"auto\"", "a search that returns a run"))
 }
 
 /// A simulation of any supported arm: the typed `Simulation<R, N>` behind one small

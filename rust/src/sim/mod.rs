@@ -3,8 +3,9 @@
 //!
 //! Dependencies run one way: `scenario`, `outcome` and `trace` are plain data; `metrics`
 //! reads them; `simulation` drives `plant` and records into `trace`, then calls `metrics`;
-//! `lanes` advances four `simulation`s' plants together in SIMD lanes; `sweep` runs many
-//! `simulation`s, in lanes where their structure allows.
+//! `lanes` advances four `simulation`s' plants together in SIMD lanes; `substep_choice`
+//! searches the substep count of `substeps = "auto"` from finished runs; `dispatch` and
+//! `sweep` run `simulation`s (in lanes where their structure allows) and feed it.
 
 pub mod criteria;
 pub mod dispatch;

@@ -1,6 +1,13 @@
-//! How a run ended: completed, or diverged with when and why.
+//! How a run ended: completed, or diverged with when and why; and, for `substeps = "auto"`,
+//! the count its search chose (`sim::substep_choice`) and how that search ended.
 
 use crate::error::approx;
+
+/// Below this observed order the runs are not converging (a run is accepted only above it:
+/// first order, a switch inside a substep, still converges).
+pub const MIN_ORDER: f64 = 0.5;
+/// The most substeps `"auto"` tries.
+pub const MAX_AUTO_SUBSTEPS: usize = 256;
 
 /// Why a run stopped early.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -50,6 +57,98 @@ pub enum Outcome {
 impl Outcome {
     pub fn is_diverged(&self) -> bool {
         matches!(self, Outcome::Diverged { .. })
+    }
+}
+
+/// How the search ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Standing {
+    /// The chosen count's estimated error is within the tolerance.
+    Met,
+    /// The run diverged at both counts of the last pair and their traces differ by more
+    /// than the tolerance: more substeps move when the loop diverges, not whether.
+    Diverged,
+    /// The traces stopped converging as the count grew (observed order below 0.5 twice in a
+    /// row: a bouncing or chaotic contact has no trace to converge to).
+    NotConverging,
+    /// [`MAX_AUTO_SUBSTEPS`] did not meet the tolerance.
+    Limit,
+}
+
+impl Standing {
+    pub fn name(self) -> &'static str {
+        match self {
+            Standing::Met => "met",
+            Standing::Diverged => "diverged",
+            Standing::NotConverging => "not converging",
+            Standing::Limit => "limit",
+        }
+    }
+}
+
+/// What `"auto"` chose for one run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SubstepChoice {
+    /// The count of the run returned.
+    pub substeps: usize,
+    /// Its estimated largest error on f and f_t over the run [N]; for a run that does not
+    /// converge or diverges, the difference between its two finest runs (infinite when
+    /// they did not take the same samples).
+    pub error: f64,
+    pub tolerance: f64,
+    pub standing: Standing,
+    /// The convergence order the estimate used (the observed one, at most 4); NaN when two
+    /// runs agreed so closely that none was needed (the estimate credits the slowest, 0.5).
+    pub order: f64,
+    /// The counts run, in order.
+    pub tried: Vec<usize>,
+}
+
+impl SubstepChoice {
+    pub fn met(&self) -> bool {
+        self.standing == Standing::Met
+    }
+
+    /// One sentence a user reads: the count, the estimate and, when unmet, why.
+    pub fn describe(&self) -> String {
+        let tried = self
+            .tried
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join(", ");
+        let (n, e, tol, p) = (
+            self.substeps,
+            approx(self.error),
+            approx(self.tolerance),
+            self.order,
+        );
+        match self.standing {
+            Standing::Met if p.is_nan() => format!(
+                "substeps=\"auto\" chose {n}: estimated force error {e} N <= tolerance {tol} N \
+                 (Richardson at the slowest order credited, {MIN_ORDER}; tried {tried})"
+            ),
+            Standing::Met => format!(
+                "substeps=\"auto\" chose {n}: estimated force error {e} N <= tolerance {tol} N \
+                 (Richardson, observed order {p:.1}; tried {tried})"
+            ),
+            Standing::Diverged => format!(
+                "substeps=\"auto\": the run diverges at every count tried, so its trace has \
+                 no error bound (its two finest runs differ by {e} N, tolerance {tol} N); \
+                 this is the finest run, {n} substeps (tried {tried})"
+            ),
+            Standing::NotConverging => format!(
+                "substeps=\"auto\": the traces stopped converging as substeps grew (a \
+                 bouncing or chaotic contact), so the tolerance is not met: the two finest \
+                 runs differ by {e} N, tolerance {tol} N; this is the finest run, {n} \
+                 substeps (tried {tried})"
+            ),
+            Standing::Limit => format!(
+                "substeps=\"auto\" reached {n} substeps without meeting the tolerance: \
+                 estimated force error {e} N, tolerance {tol} N (observed order {p:.1}; \
+                 tried {tried})"
+            ),
+        }
     }
 }
 

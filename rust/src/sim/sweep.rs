@@ -7,8 +7,9 @@ use crate::error::{Error, Result};
 use crate::sim::dispatch::AnySimulation;
 use crate::sim::lanes::LaneKey;
 use crate::sim::metrics::Metrics;
+use crate::sim::outcome::SubstepChoice;
 use crate::sim::simulation::{Outcome, RunResult, ScenarioConfig};
-use crate::sim::substep_choice::{run_all, Request, SubstepChoice};
+use crate::sim::substep_choice::{run_all, Request};
 use crate::sim::trace::Trace;
 
 /// What a batch keeps of one run.
