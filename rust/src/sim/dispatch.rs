@@ -14,7 +14,7 @@ use crate::sim::metrics::Metrics;
 use crate::sim::outcome::Outcome;
 use crate::sim::scenario::{RobotConfig, ScenarioConfig};
 use crate::sim::simulation::{RunResult, Simulation};
-use crate::sim::substep_choice::run_all;
+use crate::sim::substep_choice::{run_all, Request};
 use crate::sim::trace::Trace;
 
 /// Validates, builds and runs one scenario, whatever its arm; `substeps = "auto"` runs
@@ -25,18 +25,20 @@ pub fn simulate(config: &ScenarioConfig) -> Result<RunResult> {
     }
     config.validate()?;
     // The search's runs one after another; the chosen run, with its `choice`.
-    let runs = run_all(std::slice::from_ref(config), |requests| {
+    let mut runs = run_all(std::slice::from_ref(config), |requests| {
         requests
             .iter()
-            .map(|r| {
-                let sim = AnySimulation::new(&config.with_substeps(r.count))?;
-                Ok(if r.forces { sim.with_forces() } else { sim }.run())
-            })
+            .map(|r| Ok(AnySimulation::for_request(config, r, true)?.run()))
             .collect::<Result<Vec<_>>>()
     })?;
-    runs.into_iter()
-        .next()
-        .ok_or_else(|| Error::parameter("substeps", "\"auto\"", "a search that returns a run"))
+    // `run_all` returns one run per config; an empty answer would be a bug of the search.
+    runs.pop().ok_or_else(|| {
+        Error::parameter(
+            "substeps",
+            "\"auto\"",
+            "a count the search settles on (internal error: it returned no run; please report)",
+        )
+    })
 }
 
 /// A simulation of any supported arm: the typed `Simulation<R, N>` behind one small
@@ -241,6 +243,26 @@ impl AnySimulation {
     /// The metrics of the samples taken so far, for a run that ended with `outcome`.
     pub fn metrics(&self, outcome: &Outcome) -> Metrics {
         self.0.metrics(outcome)
+    }
+
+    /// The run `request` asks of `config`: at the request's count where `config` says
+    /// `"auto"`, with the force log if the search reads it, and with its trace only if
+    /// `keep_trace` (else it keeps its online metrics alone).
+    pub fn for_request(
+        config: &ScenarioConfig,
+        request: &Request,
+        keep_trace: bool,
+    ) -> Result<Self> {
+        let sim = match config.substeps.count() {
+            Some(_) => Self::new(config)?,
+            None => Self::new(&config.with_substeps(request.count))?,
+        };
+        let sim = if request.forces {
+            sim.with_forces()
+        } else {
+            sim
+        };
+        Ok(if keep_trace { sim } else { sim.without_trace() })
     }
 
     /// Keeps no trace: the run is judged by its online metrics alone.

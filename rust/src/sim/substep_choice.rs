@@ -120,6 +120,11 @@ impl SubstepSearch {
         }
         self.climb.push(probe);
         let j = self.climb.len() - 1;
+        // Only the last three climb runs can be returned or measured against (`descend`):
+        // older force logs are dropped, so a search holds a few traces, not one per run.
+        if j >= 3 {
+            self.climb[j - 3].forces = ForceLog::default();
+        }
         if j == 0 {
             return self.ask(2);
         }
@@ -188,12 +193,13 @@ impl SubstepSearch {
         self.ask(next.min(MAX_AUTO_SUBSTEPS))
     }
 
-    /// The finer run of climb pair `j` meets the tolerance: the fewest passing count of the
-    /// climb (each measured against the next), then the counts between it and the count
-    /// below, as the error model aims.
+    /// The finer run of climb pair `j` meets the tolerance: the fewest passing count among
+    /// the climb's last three runs (each measured against the next; an older one passing
+    /// would have ended the climb earlier), then the counts between it and the count below,
+    /// as the error model aims.
     fn descend(&mut self, j: usize, e_fine: f64, order: f64) -> Next {
         let mut best = (j, e_fine);
-        for i in (0..j).rev() {
+        for i in (j.saturating_sub(2)..j).rev() {
             let e = match self.gaps[i] {
                 0.0 => 0.0,
                 gap => gap / coarse_factor(self.climb[i].count, self.climb[i + 1].count, order),
@@ -454,6 +460,21 @@ mod tests {
         assert_eq!(observed_order(1, 2, 4, 1.0, 1.0), 0.0); // not shrinking
         assert_eq!(observed_order(1, 2, 4, 1.0, 1e-9), 8.0); // faster than any order
         assert!(observed_order(1, 2, 4, f64::INFINITY, 1.0).is_nan());
+    }
+
+    /// A long climb holds the force logs of its last three runs only: a 10⁷-sample run
+    /// would otherwise keep one trace per count tried.
+    #[test]
+    fn a_long_climb_keeps_three_force_logs() {
+        let (mut s, mut n) = SubstepSearch::new(1e-9);
+        let mut runs = 0;
+        while let Next::Run(next) = s.observe(n, log_p(n, 1e3, 1.0), false) {
+            let kept = s.climb.iter().filter(|p| !p.forces.is_empty()).count();
+            assert_eq!(kept, s.climb.len().min(3), "after {:?}", s.tried);
+            n = next;
+            runs += 1;
+        }
+        assert!(runs >= 5, "{:?}", s.tried);
     }
 
     /// A run converging at a lower order (a contact onset within a substep, a damper

@@ -124,21 +124,10 @@ fn run_block(
     lanes: bool,
 ) -> std::result::Result<Vec<RunSummary>, BatchError> {
     let start = block.start;
-    let build = |r: &Request| -> std::result::Result<AnySimulation, BatchError> {
+    let build = |r: &Request| {
         let i = start + r.index;
-        let config = &configs[i];
-        let sim = match config.substeps.count() {
-            Some(_) => AnySimulation::new(config),
-            None => AnySimulation::new(&config.with_substeps(r.count)),
-        }
-        .map_err(|error| BatchError { index: i, error })?;
-        let sim = if r.forces { sim.with_forces() } else { sim };
-        // Without traces a run keeps nothing but its online metrics (and forces if asked).
-        Ok(if keep_traces {
-            sim
-        } else {
-            sim.without_trace()
-        })
+        AnySimulation::for_request(&configs[i], r, keep_traces)
+            .map_err(|error| BatchError { index: i, error })
     };
     let round = |requests: &[Request]| -> std::result::Result<Vec<RunResult>, BatchError> {
         let sims: Vec<AnySimulation> = requests

@@ -58,10 +58,6 @@ impl ActuatorParams {
         }
         Ok(())
     }
-
-    pub fn is_ideal(&self) -> bool {
-        *self == Self::default()
-    }
 }
 
 /// The actuator as a state machine: the commands in flight and the last applied torque.

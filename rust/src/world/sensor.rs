@@ -114,11 +114,6 @@ impl SensorParams {
         Ok(())
     }
 
-    /// Whether the sensor reads the force exactly (the paper's sensor).
-    pub fn is_ideal(&self) -> bool {
-        *self == Self::default()
-    }
-
     /// The tool mass the controller believes [kg].
     pub fn believed_tool_mass(&self) -> f64 {
         self.tool_mass_estimate.unwrap_or(self.tool_mass)
