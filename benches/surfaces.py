@@ -1,10 +1,11 @@
 """What a curved surface and friction cost (issue #22): runs/s on a plane, on a sphere with
 friction and on a height field with friction, one run at a time and in lanes.
 
-    python benches/surfaces.py [--repeats 7] [--runs 64] [--duration 10]
+    python benches/surfaces.py [--repeats 7] [--runs 64] [--duration 10] [--arm paper|panda]
 
 Not a test: prints a table. The scenario is fig. 14 (TDC + Scheme 2, 10 N, a 0.05 m sine
-along the surface). The sphere has R = 0.3 m and μ = 0.3; the height field is a 41×41 grid at
+along the surface), on the paper's arm or (``--arm panda``) on the Panda with TDC
+``for_arm``, as ``benches/panda_lanes.py`` runs it. The sphere has R = 0.3 m and μ = 0.3; the height field is a 41×41 grid at
 5 mm (the scanned part of examples/polishing.py) with μ = 0.3; the controller believes the
 true shape in both (the curved belief of SPEC §15). Each variant is timed in alternation with
 the plane, median of ``--repeats``; the ratios are what issue #22's targets are stated in
@@ -26,8 +27,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "examples"))
 from polishing import scanned_part  # noqa: E402
 
 
-def variants(duration: float) -> dict[str, ar.Scenario]:
+DATA = Path(__file__).resolve().parent.parent / "examples" / "data"
+
+
+def variants(duration: float, arm: str) -> dict[str, ar.Scenario]:
     base = ar.paper.scenario("fig14").replace(duration=duration)
+    if arm == "panda":
+        panda = ar.UrdfArm(DATA / "panda.urdf", "panda_hand_tcp",
+                           q0=(0, -0.785, 0, -2.356, 0, 1.571, 0.785))  # fmt: skip
+        base = base.replace(robot=panda, controller=ar.TimeDelayControl.for_arm(panda))
     return {
         "plane": base,
         "sphere, μ = 0.3": base.replace(wall=ar.Sphere(radius=0.3, friction=0.3)),
@@ -48,14 +56,18 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--runs", type=int, default=64, help="runs per lane sweep")
     ap.add_argument("--duration", type=float, default=10.0)
+    ap.add_argument("--arm", choices=("paper", "panda"), default="paper")
     args = ap.parse_args()
-    scenarios = variants(args.duration)
+    scenarios = variants(args.duration, args.arm)
     grid = {"wall.stiffness": [2e4 + 1e3 * i for i in range(args.runs)]}
     jobs = {
         "scalar": lambda sc: ar.simulate(sc),
         "lanes": lambda sc: ar.sweep(sc, grid=grid, progress=False, threads=1),
     }
-    print(f"admit_rs {ar.__version__}; {args.duration:g}-s runs; median of {args.repeats}")
+    print(
+        f"admit_rs {ar.__version__}; {args.arm} arm; {args.duration:g}-s runs; "
+        f"median of {args.repeats}; lanes build {ar._core._lane_path()}"
+    )
     print(f"{'variant':24} {'path':7} {'time [s]':>10} {'× plane':>8}")
     for path, job in jobs.items():
         times: dict[str, list[float]] = {name: [] for name in scenarios}

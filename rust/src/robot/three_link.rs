@@ -449,16 +449,17 @@ impl<T: Real> TipMotion<T> for ClosedTip<'_, T> {
         Vector3::new(r * t.c1, r * t.s1, self.form.l1 + h)
     }
 
-    /// Ẋ = J q̇, row by row as (Jᵀ e_i)·q̇.
+    /// Ẋ = J q̇ from the closed form's rates: X = (r c1, r s1, l1 + h), so
+    /// Ẋ = (ṙ c1 − r s1 q̇1, ṙ s1 + r c1 q̇1, ḣ) with ṙ = −h q̇2 − l3 s23 q̇3 and
+    /// ḣ = r q̇2 + l3 c23 q̇3 (10 products; J's zeros never multiplied).
     #[inline(always)]
     fn velocity(&self) -> Vector3<T> {
-        let (zero, one) = (T::zero(), T::one());
-        let row = |e: Vector3<T>| self.jacobian_transpose(&e).dot(self.qd);
-        Vector3::new(
-            row(Vector3::new(one, zero, zero)),
-            row(Vector3::new(zero, one, zero)),
-            row(Vector3::new(zero, zero, one)),
-        )
+        let (r, h) = self.radius_height();
+        let (t, l3, qd) = (&self.trig, self.form.l3, self.qd);
+        let r_dot = -(h * qd[1]) - l3 * t.s23 * qd[2];
+        let h_dot = r * qd[1] + l3 * t.c23 * qd[2];
+        let yaw = r * qd[0];
+        Vector3::new(r_dot * t.c1 - yaw * t.s1, r_dot * t.s1 + yaw * t.c1, h_dot)
     }
 }
 
@@ -657,11 +658,12 @@ impl<T: Real> ArmModel<T, 3> for ClosedForm<T> {
             qd,
         };
         let contact = surface.contact(&tip);
-        // The surface pushes the tip along −n (and friction along the surface).
-        let mut contact_torque = tip.jacobian_transpose(&contact.normal) * -contact.normal_force;
-        if let Some(ft) = &contact.friction {
-            contact_torque += tip.jacobian_transpose(ft);
-        }
+        // The surface pushes the tip along −n (and friction along the surface: then one
+        // Jᵀ of F = −f n + F_t; a frictionless run keeps (Jᵀn)·(−f), the paper's bits).
+        let contact_torque = match &contact.friction {
+            None => tip.jacobian_transpose(&contact.normal) * -contact.normal_force,
+            Some(_) => tip.jacobian_transpose(&contact.force()),
+        };
         let d = self.dynamics(&t, qd);
         // q̈ = D⁻¹ (rest − τ_c), with τ_c the Coulomb friction and rest everything else. The
         // longest dependency chain of an RK4 stage runs q̇ → exp → τ_c → q̈ → next stage's q̇,
@@ -993,6 +995,49 @@ mod tests {
             .model()
             .accelerate(&Trig::new(&q), &qd, &tau, &Linear(n, false));
         assert!((c0.normal_force - 1000.0 * n.dot(&k.position)).abs() < 1e-12);
+    }
+
+    /// The tip's velocity from the closed form's rates is J q̇, and a contact with
+    /// friction applies Jᵀ(−f n + F_t) in one product.
+    #[test]
+    fn tip_velocity_is_j_qdot_and_friction_goes_through_jt() {
+        let (_, arm) = arm();
+        let n = Vec3::new(0.0, 0.6, 0.8);
+        // Friction opposite the tip's velocity, F_t = −3 Ẋ (its tangential part aside).
+        struct Sliding(Vec3);
+        impl Surface<f64> for Sliding {
+            fn contact(&self, tip: &impl TipMotion<f64>) -> Contact<f64> {
+                Contact {
+                    friction: Some(tip.velocity() * -3.0),
+                    normal: self.0,
+                    normal_force: 5.0 + tip.position()[2],
+                    penetration: 0.0,
+                }
+            }
+        }
+        for (q, qd) in [
+            (Vec3::new(0.1, 0.7, -0.6), Vec3::new(0.2, 0.3, -0.4)),
+            (Vec3::new(-2.0, -0.3, 1.9), Vec3::new(-1.5, 2.0, 0.7)),
+        ] {
+            let tau = Vec3::new(1.0, 40.0, 9.0);
+            let k = arm.model().kinematics(&Trig::new(&q), &qd);
+            let (qdd, c) = arm
+                .model()
+                .accelerate(&Trig::new(&q), &qd, &tau, &Sliding(n));
+            let v = k.jacobian * qd;
+            assert!(
+                (c.friction.map(|f| f / -3.0).unwrap_or_default() - v)
+                    .abs()
+                    .max()
+                    < 1e-14
+            );
+            let force = n * -(5.0 + k.position[2]) - v * 3.0;
+            let reference = arm.forward_dynamics_at(&q, &qd, &tau, &force);
+            assert!(
+                (qdd - reference).abs().max() < 1e-11,
+                "{qdd} vs {reference}"
+            );
+        }
     }
 
     /// Angle addition agrees with a fresh evaluation to rounding, over the whole range
