@@ -4,9 +4,10 @@
 
 use nalgebra::SVector;
 
+use crate::contact::Surface;
 use crate::robot::{ArmModel, ConfigOf, JointVector, RobotModel};
 use crate::scalar::Real;
-use crate::world::surface::Environment;
+use crate::world::surface::{Environment, SurfaceVisitor};
 
 /// Whether this CPU runs the AVX2 + FMA builds of the step loop (`Plant::advance`,
 /// `Simulation::run`). std caches the answer, so asking costs a load and a branch.
@@ -134,8 +135,9 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
     /// loop once and inlines this into it.
     #[inline(always)]
     pub(crate) fn advance_inlined(&mut self, tau: &JointVector<N>) {
-        let (q, qd) = rk4_period(
-            self,
+        let (q, qd) = rk4_period_on(
+            self.arm.model(),
+            &self.environment,
             (self.state.q, self.state.qd),
             self.config,
             self.substep,
@@ -185,29 +187,91 @@ pub(crate) trait Stages<T: Real, const N: usize> {
     );
 }
 
-impl<R: RobotModel<N>, const N: usize> Stages<f64, N> for Plant<R, N> {
-    type Config = ConfigOf<R, N>;
+/// An arm against one surface (of a known type), as RK4's stages see it, over any scalar.
+pub(crate) struct Touching<'a, A, S> {
+    arm: &'a A,
+    surface: &'a S,
+}
+
+impl<T: Real, A: ArmModel<T, N>, S: Surface<T>, const N: usize> Stages<T, N>
+    for Touching<'_, A, S>
+{
+    type Config = A::Config;
 
     #[inline(always)]
     fn acceleration(
         &self,
-        c: &ConfigOf<R, N>,
-        qd: &JointVector<N>,
-        tau: &JointVector<N>,
-    ) -> JointVector<N> {
-        self.arm.model().accelerate(c, qd, tau, &self.environment).0
+        c: &A::Config,
+        qd: &SVector<T, N>,
+        tau: &SVector<T, N>,
+    ) -> SVector<T, N> {
+        self.arm.accelerate(c, qd, tau, self.surface).0
     }
 
     #[inline(always)]
     fn shift(
         &self,
-        c: &ConfigOf<R, N>,
-        delta: &JointVector<N>,
-        shifted: &JointVector<N>,
-        out: &mut ConfigOf<R, N>,
+        c: &A::Config,
+        delta: &SVector<T, N>,
+        shifted: &SVector<T, N>,
+        out: &mut A::Config,
     ) {
-        self.arm.model().configure_shifted(c, delta, shifted, out);
+        self.arm.configure_shifted(c, delta, shifted, out);
     }
+}
+
+/// One control period of `arm` against `environment` ([`rk4_period`]), the environment
+/// matched once per period: each surface gets its own monomorphised RK4 loop, and the
+/// loop that runs holds only its surface's contact code.
+#[inline(always)]
+pub(crate) fn rk4_period_on<T: Real, A: ArmModel<T, N>, const N: usize>(
+    arm: &A,
+    environment: &Environment<T>,
+    start: (SVector<T, N>, SVector<T, N>),
+    config: A::Config,
+    h: T,
+    substeps: usize,
+    tau: &SVector<T, N>,
+) -> (SVector<T, N>, SVector<T, N>) {
+    struct Period<'a, T: Real, A: ArmModel<T, N>, const N: usize> {
+        arm: &'a A,
+        start: (SVector<T, N>, SVector<T, N>),
+        config: A::Config,
+        h: T,
+        substeps: usize,
+        tau: &'a SVector<T, N>,
+    }
+    impl<T: Real, A: ArmModel<T, N>, const N: usize> SurfaceVisitor<T> for Period<'_, T, A, N> {
+        type Output = (SVector<T, N>, SVector<T, N>);
+        // Inlined where optimised (into the AVX2 loops, whose features an out-of-line
+        // copy would lose). Not in a debug build: there the four surfaces' inlined periods
+        // would share one stack frame without overlapping, overflowing a test thread's
+        // stack on a chain's kilobyte-sized stage values.
+        #[cfg_attr(not(debug_assertions), inline(always))]
+        #[cfg_attr(debug_assertions, inline(never))]
+        fn visit<S: Surface<T>>(self, surface: &S) -> Self::Output {
+            let stages = Touching {
+                arm: self.arm,
+                surface,
+            };
+            rk4_period(
+                &stages,
+                self.start,
+                self.config,
+                self.h,
+                self.substeps,
+                self.tau,
+            )
+        }
+    }
+    environment.visit(Period {
+        arm,
+        start,
+        config,
+        h,
+        substeps,
+        tau,
+    })
 }
 
 /// One control period of `substeps` classical RK4 steps of `h` from `(q, q̇)` with τ held,

@@ -145,7 +145,27 @@ impl<T: Real> Surface<T> for Environment<T> {
     }
 }
 
+/// Work done against the environment's surface as its own type: [`Environment::visit`]
+/// matches the environment once and runs `visit` monomorphised for that surface, so a
+/// whole RK4 period holds one surface's code rather than all of them behind a match at
+/// every stage (which cost fig. 19's lanes 16 % on an Intel core: docs/performance.md §19).
+pub trait SurfaceVisitor<T: Real> {
+    type Output;
+    fn visit<S: Surface<T>>(self, surface: &S) -> Self::Output;
+}
+
 impl<T: Real> Environment<T> {
+    /// `visitor` run on this environment's surface, matched once.
+    #[inline(always)]
+    pub fn visit<V: SurfaceVisitor<T>>(&self, visitor: V) -> V::Output {
+        match self {
+            Environment::Free => visitor.visit(&FreeSpace),
+            Environment::Plane(w) => visitor.visit(w),
+            Environment::Round(r) => visitor.visit(r),
+            Environment::HeightField(h) => visitor.visit(h),
+        }
+    }
+
     /// The plane, if this is one.
     pub fn plane(&self) -> Option<&Wall<T>> {
         match self {

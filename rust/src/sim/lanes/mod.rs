@@ -29,10 +29,10 @@ use std::sync::atomic::{AtomicU64, AtomicU8, Ordering};
 use nalgebra::SVector;
 
 use crate::robot::chain::TaskKind;
-use crate::robot::{ArmModel, RobotModel};
+use crate::robot::RobotModel;
 use crate::scalar::{F64x4, F64x8, Real, Wide};
 use crate::sim::pipeline::StageKey;
-use crate::sim::plant::{rk4_period, Plant, PlantState, Stages};
+use crate::sim::plant::{rk4_period_on, Plant, PlantState};
 use crate::sim::simulation::{RunResult, Simulation};
 use crate::world::surface::{Environment, EnvironmentKey};
 use stages::LaneStages;
@@ -110,31 +110,6 @@ impl<W: Real, A> PackedPlant<W, A> {
             substep: W::from_lanes(|i| plants[i].substep()),
             substeps: plants[0].substeps(),
         }
-    }
-}
-
-impl<W: Real, A: ArmModel<W, N>, const N: usize> Stages<W, N> for PackedPlant<W, A> {
-    type Config = A::Config;
-
-    #[inline(always)]
-    fn acceleration(
-        &self,
-        c: &A::Config,
-        qd: &SVector<W, N>,
-        tau: &SVector<W, N>,
-    ) -> SVector<W, N> {
-        self.arm.accelerate(c, qd, tau, &self.environment).0
-    }
-
-    #[inline(always)]
-    fn shift(
-        &self,
-        c: &A::Config,
-        delta: &SVector<W, N>,
-        shifted: &SVector<W, N>,
-        out: &mut A::Config,
-    ) {
-        self.arm.configure_shifted(c, delta, shifted, out);
     }
 }
 
@@ -401,8 +376,9 @@ fn lanes_loop<W: Wide<L>, const L: usize, R: RobotModel<N>, const N: usize>(
         let states = run.map(|i| sims[i].plant().state());
         let q = pack(states.map(|s| &s.q));
         let config = R::pack_config(&plant.arm, &q, run.map(|i| sims[i].plant().config()));
-        let (q, qd) = rk4_period(
-            plant,
+        let (q, qd) = rk4_period_on(
+            &plant.arm,
+            &plant.environment,
             (q, pack(states.map(|s| &s.qd))),
             config,
             plant.substep,
