@@ -145,24 +145,24 @@ impl<T: Real> Surface<T> for Environment<T> {
     }
 }
 
-/// Work done against the environment's surface as its own type: [`Environment::visit`]
-/// matches the environment once and runs `visit` monomorphised for that surface, so a
-/// whole RK4 period holds one surface's code rather than all of them behind a match at
-/// every stage (which cost fig. 19's lanes 16 % on an Intel core: docs/performance.md §19).
+/// Work done against the environment's surface as its own type ([`Environment::visit`]).
 pub trait SurfaceVisitor<T: Real> {
     type Output;
     fn visit<S: Surface<T>>(self, surface: &S) -> Self::Output;
 }
 
 impl<T: Real> Environment<T> {
-    /// `visitor` run on this environment's surface, matched once.
+    /// `visitor` run on this environment, matched once: a plane as [`Wall`] itself, so the
+    /// visit (an RK4 period) is monomorphised with the plane's contact code alone; any
+    /// other environment as the `Environment`, matched where it is used. A loop holding
+    /// every surface's code behind a match at each stage cost fig. 19's lanes 16 % on an
+    /// Intel core (docs/performance.md §19); a loop per surface would repeat the arms'
+    /// inlined dynamics four times over for curved surfaces that cost more anyway.
     #[inline(always)]
     pub fn visit<V: SurfaceVisitor<T>>(&self, visitor: V) -> V::Output {
         match self {
-            Environment::Free => visitor.visit(&FreeSpace),
             Environment::Plane(w) => visitor.visit(w),
-            Environment::Round(r) => visitor.visit(r),
-            Environment::HeightField(h) => visitor.visit(h),
+            other => visitor.visit(other),
         }
     }
 
