@@ -1,13 +1,14 @@
 """Two builds of admit_rs side by side, in one sitting: this checkout's against a baseline.
 
-    python benches/ab_builds.py --baseline DIR [--rounds 3]
+    python benches/ab_builds.py --baseline DIR [DIR ...] [--rounds 3] [--figures fig14,fig19_1]
 
 DIR holds another build's ``admit_rs`` package, e.g. a wheel of an earlier commit unpacked
 there: ``git worktree add /tmp/base <rev> && (cd /tmp/base && maturin build --release -o
 /tmp/wheel) && python -m zipfile -e /tmp/wheel/*.whl DIR``. Each figure is measured in a fresh
 process, the two builds alternating round by round so that load from other jobs falls on both
 alike. It prints one line per measurement and a table of medians with the ratio
-this/baseline:
+this/baseline (with several baseline directories, all of them alternate with this build
+and every ratio is to the first):
 
 - ``fig14_ms``: the median of 40 ``ar.simulate(fig14)`` (one 10-s run; lower is better);
 - ``fig19_runs_per_s_{1,2}t``: an 800-run fig. 19 sweep in lanes (k_e × wall error, 10 s
@@ -90,26 +91,37 @@ def run(what: str, baseline: Path | None) -> dict[str, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--baseline", type=Path, help="a directory holding the baseline's admit_rs")
+    parser.add_argument(
+        "--baseline", type=Path, nargs="+", help="directories holding other builds' admit_rs"
+    )
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--figures", default=",".join(FIGURES), help="comma-separated subset")
     parser.add_argument("--one", choices=FIGURES, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one:
         print(json.dumps(measure(args.one)))
         return
-    if args.baseline is None or not (args.baseline / "admit_rs").is_dir():
+    if not args.baseline or not all((d / "admit_rs").is_dir() for d in args.baseline):
         raise SystemExit("--baseline DIR must hold an admit_rs package (see the docstring)")
+    figures = [f for f in args.figures.split(",") if f]
+    unknown = sorted(set(figures) - set(FIGURES))
+    if unknown:
+        raise SystemExit(f"--figures: unknown {unknown}; choose from {list(FIGURES)}")
+    builds: list[tuple[str, Path | None]] = [(str(d), d) for d in args.baseline]
+    builds.append(("this", None))
     got: dict[tuple[str, str], list[float]] = defaultdict(list)
     for r in range(1, args.rounds + 1):
-        for what in FIGURES:
-            for build, path in (("baseline", args.baseline), ("this", None)):
+        for what in figures:
+            for build, path in builds:
                 for name, value in run(what, path).items():
                     got[name, build].append(value)
-                    print(f"round {r} {build:8s} {name:24s} {value:10.3f}", flush=True)
-    print(f"\n{'figure':24s} {'baseline':>10s} {'this':>10s} {'this/baseline':>14s}")
+                    print(f"round {r} {build:24s} {name:24s} {value:10.3f}", flush=True)
+    print(f"\n{'figure':24s} {'build':24s} {'median':>10s} {'/ first':>8s}")
     for name in dict.fromkeys(n for n, _ in got):
-        a, b = statistics.median(got[name, "baseline"]), statistics.median(got[name, "this"])
-        print(f"{name:24s} {a:10.3f} {b:10.3f} {b / a:14.3f}")
+        first = statistics.median(got[name, builds[0][0]])
+        for build, _ in builds:
+            m = statistics.median(got[name, build])
+            print(f"{name:24s} {build:24s} {m:10.3f} {m / first:8.3f}")
 
 
 if __name__ == "__main__":

@@ -5,11 +5,12 @@ friction and on a height field with friction, one run at a time and in lanes.
 
 Not a test: prints a table. The scenario is fig. 14 (TDC + Scheme 2, 10 N, a 0.05 m sine
 along the surface), on the paper's arm or (``--arm panda``) on the Panda with TDC
-``for_arm``, as ``benches/panda_lanes.py`` runs it. The sphere has R = 0.3 m and μ = 0.3; the height field is a 41×41 grid at
-5 mm (the scanned part of examples/polishing.py) with μ = 0.3; the controller believes the
-true shape in both (the curved belief of SPEC §15). Each variant is timed in alternation with
-the plane, median of ``--repeats``; the ratios are what issue #22's targets are stated in
-(sphere with friction ≤ 1.15×, height field ≤ 1.3× the plane, scalar and in lanes).
+``for_arm``, as ``benches/panda_lanes.py`` runs it. The sphere has R = 0.3 m and μ = 0.3; the
+height field is a 41×41 grid at 5 mm (the scanned part of examples/polishing.py) with μ = 0.3;
+the controller believes the true shape in both (the curved belief of SPEC §15). Each variant
+is timed in alternation with the plane, median of ``--repeats``; the ratios are what issue
+#22's targets are stated in (sphere with friction ≤ 1.15×, height field ≤ 1.3× the plane,
+scalar and in lanes).
 """
 
 from __future__ import annotations
@@ -25,7 +26,6 @@ import admit_rs as ar
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "examples"))
 from polishing import scanned_part  # noqa: E402
-
 
 DATA = Path(__file__).resolve().parent.parent / "examples" / "data"
 
