@@ -245,8 +245,9 @@ impl LanePath {
     }
 
     /// The default on this CPU: AVX2 wherever it exists. The 8-wide AVX-512 build was not
-    /// measured faster on the Zen 4 machine at hand (which splits each 512-bit operation in
-    /// two 256-bit halves; docs/performance.md §14), so it is chosen only when forced.
+    /// faster on Zen 4 (which splits each 512-bit operation in two 256-bit halves) and ran
+    /// 27 % slower on an Intel Xeon (docs/performance.md §14, §19), so it is chosen only
+    /// when forced.
     pub fn fastest() -> Self {
         [LanePath::Avx2, LanePath::Portable]
             .into_iter()
