@@ -221,8 +221,8 @@ impl<T: Real, A: ArmModel<T, N>, S: Surface<T>, const N: usize> Stages<T, N>
 }
 
 /// One control period of `arm` against `environment` ([`rk4_period`]), the environment
-/// matched once per period: each surface gets its own monomorphised RK4 loop, and the
-/// loop that runs holds only its surface's contact code.
+/// matched once per period ([`Environment::visit`]): a plane runs an RK4 loop holding only
+/// the plane's contact code; any other environment, one loop shared by them all.
 #[inline(always)]
 pub(crate) fn rk4_period_on<T: Real, A: ArmModel<T, N>, const N: usize>(
     arm: &A,
@@ -244,9 +244,9 @@ pub(crate) fn rk4_period_on<T: Real, A: ArmModel<T, N>, const N: usize>(
     impl<T: Real, A: ArmModel<T, N>, const N: usize> SurfaceVisitor<T> for Period<'_, T, A, N> {
         type Output = (SVector<T, N>, SVector<T, N>);
         // Inlined where optimised (into the AVX2 loops, whose features an out-of-line
-        // copy would lose). Not in a debug build: there the four surfaces' inlined periods
-        // would share one stack frame without overlapping, overflowing a test thread's
-        // stack on a chain's kilobyte-sized stage values.
+        // copy would lose). Not in a debug build: there the inlined periods of every arm
+        // of the match share one stack frame without overlapping, which overflowed a test
+        // thread's stack on a chain's kilobyte-sized stage values.
         #[cfg_attr(not(debug_assertions), inline(always))]
         #[cfg_attr(debug_assertions, inline(never))]
         fn visit<S: Surface<T>>(self, surface: &S) -> Self::Output {
