@@ -1,11 +1,11 @@
-"""Two builds of admit_rs side by side, in one sitting: this checkout's against a baseline.
+"""Builds of admit_rs side by side, in one sitting: this checkout's against one or more others.
 
     python benches/ab_builds.py --baseline DIR [DIR ...] [--rounds 3] [--figures fig14,fig19_1]
 
 DIR holds another build's ``admit_rs`` package, e.g. a wheel of an earlier commit unpacked
 there: ``git worktree add /tmp/base <rev> && (cd /tmp/base && maturin build --release -o
 /tmp/wheel) && python -m zipfile -e /tmp/wheel/*.whl DIR``. Each figure is measured in a fresh
-process, the two builds alternating round by round so that load from other jobs falls on both
+process, the builds alternating round by round so that load from other jobs falls on both
 alike. It prints one line per measurement and a table of medians with the ratio
 this/baseline (with several baseline directories, all of them alternate with this build
 and every ratio is to the first):

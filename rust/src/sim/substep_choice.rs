@@ -194,9 +194,11 @@ impl SubstepSearch {
     }
 
     /// The finer run of climb pair `j` meets the tolerance: the fewest passing count among
-    /// the climb's last three runs (each measured against the next; an older one passing
-    /// would have ended the climb earlier), then the counts between it and the count below,
-    /// as the error model aims.
+    /// the climb's last three runs (each measured against the next), then the counts between
+    /// it and the count below, as the error model aims. Older runs are not looked at: their
+    /// force logs are dropped and the driver keeps only these runs (`may_return`); one that
+    /// passed at the order credited now would, at its own step, almost always have passed
+    /// as the finer run of its pair and ended the climb there.
     fn descend(&mut self, j: usize, e_fine: f64, order: f64) -> Next {
         let mut best = (j, e_fine);
         for i in (j.saturating_sub(2)..j).rev() {
