@@ -43,7 +43,9 @@ def effective_mass(scenario: ar.Scenario) -> float:
 
 
 def approach(speed: float) -> ar.GuardedApproach:
-    return ar.GuardedApproach(speed=speed, contact_speed=speed, slowdown_distance=0.0)
+    """No slowdown and velocity steps: the tool meets the wall at ``speed``."""
+    return ar.GuardedApproach(speed=speed, contact_speed=speed, slowdown_distance=0.0,
+                              acceleration=None)
 
 
 def trade_off(speeds: list[float], stiffness: list[float], latency: list[int]) -> dict:
@@ -71,6 +73,8 @@ def fig19_cases() -> pl.DataFrame:
         "fig. 19, no approach": fig19,
         "fig. 19, GuardedApproach(reanchor=True)": fig19.replace(
             approach=ar.GuardedApproach(reanchor=True)),
+        "fig. 19, GuardedApproach(acceleration=None)": fig19.replace(
+            approach=ar.GuardedApproach(acceleration=None)),
         "fig. 19, GuardedApproach(reanchor=False)": fig19.replace(
             approach=ar.GuardedApproach(reanchor=False)),
         "fig. 19 Scheme 1, GuardedApproach(reanchor=True)": fig19.replace(
@@ -178,6 +182,8 @@ def main(out: Path, quick: bool = False) -> dict[str, pl.DataFrame]:
     ax.legend(fontsize=7)
     ax = axes[2]
     for name, sc in (("no approach", ar.paper.scenario("fig19")),
+                     ("GuardedApproach(acceleration=None)", ar.paper.scenario("fig19").replace(
+                         approach=ar.GuardedApproach(acceleration=None))),
                      ("GuardedApproach()", ar.paper.scenario("fig19").replace(
                          approach=ar.GuardedApproach()))):
         tr = ar.simulate(sc.replace(duration=2.0)).trace

@@ -203,7 +203,8 @@ def test_every_numeric_field_survives_hostile_values():
             "robot.coulomb_friction", "robot.q0", "wall.gap", "admittance.sigma",
             "wall_estimate.normal", "wall_estimate.position_error", "wall_estimate.gap",
             "approach.speed", "approach.contact_speed", "approach.slowdown_distance",
-            "approach.threshold", "wall.friction", "wall.stiction_velocity", "wall.radius",
+            "approach.threshold", "approach.acceleration", "wall.friction",
+            "wall.stiction_velocity", "wall.radius",
             "wall_estimate.radius", "wall_estimate.axis", "wall.spacing", "sensor.bias",
             "sensor.tool_mass", "sensor.tool_mass_estimate"} <= paths
     failures = []

@@ -1187,7 +1187,7 @@ class GuardedApproach(_Block):
         >>> plain = ar.simulate(fig19).metrics["impact_peak"]
         >>> guarded = ar.simulate(fig19.replace(approach=ar.GuardedApproach()))
         >>> round(plain, 1), round(guarded.metrics["impact_peak"], 1)
-        (36.0, 18.6)
+        (36.0, 13.9)
     """
 
     speed: float = 0.05
@@ -1203,6 +1203,9 @@ class GuardedApproach(_Block):
     reanchor: bool = True
     """Move the estimated surface to the tip's measured position along n̂ where contact was
     detected."""
+    acceleration: float | None = 1.0
+    """Largest |dv/dt| of the approach along n̂ [m/s²], fed forward as Ẍ_d; ``None``:
+    velocity steps."""
 
     _check: ClassVar[str] = "approach"
 
@@ -1580,6 +1583,8 @@ def _from_dict(cls: type[Any], data: Mapping[str, Any], path: str) -> Any:
             key = renamed
         if value is False and type(None) in _UNIONS.get(key, ()) and cls is Scenario:
             value = None  # TOML has no null: `wall = false` is free space (export.toml)
+        elif value is False and _false_is_none(cls, key):
+            value = None  # `acceleration = false`: None where the default is a number
         elif isinstance(value, Mapping) and key in _SLOTS:
             sub = _table_type(key, value, f"{path}{key}")
             value = _from_dict(sub, value, f"{path}{key}.")
@@ -1587,6 +1592,16 @@ def _from_dict(cls: type[Any], data: Mapping[str, Any], path: str) -> Any:
             value = tuple(value)
         kwargs[key] = value
     return cls(**kwargs)
+
+
+def _false_is_none(cls: type[Any], key: str) -> bool:
+    """Whether ``key = false`` in a TOML table of ``cls`` stands for None: a field that may
+    be None but defaults to a number (TOML has no null; export.toml writes it so)."""
+    for f in dataclasses.fields(cls):
+        if f.name == key:
+            kind = str(f.type)
+            return "None" in kind and "bool" not in kind and f.default is not None
+    return False
 
 
 def _guard_init(cls: type[_Block]) -> None:

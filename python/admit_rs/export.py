@@ -362,8 +362,8 @@ def _toml_value(value: Any, where: str) -> str:
 
 def _toml_table(block: _Block, name: str, out: list[str]) -> None:
     """``[name]`` with the block's scalar fields, then its sub-blocks as ``[name.sub]``;
-    ``None`` fields are left out (every block's ``None`` default is what leaving a key out
-    gives back)."""
+    ``None`` fields are left out where ``None`` is the default (what leaving a key out gives
+    back), else written ``false``."""
     lines: list[str] = []
     if block._kind is not None:
         lines.append(f"kind = {_toml_value(block._kind, name)}")
@@ -373,8 +373,13 @@ def _toml_table(block: _Block, name: str, out: list[str]) -> None:
         where = f"{name}.{f.name}" if name else f.name
         if isinstance(block, UrdfArm) and f.name in ("path", "urdf"):
             value = _urdf_source(block, f.name)
+            if value is None:
+                continue  # the arm is written by its file or by its document, not both
         if value is None or (f.name == "label" and value == ""):
-            if value is None and f.default is not None and name == "":
+            # A None that is not the default (the scenario's wall, an approach's
+            # acceleration): leaving the key out would give the default back.
+            not_default = name == "" or f.default is not dataclasses.MISSING
+            if value is None and f.default is not None and not_default:
                 lines.append(f"{f.name} = false  # None (TOML has no null)")
             continue
         if isinstance(value, _Block):
@@ -406,9 +411,10 @@ def toml(scenario: Scenario, path: str | os.PathLike[str] | None = None) -> str:
     ``admit-rs run`` reads); returns the text and, given ``path``, writes it there.
 
     Every field is written, so the file does not depend on later changes of the defaults;
-    ``None`` fields are left out, except ``wall`` and ``admittance`` (whose defaults are
-    blocks), written ``false``. A URDF arm is written by its file's absolute path, or by its
-    document when the file no longer holds it. :meth:`Scenario.from_dict` of the parsed
+    ``None`` fields are left out, except where ``None`` is not the default (``wall`` and
+    ``admittance``, whose defaults are blocks; ``approach.acceleration``), written ``false``.
+    A URDF arm is written by its file's absolute path, or by its document when the file no
+    longer holds it. :meth:`Scenario.from_dict` of the parsed
     text gives the scenario back.
 
     Example:

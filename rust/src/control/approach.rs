@@ -4,14 +4,22 @@
 //! force control takes over bumplessly, optionally re-anchoring the estimated surface at the
 //! point where contact was detected.
 //!
-//! Discrete form, per sample k while approaching (p_0 = n̂·X0, x̂_e the estimate):
+//! Discrete form, per sample k while approaching (p_0 = n̂·X0, v_0 = 0, x̂_e the estimate):
 //!
 //! ```text
-//!   v_k = speed          if p_k < x̂_e − slowdown_distance
+//!   w_k = speed          if p_k < x̂_e − slowdown_distance
 //!         contact_speed  otherwise (within the slowdown distance, and beyond the surface)
-//!   X_d = X0 + (p_k − n̂·X0) n̂ + s(t_k) t̂,  Ẋ_d = v_k n̂ + ṡ t̂,  Ẍ_d = s̈ t̂
-//!   p_{k+1} = p_k + v_k T
+//!   acceleration = None (velocity steps): v_k = w_k,  a_k = 0
+//!   acceleration = A:   v_k as carried,   a_k = clamp((w_k − v_k) / T, −A, A)
+//!   X_d = X0 + (p_k − n̂·X0) n̂ + s(t_k) t̂,  Ẋ_d = v_k n̂ + ṡ t̂,  Ẍ_d = a_k n̂ + s̈ t̂
+//!   p_{k+1} = p_k + v_k T + a_k T² / 2,  v_{k+1} = v_k + a_k T  (w_k exactly once reached)
 //! ```
+//!
+//! Why a bounded acceleration: a velocity step carries no acceleration feedforward, so the
+//! inner loop lags the ramp by its transient (v t e^{−ωt} for a critically damped loop); at
+//! the switch that lead X_d − X is pressed into the surface, since X_d is kept continuous.
+//! A ramp at A with Ẍ_d = A n̂ fed forward is tracked closely, as a robot's motion generator
+//! would command it (docs/first_contact.md §3).
 //!
 //! At the first sample k_s with f̃_k > threshold (the sensor's output: noise, low-pass and
 //! latency delay the switch as on a robot): with `reanchor`, x̂_e ← n̂·X_{k_s} (the tip's
@@ -48,6 +56,8 @@ pub struct ApproachParams {
     pub threshold: f64,
     /// Move the estimated surface to the tip's measured position along n̂ where contact was detected.
     pub reanchor: bool,
+    /// Largest |dv/dt| of the approach along n̂ [m/s²], fed forward as Ẍ_d; ``None``: velocity steps.
+    pub acceleration: Option<f64>,
 }
 
 impl Default for ApproachParams {
@@ -58,6 +68,7 @@ impl Default for ApproachParams {
             slowdown_distance: 0.005,
             threshold: 1.0,
             reanchor: true,
+            acceleration: Some(1.0),
         }
     }
 }
@@ -67,7 +78,11 @@ impl ApproachParams {
         check::positive("speed", self.speed)?;
         check::positive("contact_speed", self.contact_speed)?;
         check::non_negative("slowdown_distance", self.slowdown_distance)?;
-        check::non_negative("threshold", self.threshold)
+        check::non_negative("threshold", self.threshold)?;
+        if let Some(a) = self.acceleration {
+            check::positive("acceleration", a)?;
+        }
+        Ok(())
     }
 }
 
@@ -81,6 +96,8 @@ pub struct Approach<T: Real = f64> {
     threshold: T,
     /// 1 where the estimate is re-anchored at the switch, else 0.
     reanchor: T,
+    /// The bound A on the approach's acceleration (∞: velocity steps, no feedforward).
+    acceleration: T,
     period: T,
     /// p_0 = n̂·X0 and the estimate x̂_e before any re-anchoring: what `reset` restores.
     start: T,
@@ -89,6 +106,8 @@ pub struct Approach<T: Real = f64> {
     active: T,
     /// p_k, the reference's coordinate along n̂ at the current sample [m].
     position: T,
+    /// v_k, its rate, carried between samples when the acceleration is bounded [m/s].
+    velocity: T,
 }
 
 /// What the approach gives the task reference at one sample.
@@ -109,28 +128,40 @@ impl Approach {
             slowdown_distance: p.slowdown_distance,
             threshold: p.threshold,
             reanchor: if p.reanchor { 1.0 } else { 0.0 },
+            acceleration: p.acceleration.unwrap_or(f64::INFINITY),
             period,
             start,
             estimate: frame.wall_estimate,
             active: 1.0,
             position: start,
+            velocity: 0.0,
         }
     }
 
-    pub const STATE_LABELS: [&'static str; 3] =
-        ["approach.active", "approach.position", "approach.estimate"];
+    pub const STATE_LABELS: [&'static str; 4] = [
+        "approach.active",
+        "approach.position",
+        "approach.velocity",
+        "approach.estimate",
+    ];
 
-    /// (active, p_k, the estimate x̂_e in use) as `Simulation::state` lays them out.
+    /// (active, p_k, v_k, the estimate x̂_e in use) as `Simulation::state` lays them out.
     pub fn state(&self, frame: &TaskFrame, out: &mut Vec<f64>) {
-        out.extend_from_slice(&[self.active, self.position, frame.wall_estimate]);
+        out.extend_from_slice(&[
+            self.active,
+            self.position,
+            self.velocity,
+            frame.wall_estimate,
+        ]);
     }
 
     /// Reads `state`'s values (any non-zero `active` is approaching); returns the count.
     pub fn set_state(&mut self, frame: &mut TaskFrame, values: &[f64]) -> usize {
         self.active = if values[0] != 0.0 { 1.0 } else { 0.0 };
         self.position = values[1];
-        frame.wall_estimate = values[2];
-        3
+        self.velocity = values[2];
+        frame.wall_estimate = values[3];
+        4
     }
 }
 
@@ -146,11 +177,13 @@ impl<W: Real> Approach<W> {
             slowdown_distance: p(|a| a.slowdown_distance),
             threshold: p(|a| a.threshold),
             reanchor: p(|a| a.reanchor),
+            acceleration: p(|a| a.acceleration),
             period: p(|a| a.period),
             start: p(|a| a.start),
             estimate: p(|a| a.estimate),
             active: p(|a| a.active),
             position: p(|a| a.position),
+            velocity: p(|a| a.velocity),
         }
     }
 
@@ -160,11 +193,13 @@ impl<W: Real> Approach<W> {
         put(&mut self.slowdown_distance, l, a.slowdown_distance);
         put(&mut self.threshold, l, a.threshold);
         put(&mut self.reanchor, l, a.reanchor);
+        put(&mut self.acceleration, l, a.acceleration);
         put(&mut self.period, l, a.period);
         put(&mut self.start, l, a.start);
         put(&mut self.estimate, l, a.estimate);
         put(&mut self.active, l, a.active);
         put(&mut self.position, l, a.position);
+        put(&mut self.velocity, l, a.velocity);
     }
 }
 
@@ -173,6 +208,7 @@ impl<T: Real> Approach<T> {
     pub fn reset(&mut self, frame: &mut TaskFrame<T>) {
         self.active = T::one();
         self.position = self.start;
+        self.velocity = T::zero();
         frame.wall_estimate = self.estimate;
     }
 
@@ -199,11 +235,22 @@ impl<T: Real> Approach<T> {
         let far = self
             .position
             .simd_lt(frame.wall_estimate - self.slowdown_distance);
-        let v = self.speed.select(far, self.contact_speed);
+        let wanted = self.speed.select(far, self.contact_speed);
+        // Velocity steps where unbounded; else a ramp at ±A toward the wanted speed, landing
+        // on it exactly (so a cruise is the step case's arithmetic).
+        let steps = self.acceleration.simd_eq(T::splat(f64::INFINITY));
+        let change = wanted - self.velocity;
+        let reached = change.simd_abs().simd_le(self.acceleration * self.period);
+        let ramp = self
+            .acceleration
+            .select(change.simd_gt(zero), -self.acceleration);
+        let v = wanted.select(steps, self.velocity);
+        let dv = zero.select(steps, change.select(reached, ramp * self.period));
+        let accel = zero.select(steps, (change / self.period).select(reached, ramp));
         let normal = Sample {
             value: self.position,
             rate: v,
-            accel: zero,
+            accel,
         };
         let switching = active & measured.simd_gt(self.threshold);
         if !T::none(switching) {
@@ -214,7 +261,10 @@ impl<T: Real> Approach<T> {
             self.active = zero.select(switching, self.active);
         }
         let approaching = active & !switching;
-        self.position = (self.position + v * self.period).select(approaching, self.position);
+        let next = v * self.period + accel * (self.period * self.period * T::splat(0.5));
+        self.position = (self.position + next).select(approaching, self.position);
+        let next_v = wanted.select(steps | reached, v + dv);
+        self.velocity = next_v.select(approaching, self.velocity);
         Guard {
             approaching,
             normal,
@@ -261,6 +311,7 @@ mod tests {
             slowdown_distance: 0.00476,
             threshold: 1.0,
             reanchor: true,
+            acceleration: None,
         };
         let mut frame = frame();
         let mut a = Approach::new(&p, &frame, 1e-3);
@@ -297,6 +348,60 @@ mod tests {
         assert!(!a.any_active());
         a.reset(&mut frame);
         assert!(a.any_active() && frame.wall_estimate == 0.71 && a.position == 0.7);
+    }
+
+    /// With a bounded acceleration A the reference ramps from rest to `speed` at A (Ẍ_d = A
+    /// fed forward), cruises, and ramps down to `contact_speed` once within the slowdown
+    /// distance: p, v and a are the exact piecewise-constant-acceleration motion.
+    #[test]
+    fn a_bounded_acceleration_ramps_the_reference() {
+        let (accel, t) = (2.0, 1e-3);
+        let p = ApproachParams {
+            slowdown_distance: 0.005,
+            acceleration: Some(accel),
+            ..Default::default()
+        };
+        let mut frame = frame();
+        let mut a = Approach::new(&p, &frame, t);
+        let mut fc = ForceControl::new(
+            &ForceControlParams::Admittance(AdmittanceParams::scheme2(800.0, 1.0)),
+            t,
+        );
+        let mut samples = Vec::new();
+        for _ in 0..300 {
+            let g = a.guard(0.0, 0.7, &mut frame, &mut fc);
+            assert!(g.approaching);
+            samples.push(g.normal);
+        }
+        // Up to 0.05 m/s in 25 samples at 2 m/s²: v_k = A k T, p_k = p_0 + A (kT)² / 2.
+        for (k, s) in samples.iter().enumerate().take(25) {
+            let tk = k as f64 * t;
+            assert!((s.rate - accel * tk).abs() < 1e-15, "{k}");
+            assert!(
+                (s.value - (0.7 + accel * tk * tk / 2.0)).abs() < 1e-15,
+                "{k}"
+            );
+            assert!((s.accel - accel).abs() < 1e-10, "{k}");
+        }
+        assert_eq!((samples[25].rate, samples[25].accel), (0.05, 0.0));
+        // Every step is the exact motion under the sample's constant acceleration.
+        for w in samples.windows(2) {
+            let (s, n) = (&w[0], &w[1]);
+            assert!((n.rate - (s.rate + s.accel * t)).abs() < 1e-15);
+            assert!((n.value - (s.value + s.rate * t + s.accel * t * t / 2.0)).abs() < 1e-15);
+            assert!(s.accel.abs() <= accel);
+        }
+        // Slowing from the first sample within 5 mm of x̂_e = 0.71, down to 0.01 m/s in 20.
+        let slow = samples.iter().position(|s| s.value >= 0.705).unwrap();
+        assert!((samples[slow].accel + accel).abs() < 1e-10);
+        assert!(samples[slow - 1].rate == 0.05 && samples[slow - 1].accel == 0.0);
+        assert_eq!(samples[slow + 20].rate, 0.01);
+        assert!(samples[slow + 20..]
+            .iter()
+            .all(|s| s.rate == 0.01 && s.accel == 0.0));
+        // Reset: from rest again.
+        a.reset(&mut frame);
+        assert_eq!(a.guard(0.0, 0.7, &mut frame, &mut fc).normal.rate, 0.0);
     }
 
     #[test]

@@ -144,7 +144,7 @@ impl<T: Real, M: ArmModel<T, N>, const N: usize> Pipeline<T, M, N> {
                 let held = Sample {
                     value: g.normal.value - self.frame.wall_estimate,
                     rate: g.normal.rate,
-                    accel: T::zero(),
+                    accel: g.normal.accel,
                 };
                 let offset = self.frame.approach_offset(&g.normal);
                 let guarded = desired(self.belief.as_ref(), &self.frame, &offset, s);
