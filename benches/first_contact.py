@@ -22,6 +22,8 @@ def cases() -> dict[str, ar.Scenario]:
         "guarded approach": fig14.replace(approach=ar.GuardedApproach()),
         "guarded approach, 5 mm gap": fig14.replace(
             approach=ar.GuardedApproach(), **{"wall.gap": 0.005}),
+        "guarded approach, velocity steps": fig14.replace(
+            approach=ar.GuardedApproach(acceleration=None)),
     }
 
 
