@@ -13,11 +13,9 @@ every non-plane surface) and the curved belief (docs/performance.md §16).
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
 
 import admit_rs as ar
-from surfaces import DATA
+from surfaces import DATA, alternated
 
 
 def variants(arm: str) -> dict[str, ar.Scenario]:
@@ -55,17 +53,9 @@ def main() -> None:
           f"median of {args.repeats}; lanes build {ar._core._lane_path()}")  # fmt: skip
     print(f"{'variant':38} {'path':7} {'time [ms]':>10} {'× plane':>8}")
     for path, job in jobs.items():
-        times: dict[str, list[float]] = {name: [] for name in scenarios}
-        for sc in scenarios.values():
-            job(sc)  # warm-up
-        for _ in range(args.repeats):
-            for name, sc in scenarios.items():  # alternated, so that load drifts hit all
-                start = time.perf_counter()
-                job(sc)
-                times[name].append(time.perf_counter() - start)
-        plane = statistics.median(times["plane"])
-        for name in scenarios:
-            t = statistics.median(times[name])
+        medians = alternated(scenarios, job, args.repeats)
+        plane = medians["plane"]
+        for name, t in medians.items():
             print(f"{name:38} {path:7} {t * 1e3:10.2f} {t / plane:8.3f}")
 
 

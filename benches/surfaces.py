@@ -51,6 +51,18 @@ def timed(f) -> float:
     return time.perf_counter() - start
 
 
+def alternated(scenarios: dict[str, ar.Scenario], job, repeats: int) -> dict[str, float]:
+    """Each scenario's median time under ``job`` over ``repeats`` rounds, the scenarios
+    alternated within a round (so that load drifts hit all), after one warm-up each."""
+    times: dict[str, list[float]] = {name: [] for name in scenarios}
+    for sc in scenarios.values():
+        job(sc)  # warm-up
+    for _ in range(repeats):
+        for name, sc in scenarios.items():
+            times[name].append(timed(lambda sc=sc: job(sc)))
+    return {name: statistics.median(t) for name, t in times.items()}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeats", type=int, default=7)
@@ -70,15 +82,9 @@ def main() -> None:
     )
     print(f"{'variant':24} {'path':7} {'time [s]':>10} {'× plane':>8}")
     for path, job in jobs.items():
-        times: dict[str, list[float]] = {name: [] for name in scenarios}
-        for sc in scenarios.values():
-            job(sc)  # warm-up
-        for _ in range(args.repeats):
-            for name, sc in scenarios.items():  # alternated, so that load drifts hit all
-                times[name].append(timed(lambda sc=sc, job=job: job(sc)))
-        plane = statistics.median(times["plane"])
-        for name in scenarios:
-            t = statistics.median(times[name])
+        medians = alternated(scenarios, job, args.repeats)
+        plane = medians["plane"]
+        for name, t in medians.items():
             print(f"{name:24} {path:7} {t:10.4f} {t / plane:8.3f}")
 
 

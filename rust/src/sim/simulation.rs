@@ -840,6 +840,37 @@ mod tests {
         assert!(adaptive.abs() < 1e-3, "{adaptive}");
     }
 
+    /// A guarded approach at v through a gap d, with no slowdown and a 5 N threshold, on
+    /// the ideal inner loop (`ScenarioConfig::ideal_inner_loop`, ω = 100 rad/s).
+    fn approach_through_a_gap(
+        d: f64,
+        v: f64,
+        acceleration: Option<f64>,
+        duration: f64,
+    ) -> ScenarioConfig {
+        use crate::control::approach::ApproachParams;
+        use crate::world::environment::WallParams;
+        ScenarioConfig {
+            wall: Some(
+                WallParams {
+                    gap: d,
+                    ..WallParams::default()
+                }
+                .into(),
+            ),
+            approach: Some(ApproachParams {
+                speed: v,
+                contact_speed: v,
+                slowdown_distance: 0.0,
+                threshold: 5.0,
+                reanchor: true,
+                acceleration,
+            }),
+            duration,
+            ..ScenarioConfig::ideal_inner_loop(AdmittanceParams::scheme2(800.0, 1.0))
+        }
+    }
+
     /// A guarded approach at v through a gap d (no slowdown) on the ideal inner loop of
     /// `ideal_inner_loop` (computed torque with the plant's model and contact
     /// compensation, K_A = 1, K_D = 2ω, K_P = ω², ω = 100 rad/s). The loop's lag has two
@@ -854,28 +885,8 @@ mod tests {
     /// one period of d/v. The switch (f̃ > threshold) is bumpless.
     #[test]
     fn guarded_approach_reaches_the_wall_at_d_over_v() {
-        use crate::control::approach::ApproachParams;
-        use crate::world::environment::WallParams;
         let (d, v, omega, t) = (0.01, 0.05, 100.0, 1e-3);
-        let cfg = ScenarioConfig {
-            wall: Some(
-                WallParams {
-                    gap: d,
-                    ..WallParams::default()
-                }
-                .into(),
-            ),
-            approach: Some(ApproachParams {
-                speed: v,
-                contact_speed: v,
-                slowdown_distance: 0.0,
-                threshold: 5.0,
-                reanchor: true,
-                acceleration: None,
-            }),
-            duration: 1.0,
-            ..ScenarioConfig::ideal_inner_loop(AdmittanceParams::scheme2(800.0, 1.0))
-        };
+        let cfg = approach_through_a_gap(d, v, None, 1.0);
         let r = simulate(&cfg).unwrap();
         let tr = &r.trace;
         let arrival = d / v;
@@ -927,28 +938,13 @@ mod tests {
     /// tracks the ramp with no transient lag, and first contact is within one period of it.
     #[test]
     fn a_ramped_approach_reaches_the_wall_at_d_over_v_plus_v_over_2a() {
-        use crate::control::approach::ApproachParams;
-        use crate::world::environment::WallParams;
         let (d, v, accel, t) = (0.01, 0.05, 1.0, 1e-3);
-        let cfg = ScenarioConfig {
-            wall: Some(
-                WallParams {
-                    gap: d,
-                    ..WallParams::default()
-                }
-                .into(),
-            ),
-            approach: Some(ApproachParams {
-                speed: v,
-                contact_speed: v,
-                slowdown_distance: 0.0,
-                threshold: 5.0,
-                ..ApproachParams::default()
-            }),
-            duration: 0.5,
-            ..ScenarioConfig::ideal_inner_loop(AdmittanceParams::scheme2(800.0, 1.0))
-        };
-        assert_eq!(cfg.approach.and_then(|a| a.acceleration), Some(accel));
+        let cfg = approach_through_a_gap(d, v, Some(accel), 0.5);
+        // The default bound.
+        assert_eq!(
+            crate::control::approach::ApproachParams::default().acceleration,
+            Some(accel)
+        );
         let r = simulate(&cfg).unwrap();
         let tr = &r.trace;
         // Along the ramp the tip follows X_d closely: with velocity steps the lag peaks at
