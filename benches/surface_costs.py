@@ -15,7 +15,7 @@ from __future__ import annotations
 import argparse
 
 import admit_rs as ar
-from surfaces import DATA, alternated
+from surfaces import DATA, report
 
 
 def variants(arm: str) -> dict[str, ar.Scenario]:
@@ -44,19 +44,7 @@ def main() -> None:
     ap.add_argument("--arm", choices=("paper", "panda"), default="paper")
     args = ap.parse_args()
     scenarios = variants(args.arm)
-    grid = {"wall.stiffness": [2e4 + 1e3 * i for i in range(args.runs)]}
-    jobs = {
-        "scalar": lambda sc: ar.simulate(sc),
-        "lanes": lambda sc: ar.sweep(sc, grid=grid, progress=False, threads=1),
-    }
-    print(f"admit_rs {ar.__version__}; {args.arm} arm; 10-s fig. 14 runs; "
-          f"median of {args.repeats}; lanes build {ar._core._lane_path()}")  # fmt: skip
-    print(f"{'variant':38} {'path':7} {'time [ms]':>10} {'× plane':>8}")
-    for path, job in jobs.items():
-        medians = alternated(scenarios, job, args.repeats)
-        plane = medians["plane"]
-        for name, t in medians.items():
-            print(f"{name:38} {path:7} {t * 1e3:10.2f} {t / plane:8.3f}")
+    report(scenarios, args.runs, args.repeats, f"{args.arm} arm; 10-s fig. 14 runs")
 
 
 if __name__ == "__main__":

@@ -71,21 +71,27 @@ def main() -> None:
     ap.add_argument("--arm", choices=("paper", "panda"), default="paper")
     args = ap.parse_args()
     scenarios = variants(args.duration, args.arm)
-    grid = {"wall.stiffness": [2e4 + 1e3 * i for i in range(args.runs)]}
+    report(scenarios, args.runs, args.repeats, f"{args.arm} arm; {args.duration:g}-s runs")
+
+
+def report(scenarios: dict[str, ar.Scenario], runs: int, repeats: int, what: str) -> None:
+    """Prints each scenario's median time and its ratio to ``scenarios["plane"]``, one run
+    at a time (``ar.simulate``) and in lanes (a ``runs``-run sweep over the wall stiffness
+    on one thread)."""
+    grid = {"wall.stiffness": [2e4 + 1e3 * i for i in range(runs)]}
     jobs = {
         "scalar": lambda sc: ar.simulate(sc),
         "lanes": lambda sc: ar.sweep(sc, grid=grid, progress=False, threads=1),
     }
-    print(
-        f"admit_rs {ar.__version__}; {args.arm} arm; {args.duration:g}-s runs; "
-        f"median of {args.repeats}; lanes build {ar._core._lane_path()}"
-    )
-    print(f"{'variant':24} {'path':7} {'time [s]':>10} {'× plane':>8}")
+    print(f"admit_rs {ar.__version__}; {what}; median of {repeats}; "
+          f"lanes build {ar._core._lane_path()}")  # fmt: skip
+    width = max(len(name) for name in scenarios)
+    print(f"{'variant':{width}} {'path':7} {'time [ms]':>10} {'× plane':>8}")
     for path, job in jobs.items():
-        medians = alternated(scenarios, job, args.repeats)
+        medians = alternated(scenarios, job, repeats)
         plane = medians["plane"]
         for name, t in medians.items():
-            print(f"{name:24} {path:7} {t:10.4f} {t / plane:8.3f}")
+            print(f"{name:{width}} {path:7} {t * 1e3:10.2f} {t / plane:8.3f}")
 
 
 if __name__ == "__main__":
