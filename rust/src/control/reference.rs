@@ -127,10 +127,7 @@ impl Signal {
         }
     }
 
-    /// The value, rate and acceleration at t. Always inlined: the lanes evaluate it per
-    /// lane every period, and out of line (as LTO left it) each call spilled the lane
-    /// loop's AVX state and went through the stack; the sampled case stays out of line.
-    #[inline(always)]
+    #[inline]
     pub fn at(&self, t: f64) -> Sample {
         match self {
             Signal::Step {
@@ -164,7 +161,6 @@ impl Signal {
     }
 }
 
-#[inline(never)]
 fn sampled_at(times: &[f64], values: &[f64], t: f64) -> Sample {
     let n = times.len();
     // validate() guarantees n ≥ 1; an empty signal would be caught before a run.

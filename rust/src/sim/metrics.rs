@@ -191,8 +191,8 @@ fn first_index_at(time: f64, period: f64) -> usize {
 
 /// Σx² of a stream that cannot overflow to inf for finite x: the plain sum (exact
 /// sequential order) and, beside it, the sum scaled by a fixed power of two, used only when
-/// the plain one overflowed. (A running max|x| scale, as BLAS `nrm2` keeps it, cost a
-/// division per sample on every run, four times a sample: 1–2 % of a fig. 19 sweep.)
+/// the plain one overflowed. (A running max|x| scale, as BLAS `nrm2` keeps it, divided at
+/// every sample of every run, four sums a sample; and it skipped a NaN sample.)
 #[derive(Debug, Clone, Copy)]
 struct SumOfSquares {
     plain: f64,
