@@ -196,10 +196,10 @@ fn first_index_at(time: f64, period: f64) -> usize {
 #[derive(Debug, Clone, Copy)]
 struct SumOfSquares {
     plain: f64,
-    /// Σ (x·2⁻⁶⁰⁰)²: finite for any finite x (its terms stay below 2⁴²⁸), and exact scaling,
-    /// so it gives the RMS where `plain` overflowed (|x| past 1e154) at one product and
-    /// one add a sample. Terms below 2³⁰⁰ underflow in it, which matters only when
-    /// `plain` is finite, where `plain` is used.
+    /// Σ (x·2⁻⁶⁰⁰)²: finite for any finite x (a term is at most 2⁸⁴⁸), and the scaling is
+    /// exact, so it gives the RMS where `plain` overflowed (|x| past 1e154) at one product
+    /// and one add a sample. Terms with |x| below about 2⁸⁹ go subnormal or vanish in it:
+    /// at most 2¹⁷⁸ each, far below its rounding once the sum has passed 2¹⁰²⁴.
     scaled: f64,
     count: usize,
 }
