@@ -62,7 +62,7 @@ def text_shift(so: str) -> int:
     out = subprocess.run(["readelf", "-lW", so], capture_output=True, text=True, check=True)
     for line in out.stdout.splitlines():
         f = line.split()
-        if f and f[0] == "LOAD" and "E" in f[-2:-1][0]:
+        if f and f[0] == "LOAD" and "E" in f[6:-1]:  # the flags, between MemSiz and Align
             return int(f[2], 16) - int(f[1], 16)
     return 0
 
