@@ -10,7 +10,8 @@ The extension must carry line tables to be resolved (build it with
 frames, then counted:
 
 - ``--by stage`` (default): the RK4 substeps (any frame in ``rk4_period``) against the rest
-  of a period, by the first frame below the lane loop (or the function a sample was in);
+  of a period, by the first frame below the lane loop, or else by the out-of-line function
+  a sample was in (for a scalar run, every sample outside RK4);
 - ``--by line``: the innermost admit_rs source line outside the RK4 substeps.
 
 Needs ``perf`` and ``llvm-symbolizer`` (Debian ``linux-perf``, ``llvm``). This guest has no
@@ -30,7 +31,8 @@ MMAP = re.compile(r"\[(0x[0-9a-f]+)\((0x[0-9a-f]+)\) @ (0x[0-9a-f]+|0) ")
 
 
 def samples(data: str) -> tuple[collections.Counter[int], int]:
-    """File-relative virtual addresses of the samples in _core.abi3.so, and all samples."""
+    """Sample counts by file offset in _core.abi3.so (``text_shift`` turns them into
+    addresses), and the number of all samples."""
     out = subprocess.run(
         ["perf", "script", "-i", data, "-F", "ip,dso", "--show-mmap-events"],
         capture_output=True, text=True, check=True,
@@ -83,6 +85,7 @@ def frames(so: str, addrs: list[int]) -> list[list[tuple[str, str]]]:
 
 
 def key(chain: list[tuple[str, str]], by: str) -> str | None:
+    """The row a sample counts in (``None``: not counted), from its inlined frames."""
     names = [f for f, _ in chain]
     in_rk4 = any("rk4_period" in n for n in names)
     if by == "stage":
@@ -91,7 +94,8 @@ def key(chain: list[tuple[str, str]], by: str) -> str | None:
         outer = names[::-1]
         at = next((i for i, n in enumerate(outer) if "lanes_loop" in n), None)
         if at is None or at + 1 >= len(outer):
-            return "out of line: " + outer[0][:70]
+            # A scalar run, or a function the lane loop calls out of line.
+            return "outside the lane loop: " + outer[0][:70]
         return "lane loop > " + outer[at + 1].split("<")[0][:50]
     if in_rk4:
         return None
