@@ -12,7 +12,8 @@ frames, then counted:
 - ``--by stage`` (default): the RK4 substeps (any frame in ``rk4_period``) against the rest
   of a period, by the first frame below the lane loop, or else by the out-of-line function
   a sample was in (for a scalar run, every sample outside RK4);
-- ``--by line``: the innermost admit_rs source line outside the RK4 substeps.
+- ``--by line``: the innermost admit_rs source line outside the RK4 substeps;
+- ``--by rk4``: the innermost admit_rs source line inside them.
 
 Needs ``perf`` and ``llvm-symbolizer`` (Debian ``linux-perf``, ``llvm``). This guest has no
 hardware counters, so ``cpu-clock`` sampling it is; sample skid puts a slow instruction's
@@ -97,7 +98,7 @@ def key(chain: list[tuple[str, str]], by: str) -> str | None:
             # A scalar run, or a function the lane loop calls out of line.
             return "outside the lane loop: " + outer[0][:70]
         return "lane loop > " + outer[at + 1].split("<")[0][:50]
-    if in_rk4:
+    if in_rk4 != (by == "rk4"):
         return None
     ours = [(f, loc) for f, loc in chain if "rust/src/" in loc]
     if not ours:
@@ -111,7 +112,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("data")
     parser.add_argument("so")
-    parser.add_argument("--by", choices=("stage", "line"), default="stage")
+    parser.add_argument("--by", choices=("stage", "line", "rk4"), default="stage")
     parser.add_argument("--top", type=int, default=25)
     args = parser.parse_args()
     ips, total = samples(args.data)

@@ -1,6 +1,8 @@
 """Where a curved surface's and friction's cost goes (issue #22): the plane run against the
 plane with friction, a sphere believed flat and believed a sphere, each with and without
-friction, and the plane believed a (nearly flat) sphere, one run at a time and in lanes.
+friction, the plane believed a (nearly flat) sphere, and the scanned part of
+examples/polishing.py believed flat, believed right, and with friction; one run at a time
+and in lanes.
 
     python benches/surface_costs.py [--repeats 7] [--runs 64] [--arm paper|panda]
 
@@ -13,9 +15,10 @@ every non-plane surface) and the curved belief (docs/performance.md §16).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
 import admit_rs as ar
-from surfaces import DATA, report
+from surfaces import DATA, report, scanned_part
 
 
 def variants(arm: str) -> dict[str, ar.Scenario]:
@@ -26,6 +29,7 @@ def variants(arm: str) -> dict[str, ar.Scenario]:
         base = base.replace(robot=panda, controller=ar.TimeDelayControl.for_arm(panda))
     sphere = ar.Sphere(radius=0.3, friction=0.3)
     smooth = ar.Sphere(radius=0.3)
+    part = scanned_part()
     return {
         "plane": base,
         "plane, μ = 0.3": base.replace(**{"wall.friction": 0.3}),
@@ -34,6 +38,9 @@ def variants(arm: str) -> dict[str, ar.Scenario]:
         "sphere, μ = 0, believed a sphere": base.replace(wall=smooth),
         "sphere, μ = 0.3, believed a sphere": base.replace(wall=sphere),
         "plane, believed a sphere (R = 1 km)": base.replace(wall_estimate=ar.Sphere(radius=1e3)),
+        "height field, μ = 0, believed flat": base.replace(wall=part, wall_estimate=ar.Wall()),
+        "height field, μ = 0": base.replace(wall=part),
+        "height field, μ = 0.3": base.replace(wall=dataclasses.replace(part, friction=0.3)),
     }
 
 

@@ -19,6 +19,7 @@ pub trait Smooth:
     + Add<Output = Self>
     + Sub<Output = Self>
     + Mul<Output = Self>
+    + Mul<f64, Output = Self>
     + Div<Output = Self>
     + Neg<Output = Self>
 {
@@ -27,6 +28,9 @@ pub trait Smooth:
     /// The value (a jet's x).
     fn value(self) -> f64;
     fn sqrt(self) -> Self;
+    /// The largest |component| (a value's |x|; a jet's largest of |x|, |ẋ|, |ẍ|), for
+    /// convergence tests that must cover the derivatives too. NaN if any is NaN.
+    fn magnitude(self) -> f64;
 }
 
 impl Smooth for f64 {
@@ -41,6 +45,10 @@ impl Smooth for f64 {
     #[inline(always)]
     fn sqrt(self) -> Self {
         f64::sqrt(self)
+    }
+    #[inline(always)]
+    fn magnitude(self) -> f64 {
+        self.abs()
     }
 }
 
@@ -65,6 +73,15 @@ impl Smooth for Jet {
         let v = self.v.sqrt();
         let d = self.d / (2.0 * v);
         Self::new(v, d, (self.dd - 2.0 * d * d) / (2.0 * v))
+    }
+    #[inline(always)]
+    fn magnitude(self) -> f64 {
+        let m = self.v.abs().max(self.d.abs()).max(self.dd.abs());
+        if self.v.is_nan() || self.d.is_nan() || self.dd.is_nan() {
+            f64::NAN
+        } else {
+            m
+        }
     }
 }
 
@@ -102,6 +119,15 @@ impl Mul for Jet {
             self.d * o.v + self.v * o.d,
             self.dd * o.v + 2.0 * self.d * o.d + self.v * o.dd,
         )
+    }
+}
+
+impl Mul<f64> for Jet {
+    type Output = Self;
+    /// A jet times a constant: the product with `Jet::constant(k)` without its zero terms.
+    #[inline(always)]
+    fn mul(self, k: f64) -> Self {
+        Self::new(self.v * k, self.d * k, self.dd * k)
     }
 }
 

@@ -11,8 +11,10 @@
 //! the geometry is evaluated on second-order jets (`crate::jet`).
 //!
 //! A plane keeps the task frame's closed form (and its bits); only a curved estimate is
-//! held here, one run's per lane (the grid of a height field differs per lane, so a lane
-//! group evaluates its lanes one by one).
+//! held here, one run's per lane. A lane group evaluates its lanes one by one (a height
+//! field's grid may differ per lane), except that a lane believing the same shape along the
+//! same path as an earlier lane, at the same motion sample, takes that lane's foot: the same
+//! function of the same bits (a sweep over stiffness, friction or gains shares it).
 
 use nalgebra::Vector3;
 
@@ -35,46 +37,94 @@ pub struct CurvedBelief {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Belief {
     lanes: Vec<CurvedBelief>,
+    /// Each lane's `CurvedBelief::path_bits`.
+    paths: Vec<Vec<u64>>,
+    /// For each lane, the first earlier lane believing the same shape from the same start
+    /// along the same direction, bit for bit (a sweep over the wall's stiffness, friction
+    /// or the gains): where their motion samples are equal too, that lane's foot is reused.
+    twin: Vec<Option<usize>>,
 }
 
 fn jet_sample<T: Real>(s: &Sample<T>, l: usize) -> Jet {
     Jet::new(s.value.extract(l), s.rate.extract(l), s.accel.extract(l))
 }
 
+impl CurvedBelief {
+    /// The bits fixing the path X_d follows before x_a: the shape, X0 and t̂₀.
+    fn path_bits(&self) -> Vec<u64> {
+        let mut bits = self.surface.shape_bits();
+        bits.extend(self.start.iter().chain(&self.tangent).map(|v| v.to_bits()));
+        bits
+    }
+}
+
 impl Belief {
     pub fn new(belief: CurvedBelief) -> Self {
-        Self {
-            lanes: vec![belief],
-        }
+        Self::with_twins(vec![belief])
+    }
+
+    fn with_twins(lanes: Vec<CurvedBelief>) -> Self {
+        let paths = lanes.iter().map(CurvedBelief::path_bits).collect();
+        let mut b = Self {
+            lanes,
+            paths,
+            twin: Vec::new(),
+        };
+        b.find_twins();
+        b
+    }
+
+    fn find_twins(&mut self) {
+        let p = &self.paths;
+        self.twin = (0..p.len())
+            .map(|l| (0..l).find(|&m| p[m] == p[l]))
+            .collect();
     }
 
     /// The lanes' beliefs, in lane order.
     pub fn pack<'a>(beliefs: impl IntoIterator<Item = &'a Belief>) -> Self {
-        Self {
-            lanes: beliefs
+        Self::with_twins(
+            beliefs
                 .into_iter()
                 .flat_map(|b| b.lanes.iter().cloned())
                 .collect(),
-        }
+        )
     }
 
     /// Lane `l` takes `b` (a new run's).
     pub fn put_lane(&mut self, l: usize, b: &Belief) {
         if let (Some(slot), Some(new)) = (self.lanes.get_mut(l), b.lanes.first()) {
             *slot = new.clone();
+            if let (Some(path), Some(theirs)) = (self.paths.get_mut(l), b.paths.first()) {
+                path.clone_from(theirs);
+            }
+            self.find_twins();
         }
     }
 
     /// X_d, Ẋ_d, Ẍ_d from the filter output x_a and the motion s(t), lane by lane.
     pub fn reference<T: Real>(&self, x_a: &Sample<T>, s: &Sample<T>) -> Desired<T> {
         let mut out = [[[0.0; 3]; 3]; 8];
+        let mut feet = [([Jet::default(); 3], [Jet::default(); 3]); 8];
         for (l, (b, o)) in self.lanes.iter().zip(out.iter_mut()).enumerate() {
-            let s = jet_sample(s, l);
-            let y: V3<Jet> = jet::plus(
-                &jet::constant(&b.start),
-                &jet::scaled(&jet::constant(&b.tangent), s),
-            );
-            let (p, normal) = b.surface.foot(&y);
+            let sl = jet_sample(s, l);
+            // A twin lane at the same motion sample has this lane's foot already (the same
+            // function of the same numbers, so the same bits).
+            let same = |m: usize| {
+                let sm = jet_sample(s, m);
+                [sl.v, sl.d, sl.dd].map(f64::to_bits) == [sm.v, sm.d, sm.dd].map(f64::to_bits)
+            };
+            let (p, normal) = match self.twin.get(l).copied().flatten() {
+                Some(m) if same(m) => feet[m],
+                _ => {
+                    let y: V3<Jet> = jet::plus(
+                        &jet::constant(&b.start),
+                        &jet::scaled(&jet::constant(&b.tangent), sl),
+                    );
+                    b.surface.foot(&y)
+                }
+            };
+            feet[l] = (p, normal);
             let x = jet::plus(&p, &jet::scaled(&normal, jet_sample(x_a, l)));
             *o = [x.map(|j| j.v), x.map(|j| j.d), x.map(|j| j.dd)];
         }
@@ -146,6 +196,84 @@ mod tests {
         let tip = start + TaskVector::new(0.0, 0.0, 0.05);
         let n = b.normal_at(&tip);
         assert!((n - (centre - tip).normalize()).norm() < 1e-15);
+    }
+
+    /// In a lane group, lanes believing the same height field (laws aside) share the foot
+    /// where their motion samples agree, and every lane's reference is bit for bit the one
+    /// it has alone, shared or not.
+    #[test]
+    fn lanes_share_a_foot_only_where_it_is_the_same() {
+        use crate::scalar::F64x4;
+        use crate::world::height_field::HeightFieldParams;
+        use nalgebra::SimdValue;
+        let start = TaskVector::new(0.7, 0.1, 0.9);
+        let field = |bend: f64, stiffness: f64| {
+            let heights = (0..9)
+                .map(|i| {
+                    (0..9)
+                        .map(|j| bend * ((i * i + 2 * j * j) as f64))
+                        .collect()
+                })
+                .collect();
+            let p = SurfaceParams::HeightField(HeightFieldParams {
+                heights,
+                stiffness,
+                ..Default::default()
+            });
+            let surface = p.believed(&start).unwrap();
+            let tangent = motion_direction(&surface.normal());
+            Belief::new(CurvedBelief {
+                surface,
+                start,
+                tangent,
+            })
+        };
+        // Lanes 0, 1 and 3 believe one shape (their walls' stiffness differs); lane 2 not.
+        let alone = [
+            field(1e-4, 1e4),
+            field(1e-4, 2e4),
+            field(2e-4, 1e4),
+            field(1e-4, 3e4),
+        ];
+        let group = Belief::pack(alone.iter());
+        assert_eq!(group.twin, vec![None, Some(0), None, Some(0)]);
+        let mut moved = group.clone();
+        moved.put_lane(0, &alone[2]);
+        assert_eq!(moved.twin, vec![None, None, Some(0), Some(1)]);
+        // Lane 3's motion differs from lane 0's: its foot is its own.
+        let at = [0.010, 0.010, 0.010, 0.013];
+        let lanes = |f: fn(f64) -> f64| F64x4::from_lanes(|l| f(at[l]));
+        let s = Sample::<F64x4> {
+            value: lanes(|x| x),
+            rate: lanes(|x| 2.0 * x),
+            accel: lanes(|x| -x),
+        };
+        let x_a = Sample::<F64x4> {
+            value: F64x4::from_lanes(|l| 1e-3 * l as f64),
+            rate: F64x4::from_lanes(|_| 0.0),
+            accel: F64x4::from_lanes(|_| 0.0),
+        };
+        let d = group.reference(&x_a, &s);
+        for (l, b) in alone.iter().enumerate() {
+            let (x_a, s) = (
+                sample(x_a.value.extract(l), 0.0, 0.0),
+                Sample {
+                    value: s.value.extract(l),
+                    rate: s.rate.extract(l),
+                    accel: s.accel.extract(l),
+                },
+            );
+            let r = b.reference(&x_a, &s);
+            for (group, own) in [
+                (&d.position, &r.position),
+                (&d.velocity, &r.velocity),
+                (&d.acceleration, &r.acceleration),
+            ] {
+                for i in 0..3 {
+                    assert_eq!(group[i].extract(l).to_bits(), own[i].to_bits(), "lane {l}");
+                }
+            }
+        }
     }
 
     /// A plane as a belief is the task frame's formula.

@@ -268,6 +268,21 @@ impl<T: Real> Round<T> {
 }
 
 impl Round {
+    /// Every number fixing the shape and place (`Environment::shape_bits`).
+    pub fn shape_bits(&self, put: &mut impl FnMut(&[f64])) {
+        let axis = self.axis.unwrap_or_else(|| TaskVector::from([f64::NAN; 3]));
+        put(self.start.as_slice());
+        put(self.normal.as_slice());
+        put(axis.as_slice());
+        put(&[
+            self.radius,
+            self.centre_offset,
+            self.offset_sq_minus_radius_sq,
+            f64::from(u8::from(self.inside)),
+            self.gap,
+        ]);
+    }
+
     /// [`Round::penetration_normal`] over values or jets (the controller's belief, SPEC
     /// §15): (δ, N) at Y, the same closed form written on `jet::V3`.
     pub fn depth_normal<S: Smooth>(&self, y: &V3<S>) -> (S, V3<S>) {

@@ -250,6 +250,30 @@ impl Environment {
         }
     }
 
+    /// The bits of everything that fixes the surface's shape and place (its contact law
+    /// and position error aside): two environments with equal `shape_bits` give the same
+    /// [`Environment::foot`], bit for bit, from the same Y.
+    pub fn shape_bits(&self) -> Vec<u64> {
+        let mut out = Vec::new();
+        let mut put = |x: &[f64]| out.extend(x.iter().map(|v| v.to_bits()));
+        match self {
+            Environment::Free => put(&[0.0]),
+            Environment::Plane(w) => {
+                put(&[1.0, w.position]);
+                put(w.normal.as_slice());
+            }
+            Environment::Round(r) => {
+                put(&[2.0]);
+                r.shape_bits(&mut put);
+            }
+            Environment::HeightField(h) => {
+                put(&[3.0]);
+                h.shape_bits(&mut put);
+            }
+        }
+        out
+    }
+
     /// Whether the surface is a plane (or free space): the task frame's fixed directions
     /// are then exact everywhere.
     pub fn is_planar(&self) -> bool {

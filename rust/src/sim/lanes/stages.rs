@@ -529,10 +529,12 @@ mod every_kind {
     fn every_surface() {
         use crate::world::height_field::HeightFieldParams;
         use crate::world::round::{CylinderParams, SphereParams};
+        // Each lane's grid differs in heights, size and spacing (the lanes read their
+        // own grids).
         let bump = |i: usize| -> Vec<Vec<f64>> {
-            (0..9)
+            (0..9 + i)
                 .map(|r| {
-                    (0..7)
+                    (0..7 + 2 * i)
                         .map(|c| 1e-3 * ((r * 7 + c + i) % 5) as f64 - 4e-3 * r as f64)
                         .collect()
                 })
@@ -576,7 +578,7 @@ mod every_kind {
                     damping,
                     friction,
                     heights: bump(i),
-                    spacing: [0.01, 0.015],
+                    spacing: [0.01 + 0.002 * f, 0.015],
                     ..Default::default()
                 }),
             ]
