@@ -16,6 +16,8 @@
 //! same path as an earlier lane, at the same motion sample, takes that lane's foot: the same
 //! function of the same bits (a sweep over stiffness, friction or gains shares it).
 
+use std::hash::{DefaultHasher, Hasher};
+
 use nalgebra::Vector3;
 
 use crate::control::reference::Sample;
@@ -37,11 +39,13 @@ pub struct CurvedBelief {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Belief {
     lanes: Vec<CurvedBelief>,
-    /// Each lane's `CurvedBelief::path_bits`.
-    paths: Vec<Vec<u64>>,
+    /// In a lane group, each lane's `CurvedBelief::path_fingerprint` (empty for one run).
+    paths: Vec<[u64; 2]>,
     /// For each lane, the first earlier lane believing the same shape from the same start
     /// along the same direction, bit for bit (a sweep over the wall's stiffness, friction
     /// or the gains): where their motion samples are equal too, that lane's foot is reused.
+    /// Equal 128-bit fingerprints stand for equal numbers (a false match has odds of about
+    /// 2⁻¹²⁸ per pair of lanes).
     twin: Vec<Option<usize>>,
 }
 
@@ -50,24 +54,42 @@ fn jet_sample<T: Real>(s: &Sample<T>, l: usize) -> Jet {
 }
 
 impl CurvedBelief {
-    /// The bits fixing the path X_d follows before x_a: the shape, X0 and t̂₀.
-    fn path_bits(&self) -> Vec<u64> {
-        let mut bits = self.surface.shape_bits();
-        bits.extend(self.start.iter().chain(&self.tangent).map(|v| v.to_bits()));
-        bits
+    /// A 128-bit fingerprint of the numbers fixing the path X_d follows before x_a (the
+    /// shape, X0 and t̂₀), bit for bit: two SipHash passes with different keys, streamed
+    /// (a scanned part may hold millions of numbers; nothing is copied).
+    fn path_fingerprint(&self) -> [u64; 2] {
+        let mut hashers = [DefaultHasher::new(), DefaultHasher::new()];
+        hashers[1].write_u64(0x9e37_79b9_7f4a_7c15);
+        let mut put = |x: &[f64]| {
+            for v in x {
+                hashers.iter_mut().for_each(|h| h.write_u64(v.to_bits()));
+            }
+        };
+        self.surface.shape_numbers(&mut put);
+        put(self.start.as_slice());
+        put(self.tangent.as_slice());
+        hashers.map(|h| h.finish())
     }
 }
 
 impl Belief {
     pub fn new(belief: CurvedBelief) -> Self {
-        Self::with_twins(vec![belief])
+        Self {
+            lanes: vec![belief],
+            paths: Vec::new(),
+            twin: Vec::new(),
+        }
     }
 
-    fn with_twins(lanes: Vec<CurvedBelief>) -> Self {
-        let paths = lanes.iter().map(CurvedBelief::path_bits).collect();
+    /// The lanes' beliefs, in lane order.
+    pub fn pack<'a>(beliefs: impl IntoIterator<Item = &'a Belief>) -> Self {
+        let lanes: Vec<CurvedBelief> = beliefs
+            .into_iter()
+            .flat_map(|b| b.lanes.iter().cloned())
+            .collect();
         let mut b = Self {
+            paths: lanes.iter().map(CurvedBelief::path_fingerprint).collect(),
             lanes,
-            paths,
             twin: Vec::new(),
         };
         b.find_twins();
@@ -81,22 +103,12 @@ impl Belief {
             .collect();
     }
 
-    /// The lanes' beliefs, in lane order.
-    pub fn pack<'a>(beliefs: impl IntoIterator<Item = &'a Belief>) -> Self {
-        Self::with_twins(
-            beliefs
-                .into_iter()
-                .flat_map(|b| b.lanes.iter().cloned())
-                .collect(),
-        )
-    }
-
     /// Lane `l` takes `b` (a new run's).
     pub fn put_lane(&mut self, l: usize, b: &Belief) {
         if let (Some(slot), Some(new)) = (self.lanes.get_mut(l), b.lanes.first()) {
             *slot = new.clone();
-            if let (Some(path), Some(theirs)) = (self.paths.get_mut(l), b.paths.first()) {
-                path.clone_from(theirs);
+            if let Some(path) = self.paths.get_mut(l) {
+                *path = new.path_fingerprint();
             }
             self.find_twins();
         }

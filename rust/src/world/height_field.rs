@@ -297,12 +297,11 @@ pub struct HeightField<T: Real = f64> {
     pub position_error: T,
     /// One grid per lane.
     grids: Vec<Arc<HeightGrid>>,
-    /// Each lane's grid in lanes: (du, dv), the grid coordinates of (u, v) = 0 and of the
-    /// last node.
+    /// Each lane's grid in lanes: (du, dv), (1/du, 1/dv) and the grid coordinates of
+    /// (u, v) = 0 (the cell lookup reads each lane's grid itself).
     spacing: [T; 2],
     per_metre: [T; 2],
     centre: [T; 2],
-    last: [T; 2],
 }
 
 impl HeightField {
@@ -323,7 +322,6 @@ impl HeightField {
             spacing: grid.spacing,
             per_metre: grid.per_metre,
             centre: [grid.centre(0), grid.centre(1)],
-            last: [grid.last(0), grid.last(1)],
             grids: vec![grid],
         })
     }
@@ -332,8 +330,8 @@ impl HeightField {
         self.law.key()
     }
 
-    /// Every number fixing the shape and place (`Environment::shape_bits`).
-    pub fn shape_bits(&self, put: &mut impl FnMut(&[f64])) {
+    /// Every number fixing the shape and place (`Environment::shape_numbers`).
+    pub fn shape_numbers(&self, put: &mut impl FnMut(&[f64])) {
         for v in [&self.start, &self.normal, &self.tangent, &self.binormal] {
             put(v.as_slice());
         }
@@ -376,7 +374,6 @@ impl<W: Real> HeightField<W> {
             spacing: [0, 1].map(|k| W::from_lanes(|i| f[i].spacing[k])),
             per_metre: [0, 1].map(|k| W::from_lanes(|i| f[i].per_metre[k])),
             centre: [0, 1].map(|k| W::from_lanes(|i| f[i].centre[k])),
-            last: [0, 1].map(|k| W::from_lanes(|i| f[i].last[k])),
         }
     }
 }

@@ -268,8 +268,8 @@ impl<T: Real> Round<T> {
 }
 
 impl Round {
-    /// Every number fixing the shape and place (`Environment::shape_bits`).
-    pub fn shape_bits(&self, put: &mut impl FnMut(&[f64])) {
+    /// Every number fixing the shape and place (`Environment::shape_numbers`).
+    pub fn shape_numbers(&self, put: &mut impl FnMut(&[f64])) {
         let axis = self.axis.unwrap_or_else(|| TaskVector::from([f64::NAN; 3]));
         put(self.start.as_slice());
         put(self.normal.as_slice());

@@ -250,12 +250,10 @@ impl Environment {
         }
     }
 
-    /// The bits of everything that fixes the surface's shape and place (its contact law
-    /// and position error aside): two environments with equal `shape_bits` give the same
+    /// Feeds `put` every number that fixes the surface's shape and place (its contact law
+    /// and position error aside): two environments feeding the same bits give the same
     /// [`Environment::foot`], bit for bit, from the same Y.
-    pub fn shape_bits(&self) -> Vec<u64> {
-        let mut out = Vec::new();
-        let mut put = |x: &[f64]| out.extend(x.iter().map(|v| v.to_bits()));
+    pub fn shape_numbers(&self, put: &mut impl FnMut(&[f64])) {
         match self {
             Environment::Free => put(&[0.0]),
             Environment::Plane(w) => {
@@ -264,14 +262,13 @@ impl Environment {
             }
             Environment::Round(r) => {
                 put(&[2.0]);
-                r.shape_bits(&mut put);
+                r.shape_numbers(put);
             }
             Environment::HeightField(h) => {
                 put(&[3.0]);
-                h.shape_bits(&mut put);
+                h.shape_numbers(put);
             }
         }
-        out
     }
 
     /// Whether the surface is a plane (or free space): the task frame's fixed directions
