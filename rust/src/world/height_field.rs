@@ -480,8 +480,9 @@ impl HeightField {
 /// millimetres off a part curved at 0.25 m).
 pub const FOOT_STEPS: usize = 16;
 
-/// [`HeightField::foot`]'s last step, relative to 1 + |x| for each of u, v and their first
-/// and second time derivatives.
+/// [`HeightField::foot`] stops after a step whose largest |component| (of u, v and their
+/// first and second time derivatives) is at most this times 1 + the largest |component| of
+/// u and v after it.
 pub const FOOT_TOLERANCE: f64 = 1e-12;
 
 impl HeightField {
