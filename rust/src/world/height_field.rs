@@ -98,29 +98,29 @@ pub struct HeightGrid {
 /// and second derivatives, over values, jets or lanes. `c` makes a constant and `k` scales
 /// by one (for a jet, three products where a product with a constant jet takes nine).
 #[inline(always)]
-fn hermite<A>(t: A, c: impl Fn(f64) -> A, k: impl Fn(f64, A) -> A) -> [[A; 4]; 3]
+fn hermite<A>(t: A, c: impl Fn(f64) -> A, scale: impl Fn(f64, A) -> A) -> [[A; 4]; 3]
 where
     A: Copy + Add<Output = A> + Sub<Output = A> + Mul<Output = A>,
 {
     let (t2, t3) = (t * t, t * t * t);
     [
         [
-            k(2.0, t3) - k(3.0, t2) + c(1.0),
-            t3 - k(2.0, t2) + t,
-            k(3.0, t2) - k(2.0, t3),
+            scale(2.0, t3) - scale(3.0, t2) + c(1.0),
+            t3 - scale(2.0, t2) + t,
+            scale(3.0, t2) - scale(2.0, t3),
             t3 - t2,
         ],
         [
-            k(6.0, t2) - k(6.0, t),
-            k(3.0, t2) - k(4.0, t) + c(1.0),
-            k(6.0, t) - k(6.0, t2),
-            k(3.0, t2) - k(2.0, t),
+            scale(6.0, t2) - scale(6.0, t),
+            scale(3.0, t2) - scale(4.0, t) + c(1.0),
+            scale(6.0, t) - scale(6.0, t2),
+            scale(3.0, t2) - scale(2.0, t),
         ],
         [
-            k(12.0, t) - c(6.0),
-            k(6.0, t) - c(4.0),
-            c(6.0) - k(12.0, t),
-            k(6.0, t) - c(2.0),
+            scale(12.0, t) - c(6.0),
+            scale(6.0, t) - c(4.0),
+            c(6.0) - scale(12.0, t),
+            scale(6.0, t) - c(2.0),
         ],
     ]
 }
@@ -243,8 +243,9 @@ impl HeightGrid {
         let (cu, cv) = (clamp(gu, self.last(0)), clamp(gv, self.last(1)));
         let (i, j) = self.cell(cu.value(), cv.value());
         let (tu, tv) = (cu - c(i as f64), cv - c(j as f64));
-        let k = |x: f64, a: S| a * x;
-        let [h, hu, hv, huu, huv, hvv] = patch(hermite(tu, c, k), hermite(tv, c, k), |a, b| {
+        let scale = |x: f64, a: S| a * x;
+        let weights = (hermite(tu, c, scale), hermite(tv, c, scale));
+        let [h, hu, hv, huu, huv, hvv] = patch(weights.0, weights.1, |a, b| {
             self.nodes[(i + a) * self.cols + j + b]
         });
         // Per cell → per metre; beyond the grid, the tangent plane at the edge point.
@@ -413,12 +414,14 @@ impl<T: Real> HeightField<T> {
         let lanes = |x: &[f64; MAX_LANES]| T::from_lanes(|l| x[l]);
         let (cu, cv) = (lanes(&cu), lanes(&cv));
         let (tu, tv) = (cu - lanes(&i), cv - lanes(&j));
-        let k = |x: f64, a: T| c(x) * a;
-        let [h, hu, hv, ..] = patch(hermite(tu, c, k), hermite(tv, c, k), |a, b| {
-            std::array::from_fn(|k| {
+        let scale = |x: f64, a: T| c(x) * a;
+        let weights = (hermite(tu, c, scale), hermite(tv, c, scale));
+        // Corner (a, b)'s [h, h_u, h_v, h_uv], each gathered from every lane's own grid.
+        let [h, hu, hv, ..] = patch(weights.0, weights.1, |a, b| {
+            std::array::from_fn(|field| {
                 T::from_lanes(|l| {
                     let g = &self.grids[l];
-                    g.nodes[at[l] + a * g.cols + b][k]
+                    g.nodes[at[l] + a * g.cols + b][field]
                 })
             })
         });
