@@ -178,23 +178,10 @@ impl<T: Real> Trig<T> {
         if T::all(far) {
             return Self::new(shifted);
         }
-        let one = T::one();
-        let sc = |d: T| {
-            let d2 = d * d;
-            let s = d * (one - d2 * T::splat(1.0 / 6.0) * (one - d2 * T::splat(1.0 / 20.0)));
-            let c = one
-                - d2 * T::splat(0.5)
-                    * (one - d2 * T::splat(1.0 / 12.0) * (one - d2 * T::splat(1.0 / 30.0)));
-            (s, c)
-        };
-        let rot = |s: T, c: T, d: T| {
-            let (sd, cd) = sc(d);
-            (s * cd + c * sd, c * cd - s * sd)
-        };
         let near = Self::from_joints(
-            rot(self.s1, self.c1, delta[0]),
-            rot(self.s2, self.c2, delta[1]),
-            rot(self.s3, self.c3, delta[2]),
+            T::rotate_small(self.s1, self.c1, delta[0]),
+            T::rotate_small(self.s2, self.c2, delta[1]),
+            T::rotate_small(self.s3, self.c3, delta[2]),
         );
         if T::none(far) {
             return near;
