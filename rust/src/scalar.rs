@@ -12,6 +12,11 @@ use nalgebra::{Matrix3, SMatrix, SVector, SimdRealField, Vector3};
 use simba::simd::SimdBool;
 use simba::simd::SimdValue;
 
+#[cfg(target_arch = "x86_64")]
+mod avx512;
+#[cfg(target_arch = "x86_64")]
+pub use avx512::F64x8Avx512;
+
 /// Four f64 lanes. simba's array-backed type: its element-wise loops become AVX2 vector
 /// instructions inside the `avx2,fma` builds of the lane loop (and SSE2 elsewhere).
 pub type F64x4 = simba::simd::AutoF64x4;
@@ -19,8 +24,9 @@ pub type F64x4 = simba::simd::AutoF64x4;
 /// Lanes in an [`F64x4`].
 pub const LANES: usize = 4;
 
-/// Eight f64 lanes, the same array-backed type as [`F64x4`]: one AVX-512 register inside
-/// the `avx512f` build of the lane loop, two AVX2 registers elsewhere (issue #25).
+/// Eight f64 lanes, the same array-backed type as [`F64x4`]: the portable 8-wide build of
+/// the lane loop, which any CPU runs (the AVX-512 build runs [`F64x8Avx512`], the same
+/// bits in one register per value; issue #25).
 pub type F64x8 = simba::simd::AutoF64x8;
 
 /// A lane type carrying `L` runs: [`F64x4`] (`L` = 4) or [`F64x8`] (`L` = 8). The lane
@@ -174,9 +180,20 @@ real_lanes!(F64x8, 8);
 /// 4e-19, under half an ulp of 1.
 #[inline(always)]
 pub fn rotate_small(s: f64, c: f64, d: f64) -> (f64, f64) {
+    rotate_small_in(s, c, d)
+}
+
+/// [`rotate_small`] written on any [`Real`]: the same operations in the same order, so
+/// the same bits per lane. For `f64` and for lane types whose arithmetic is one vector
+/// instruction per operation ([`F64x8Avx512`]).
+#[inline(always)]
+pub fn rotate_small_in<T: Real>(s: T, c: T, d: T) -> (T, T) {
+    let one = T::one();
     let d2 = d * d;
-    let sd = d * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0)));
-    let cd = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0)));
+    let sd = d * (one - d2 * T::splat(1.0 / 6.0) * (one - d2 * T::splat(1.0 / 20.0)));
+    let cd = one
+        - d2 * T::splat(0.5)
+            * (one - d2 * T::splat(1.0 / 12.0) * (one - d2 * T::splat(1.0 / 30.0)));
     (s * cd + c * sd, c * cd - s * sd)
 }
 

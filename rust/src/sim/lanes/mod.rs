@@ -2,7 +2,7 @@
 //!
 //! Each lane is one ordinary `Simulation`, built by the ordinary constructor; it keeps the
 //! run's trace, online metrics and outcome. Stage 9, the plant's RK4 substeps, runs once
-//! for all lanes on a lane type `W` ([`F64x4`] or [`F64x8`], see [`LanePath`]): the same
+//! for all lanes on a lane type `W` ([`F64x4`], or eight lanes, see [`LanePath`]): the same
 //! `rk4_period` and the same [`ArmModel`] code (the three-link closed form, a chain's ABA)
 //! and `Wall` code the scalar plant runs, with the arms' and walls' parameters packed
 //! ([`RobotModel::pack`]). Stages 1–8 (environment, sensor, references, filter, controller,
@@ -30,7 +30,9 @@ use nalgebra::SVector;
 
 use crate::robot::chain::TaskKind;
 use crate::robot::RobotModel;
-use crate::scalar::{F64x4, F64x8, Real, Wide};
+#[cfg(target_arch = "x86_64")]
+use crate::scalar::F64x8Avx512;
+use crate::scalar::{F64x4, Real, Wide};
 use crate::sim::pipeline::StageKey;
 use crate::sim::plant::{rk4_period_on, Plant, PlantState};
 use crate::sim::simulation::{RunResult, Simulation};
@@ -185,7 +187,7 @@ unsafe fn lanes_avx2<R: RobotModel<N>, const N: usize>(sims: &mut [Simulation<R,
 unsafe fn lanes_avx512<R: RobotModel<N>, const N: usize>(
     sims: &mut [Simulation<R, N>],
 ) -> StagePath {
-    lanes_loop::<F64x8, 8, R, N>(sims)
+    lanes_loop::<F64x8Avx512, 8, R, N>(sims)
 }
 
 /// A build of the lane loop: the lane type it runs and the instructions it may use. All
@@ -197,7 +199,7 @@ pub enum LanePath {
     /// [`F64x4`] with AVX2 and FMA instructions available (the compiler never contracts a
     /// multiply and an add: FMA only speeds up what it emits on its own, e.g. none).
     Avx2 = 1,
-    /// [`F64x8`] with AVX-512 F, DQ and VL.
+    /// [`F64x8Avx512`] (one AVX-512 register per value) with AVX-512 F, DQ and VL.
     Avx512 = 2,
 }
 
