@@ -9,7 +9,7 @@
 
 use nalgebra::{SMatrix, SVector, Vector3};
 
-use crate::scalar::Real;
+use crate::scalar::{mat_vec, Real};
 
 /// What a surface may ask of the tip at one state.
 pub trait TipMotion<T: Real> {
@@ -85,7 +85,7 @@ impl<T: Real, const N: usize> TipMotion<T> for KnownTip<'_, T, N> {
     #[inline(always)]
     fn along(&self, n: &Vector3<T>, rate: bool) -> (T, T) {
         let rate = if rate {
-            n.dot(&(self.jacobian * self.qd))
+            n.dot(&mat_vec(self.jacobian, self.qd))
         } else {
             T::zero()
         };
@@ -99,6 +99,6 @@ impl<T: Real, const N: usize> TipMotion<T> for KnownTip<'_, T, N> {
 
     #[inline(always)]
     fn velocity(&self) -> Vector3<T> {
-        self.jacobian * self.qd
+        mat_vec(self.jacobian, self.qd)
     }
 }

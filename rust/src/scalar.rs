@@ -220,8 +220,13 @@ pub fn mat_vec<T: Real, const R: usize, const C: usize>(
     m: &SMatrix<T, R, C>,
     v: &SVector<T, C>,
 ) -> SVector<T, R> {
+    // The first column's products start the sums, as nalgebra's gemv starts them (not
+    // 0 + m₀v₀, which would turn a −0 sum into +0).
     let mut y = zeros::<T, R, 1>();
-    for k in 0..C {
+    for r in 0..R {
+        y[r] = m[(r, 0)] * v[0];
+    }
+    for k in 1..C {
         for r in 0..R {
             y[r] += m[(r, k)] * v[k];
         }
@@ -236,7 +241,10 @@ pub fn mat_t_vec<T: Real, const R: usize, const C: usize>(
     v: &SVector<T, R>,
 ) -> SVector<T, C> {
     let mut y = zeros::<T, C, 1>();
-    for k in 0..R {
+    for c in 0..C {
+        y[c] = m[(0, c)] * v[0];
+    }
+    for k in 1..R {
         for c in 0..C {
             y[c] += m[(k, c)] * v[k];
         }
@@ -276,8 +284,13 @@ pub fn choose_vector<T: Real, const N: usize>(
     } else if T::none(mask) {
         no()
     } else {
+        // Built in place: nalgebra's `zip_map` stayed out of line in the lane builds.
         let (a, b) = (yes(), no());
-        a.zip_map(&b, |x, y| x.select(mask, y))
+        let mut out = a;
+        for i in 0..N {
+            out[i] = a[i].select(mask, b[i]);
+        }
+        out
     }
 }
 
@@ -343,6 +356,20 @@ pub fn pack_vector<W: Wide<L>, const L: usize, const R: usize, const C: usize>(
     SMatrix::<W, R, C>::from_fn(|r, c| W::from_lanes(|i| v[i][(r, c)]))
 }
 
+/// [`exp_lanes`]' constants (shared with the AVX-512 lane type's copy of its steps).
+mod exp_consts {
+    pub const LOG2_E: f64 = std::f64::consts::LOG2_E;
+    /// 1.5·2⁵²: adding it rounds to an integer held in the low mantissa bits.
+    pub const ROUND: f64 = 6_755_399_441_055_744.0;
+    /// 0.693147180369123816490: ln 2's high part, with trailing zero bits.
+    pub const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
+    /// ln 2 − LN2_HI.
+    pub const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
+    /// Beyond these e^x rounds to 0 or overflows.
+    pub const LOW: f64 = -745.2;
+    pub const HIGH: f64 = 709.782_712_893_384;
+}
+
 /// e^x in `L` lanes at once, with no branch and no table, so it vectorises. Element-wise:
 /// a lane's bits do not depend on `L` nor on the other lanes.
 ///
@@ -354,14 +381,7 @@ pub fn pack_vector<W: Wide<L>, const L: usize, const R: usize, const C: usize>(
 /// +∞ above 709.78, NaN for NaN.
 #[inline(always)]
 pub fn exp_lanes<const L: usize>(x: [f64; L]) -> [f64; L] {
-    const LOG2_E: f64 = std::f64::consts::LOG2_E;
-    // 1.5·2⁵²: adding it rounds to an integer held in the low mantissa bits.
-    const ROUND: f64 = 6_755_399_441_055_744.0;
-    const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000); // 0.693147180369123816490
-    const LN2_LO: f64 = 1.908_214_929_270_587_7e-10; // ln 2 − LN2_HI
-                                                     // Beyond these e^x rounds to 0 or overflows.
-    const LOW: f64 = -745.2;
-    const HIGH: f64 = 709.782_712_893_384;
+    use exp_consts::{HIGH, LN2_HI, LN2_LO, LOG2_E, LOW, ROUND};
     // Written as whole-array steps with no branch, so each becomes one vector instruction.
     let xc = x.map(|v| v.clamp(LOW, HIGH));
     let t = xc.map(|v| v * LOG2_E + ROUND);

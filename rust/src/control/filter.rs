@@ -253,7 +253,13 @@ impl<T: Real> AdmittanceFilter<T> {
             accel: (self.ka * force_error - self.b * xa_dot - self.k * xa) / self.m,
         };
         // [x_a, ẋ_a]_{k+1} = Ad [x_a, ẋ_a]_k + Bd e_f,k
-        self.state = self.ad * self.state + self.bd * force_error;
+        // Written out (nalgebra's order: Ad's columns, then Bd e_f): its generic product
+        // stayed out of line in the lane builds.
+        let (ad, bd, x) = (&self.ad, &self.bd, self.state);
+        self.state = Vector2::new(
+            (ad[(0, 0)] * x[0] + ad[(0, 1)] * x[1]) + bd[0] * force_error,
+            (ad[(1, 0)] * x[0] + ad[(1, 1)] * x[1]) + bd[1] * force_error,
+        );
         out
     }
 }

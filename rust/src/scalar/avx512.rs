@@ -18,10 +18,12 @@
 //! `LanePath::Avx512.available()` detected AVX-512 F, DQ and VL; nothing else may use it.
 
 use std::arch::x86_64::{
-    __m512d, _mm512_abs_pd, _mm512_add_pd, _mm512_castpd_si512, _mm512_castsi512_pd,
-    _mm512_cmp_pd_mask, _mm512_div_pd, _mm512_mask_blend_pd, _mm512_mul_pd, _mm512_set1_epi64,
-    _mm512_set1_pd, _mm512_sqrt_pd, _mm512_sub_pd, _mm512_xor_si512, _CMP_EQ_OQ, _CMP_GE_OQ,
-    _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ,
+    __m512d, __m512i, _mm512_abs_pd, _mm512_add_epi64, _mm512_add_pd, _mm512_and_si512,
+    _mm512_andnot_si512, _mm512_castpd_si512, _mm512_castsi512_pd, _mm512_cmp_pd_mask,
+    _mm512_div_pd, _mm512_mask_blend_pd, _mm512_max_pd, _mm512_min_pd, _mm512_mul_pd,
+    _mm512_or_si512, _mm512_set1_epi64, _mm512_set1_pd, _mm512_slli_epi64, _mm512_sqrt_pd,
+    _mm512_sub_epi64, _mm512_sub_pd, _mm512_xor_si512, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ,
+    _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _CMP_UNORD_Q,
 };
 use std::fmt;
 use std::ops::{
@@ -37,7 +39,7 @@ use simba::simd::{
     SimdRealField, SimdSigned, SimdValue,
 };
 
-use super::{exp_lanes, rotate_small_in, sin_cos_lanes, Real, Wide};
+use super::{rotate_small_in, sin_cos_lanes, Real, Wide};
 
 /// One bit per lane: an AVX-512 `k` mask.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -76,6 +78,66 @@ impl F64x8Avx512 {
     fn cmp<const P: i32>(self, other: Self) -> Mask8 {
         // SAFETY: AVX-512 F, present wherever this type is used (module note).
         Mask8(unsafe { _mm512_cmp_pd_mask::<P>(self.0, other.0) })
+    }
+}
+
+impl F64x8Avx512 {
+    #[inline(always)]
+    fn bits(self) -> __m512i {
+        // SAFETY: AVX-512 F (module note); a cast, no instruction.
+        unsafe { _mm512_castpd_si512(self.0) }
+    }
+
+    #[inline(always)]
+    fn from_bits(b: __m512i) -> Self {
+        // SAFETY: as in `bits`.
+        Self(unsafe { _mm512_castsi512_pd(b) })
+    }
+
+    /// e^x: [`super::exp_lanes`]' steps, one instruction each, in its order (so its bits;
+    /// tested). Written here because the array version's element loops stayed out of line
+    /// in this build.
+    #[inline(always)]
+    fn exp_native(self) -> Self {
+        use super::exp_consts::{HIGH, LN2_HI, LN2_LO, LOG2_E, LOW, ROUND};
+        let c = Self::splat;
+        // SAFETY: AVX-512 F (module note). max then min is f64::clamp wherever x is not
+        // NaN; a NaN lane is replaced by x at the end.
+        let xc = Self(unsafe { _mm512_min_pd(_mm512_max_pd(self.0, c(LOW).0), c(HIGH).0) });
+        let t = xc * c(LOG2_E) + c(ROUND);
+        let n = t - c(ROUND);
+        let r = (xc - n * c(LN2_HI)) - n * c(LN2_LO);
+        let r2 = r * r;
+        let r4 = r2 * r2;
+        let r8 = r4 * r4;
+        let p01 = c(1.0) + r;
+        let p23 = c(1.0 / 2.0) + r * c(1.0 / 6.0);
+        let p45 = c(1.0 / 24.0) + r * c(1.0 / 120.0);
+        let p67 = c(1.0 / 720.0) + r * c(1.0 / 5040.0);
+        let p89 = c(1.0 / 40320.0) + r * c(1.0 / 362_880.0);
+        let p1011 = c(1.0 / 3_628_800.0) + r * c(1.0 / 39_916_800.0);
+        let p1213 = c(1.0 / 479_001_600.0) + r * c(1.0 / 6_227_020_800.0);
+        let p03 = p01 + r2 * p23;
+        let p47 = p45 + r2 * p67;
+        let p811 = p89 + r2 * p1011;
+        let p07 = p03 + r4 * p47;
+        let p813 = p811 + r4 * p1213;
+        let poly = p07 + r8 * p813;
+        let t1 = n * c(0.5) + c(ROUND);
+        let t2 = (n - (t1 - c(ROUND))) + c(ROUND);
+        // SAFETY: AVX-512 F (module note). (bits − ROUND's bits + 1023) << 52, wrapping.
+        let pow2 = |t: Self| {
+            Self::from_bits(unsafe {
+                _mm512_slli_epi64::<52>(_mm512_add_epi64(
+                    _mm512_sub_epi64(t.bits(), _mm512_set1_epi64(ROUND.to_bits() as i64)),
+                    _mm512_set1_epi64(1023),
+                ))
+            })
+        };
+        let y = poly * pow2(t1) * pow2(t2);
+        let y = c(0.0).select(self.cmp::<_CMP_LT_OQ>(c(LOW)), y);
+        let y = c(f64::INFINITY).select(self.cmp::<_CMP_GT_OQ>(c(HIGH)), y);
+        self.select(self.cmp::<_CMP_UNORD_Q>(self), y)
     }
 }
 
@@ -538,7 +600,20 @@ macro_rules! by_auto_const {
 }
 
 impl SimdRealField for F64x8Avx512 {
-    by_auto_binary!(SimdRealField: simd_atan2, simd_copysign);
+    by_auto_binary!(SimdRealField: simd_atan2);
+
+    #[inline(always)]
+    fn simd_copysign(self, sign: Self) -> Self {
+        // |self| with sign's sign bit, as f64::copysign (NaN included).
+        // SAFETY: AVX-512 F (module note).
+        Self::from_bits(unsafe {
+            let mask = _mm512_set1_epi64(i64::MIN);
+            _mm512_or_si512(
+                _mm512_andnot_si512(mask, self.bits()),
+                _mm512_and_si512(mask, sign.bits()),
+            )
+        })
+    }
     by_auto_const!(
         simd_default_epsilon,
         simd_pi,
@@ -660,7 +735,7 @@ impl Real for F64x8Avx512 {
 
     #[inline(always)]
     fn exp_fast(self) -> Self {
-        Self::from_array(exp_lanes(self.to_array()))
+        self.exp_native()
     }
 
     #[inline(always)]
@@ -774,6 +849,7 @@ mod tests {
             assert_eq!(native(a.simd_max(b)), auto(p.simd_max(q)));
             assert_eq!(native(a.simd_min(b)), auto(p.simd_min(q)));
             assert_eq!(native(a.exp_fast()), auto(p.exp_fast()));
+            assert_eq!(native(a.simd_copysign(b)), auto(p.simd_copysign(q)));
             assert_eq!(native(a.simd_sin()), auto(p.simd_sin()));
             let masks = [
                 (a.simd_lt(b), p.simd_lt(q)),
@@ -791,6 +867,53 @@ mod tests {
             let (s, c) = F64x8Avx512::rotate_small(a, b, a * F64x8Avx512::splat(1e-3));
             let (t, d) = F64x8::rotate_small(p, q, p * F64x8::splat(1e-3));
             assert_eq!((native(s), native(c)), (auto(t), auto(d)));
+        }
+    }
+
+    /// e^x over its whole range, the edges (±745.2, 709.78) and the subnormal results.
+    #[test]
+    fn native_exp_equals_exp_lanes_bit_for_bit() {
+        if !LanePath::Avx512.available() {
+            eprintln!("skipped: this CPU has no AVX-512");
+            return;
+        }
+        let mut x = -760.0;
+        while x < 720.0 {
+            let v: [f64; 8] = std::array::from_fn(|l| x + 0.173 * l as f64);
+            let w = v.map(|v| v / 97.0);
+            for v in [v, w] {
+                assert_eq!(
+                    native(F64x8Avx512::from_array(v).exp_fast()),
+                    bits(crate::scalar::exp_lanes(v)),
+                    "{v:?}"
+                );
+            }
+            x += 1.37;
+        }
+        for edge in [
+            -745.2,
+            -745.1,
+            -708.4,
+            709.782_712_893_384,
+            709.79,
+            f64::MIN,
+            -0.0,
+        ] {
+            let v = [
+                edge,
+                edge.next_up(),
+                edge.next_down(),
+                -edge,
+                0.0,
+                1e-300,
+                -1e-300,
+                f64::NAN,
+            ];
+            assert_eq!(
+                native(F64x8Avx512::from_array(v).exp_fast()),
+                bits(crate::scalar::exp_lanes(v)),
+                "{v:?}"
+            );
         }
     }
 

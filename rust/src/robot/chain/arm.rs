@@ -592,7 +592,7 @@ impl<const N: usize> RobotModel<N> for UrdfArm<N> {
 /// θ below ~1e-8 it returns rounding noise. Like any log map it is ill-conditioned near
 /// θ = π, where v vanishes too; an orientation error that large has left the task long
 /// before.
-#[inline]
+#[inline(always)]
 pub fn rotation_vector<T: Real>(r: &Matrix3<T>) -> Vector3<T> {
     let v = Vector3::new(
         r[(2, 1)] - r[(1, 2)],

@@ -10,7 +10,7 @@ use crate::scalar::zeros;
 impl<T: Real, const N: usize> SerialChain<T, N> {
     /// D(q): composite inertias I^c_i = I_i + Σ X_jᵀ I^c_j X_j from the tip down, then
     /// D_ij = S_jᵀ (X … X)ᵀ I^c_i S_i along the chain.
-    #[inline]
+    #[inline(always)]
     pub fn crba(&self, f: &Frames<T, N>) -> SMatrix<T, N, N> {
         let mut composite: [SpatialInertia<T>; N] =
             std::array::from_fn(|i| SpatialInertia::rigid(&self.bodies[i].inertia));

@@ -18,7 +18,7 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
 
     /// τ = D q̈ + C q̇ + G − Jᵀ(tip wrench): the torques that give `qdd` at (q, q̇) while the
     /// environment applies `tip_wrench` (a spatial force on body N in its frame).
-    #[inline]
+    #[inline(always)]
     pub fn rnea(
         &self,
         f: &Frames<T, N>,
@@ -57,7 +57,7 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
     }
 
     /// C(q, q̇) q̇ and G(q).
-    #[inline]
+    #[inline(always)]
     pub fn bias(&self, f: &Frames<T, N>, qd: &SVector<T, N>) -> (SVector<T, N>, SVector<T, N>) {
         let zero = zeros::<T, N, 1>();
         let g = self.rnea(f, &zero, &zero, true, &SVec::zero());
