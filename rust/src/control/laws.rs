@@ -12,7 +12,7 @@ use crate::robot::Dynamics;
 use crate::robot::Kinematics;
 #[cfg(test)]
 use crate::robot::{JointVector, TaskVector};
-use crate::scalar::{choose_vector, finite, mat_t_vec, mat_vec, no_lane, zeros, Real};
+use crate::scalar::{finite, mat_t_vec, mat_vec, no_lane, zeros, Real};
 
 /// The orientation part of a pose task: the error e_o = log(R0 Rᵀ) as a rotation vector
 /// (the orientation is held at its start R0), the angular Jacobian and its J̇q̇. Over `f64`,
@@ -207,7 +207,7 @@ impl<T: Real, const N: usize> TaskTerms<T, N> {
         qd_prev: &SVector<T, N>,
         started: T::SimdBool,
     ) -> SVector<T, N> {
-        let qdd_prev = choose_vector(started, || (qd - qd_prev) / period, SVector::zeros);
+        let qdd_prev = last_acceleration(qd, qd_prev, period, started);
         let h_hat = tau_prev - mat_vec(dbar, &qdd_prev);
         let u = match law {
             TdcLaw::JacobianTranspose => mat_vec(dbar, &self.transpose(torque_constant)),
@@ -215,6 +215,25 @@ impl<T: Real, const N: usize> TaskTerms<T, N> {
         };
         u + h_hat
     }
+}
+
+/// q̈_{k−1} = (q̇_k − q̇_{k−1})/T in the `started` lanes, 0 in the others (q̈_{−1} = 0),
+/// element by element: the same bits as nalgebra's vector ops, written out because the
+/// closure holding them stayed out of line in the AVX-512 lane build.
+#[inline(always)]
+fn last_acceleration<T: Real, const N: usize>(
+    qd: &SVector<T, N>,
+    qd_prev: &SVector<T, N>,
+    period: T,
+    started: T::SimdBool,
+) -> SVector<T, N> {
+    let mut qdd = zeros::<T, N, 1>();
+    if !T::none(started) {
+        for i in 0..N {
+            qdd[i] = ((qd[i] - qd_prev[i]) / period).select(started, T::zero());
+        }
+    }
+    qdd
 }
 
 /// Why a control law could not produce a torque.
@@ -340,7 +359,7 @@ pub(crate) fn time_delay<T: Real, const N: usize>(
     started: T::SimdBool,
 ) -> (SVector<T, N>, T::SimdBool) {
     // eq. (14): ĥ ≈ τ_{k−1} − D̄ q̈_{k−1}, with q̈_{k−1} = (q̇_k − q̇_{k−1})/T, q̈_{−1} = 0.
-    let qdd_prev = choose_vector(started, || (qd - qd_prev) / period, SVector::zeros);
+    let qdd_prev = last_acceleration(qd, qd_prev, period, started);
     let h_hat = tau_prev - qdd_prev * inertia;
     let (u, singular) = match law {
         TdcLaw::JacobianTranspose => (

@@ -15,7 +15,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{check, Error, Result};
-use crate::scalar::{choose, mask_from, put, put_vector, Real, Wide};
+use crate::scalar::{choose, mask_from, mat_t_vec, put, put_vector, Real, Wide};
 use simba::simd::SimdValue;
 
 /// Longest latency accepted, in samples.
@@ -397,8 +397,10 @@ impl<T: Real> ForceSensor<T> {
                 if let Some(w) = &weight {
                     world += w.actual;
                 }
-                let y = self.read_tip(r.first, &(rotation.transpose() * world), &r.noise);
-                let mut back = rotation * y;
+                // Rᵀ w and R y written out (nalgebra's sums, so its bits): its generic
+                // product stayed out of line in the AVX-512 lane build.
+                let y = self.read_tip(r.first, &mat_t_vec(rotation, &world), &r.noise);
+                let mut back = T::mat3_vec(rotation, &y);
                 if let Some(w) = &weight {
                     back -= w.believed;
                 }
