@@ -1,6 +1,8 @@
 //! The scalar the stage math is written over (SPEC §13): `f64` for one run, or a lane type,
-//! [`F64x4`] or [`F64x8`], four or eight runs advancing together in SIMD lanes. One source
-//! serves all three (lane code is generic over [`Wide`]); data-dependent
+//! four or eight runs advancing together in SIMD lanes: simba's array-backed [`F64x4`] and
+//! [`F64x8`] in the portable builds of the lane loop, the native-register [`F64x4Avx2`] and
+//! [`F64x8Avx512`] (`native`) in the AVX2 and AVX-512 builds. One source serves them all
+//! (lane code is generic over [`Wide`]), with the same bits on each; data-dependent
 //! branches become lane selects (`SimdValue::select`), with the scalar branch kept where all
 //! lanes agree (see [`Real::all`]).
 //!
@@ -13,20 +15,19 @@ use simba::simd::SimdBool;
 use simba::simd::SimdValue;
 
 #[cfg(target_arch = "x86_64")]
-mod avx512;
+mod native;
 #[cfg(target_arch = "x86_64")]
-pub use avx512::F64x8Avx512;
+pub use native::{F64x4Avx2, F64x8Avx512};
 
-/// Four f64 lanes. simba's array-backed type: its element-wise loops become AVX2 vector
-/// instructions inside the `avx2,fma` builds of the lane loop (and SSE2 elsewhere).
+/// Four f64 lanes. simba's array-backed type, for the portable build of the lane loop
+/// (its element-wise loops become SSE2, or the target's own vector instructions).
 pub type F64x4 = simba::simd::AutoF64x4;
 
 /// Lanes in an [`F64x4`].
 pub const LANES: usize = 4;
 
 /// Eight f64 lanes, the same array-backed type as [`F64x4`]: the portable 8-wide build of
-/// the lane loop, which any CPU runs (the AVX-512 build runs [`F64x8Avx512`], the same
-/// bits in one register per value; issue #25).
+/// the lane loop, which any CPU runs, so the 8-wide grouping is tested everywhere.
 pub type F64x8 = simba::simd::AutoF64x8;
 
 /// A lane type carrying `L` runs: [`F64x4`] (`L` = 4) or [`F64x8`] (`L` = 8). The lane

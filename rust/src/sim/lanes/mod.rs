@@ -30,9 +30,9 @@ use nalgebra::SVector;
 
 use crate::robot::chain::TaskKind;
 use crate::robot::RobotModel;
-#[cfg(target_arch = "x86_64")]
-use crate::scalar::F64x8Avx512;
 use crate::scalar::{F64x4, Real, Wide};
+#[cfg(target_arch = "x86_64")]
+use crate::scalar::{F64x4Avx2, F64x8Avx512};
 use crate::sim::pipeline::StageKey;
 use crate::sim::plant::{rk4_period_on, Plant, PlantState};
 use crate::sim::simulation::{RunResult, Simulation};
@@ -177,7 +177,7 @@ pub fn run_lanes_via<R: RobotModel<N>, const N: usize>(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn lanes_avx2<R: RobotModel<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> StagePath {
-    lanes_loop::<F64x4, 4, R, N>(sims)
+    lanes_loop::<F64x4Avx2, 4, R, N>(sims)
 }
 
 /// Eight lanes in AVX-512 registers (F for the 512-bit arithmetic, DQ for the 64-bit
@@ -196,8 +196,9 @@ unsafe fn lanes_avx512<R: RobotModel<N>, const N: usize>(
 pub enum LanePath {
     /// [`F64x4`] in baseline x86-64 (SSE2) or the target's own code: any CPU.
     Portable = 0,
-    /// [`F64x4`] with AVX2 and FMA instructions available (the compiler never contracts a
-    /// multiply and an add: FMA only speeds up what it emits on its own, e.g. none).
+    /// [`F64x4Avx2`] (one ymm register per value) with AVX2 and FMA instructions available
+    /// (the compiler never contracts a multiply and an add: FMA only speeds up what it
+    /// emits on its own, e.g. none).
     Avx2 = 1,
     /// [`F64x8Avx512`] (one AVX-512 register per value) with AVX-512 F, DQ and VL.
     Avx512 = 2,
