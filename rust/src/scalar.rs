@@ -463,43 +463,15 @@ fn sin_cos_beyond<const L: usize>(x: [f64; L]) -> ([f64; L], [f64; L]) {
 /// 2¹⁹: below it n·PIO2_1 and n·PIO2_2 are exact.
 const SIN_COS_LIMIT: f64 = 524_288.0;
 
-/// [`sin_cos_lanes`]' constants (shared with the native lane types' copy of its steps).
-mod sin_cos_consts {
-    pub const FRAC_2_PI: f64 = std::f64::consts::FRAC_2_PI;
-    /// 1.5·2⁵²: adding it rounds to an integer held in the low mantissa bits.
-    pub const ROUND: f64 = 6_755_399_441_055_744.0;
-    /// π/2 in three parts: 1.5707963267341256, 6.077100506303966e-11, 2.0222662487959506e-21.
-    pub const PIO2_1: f64 = f64::from_bits(0x3ff9_21fb_5440_0000);
-    pub const PIO2_2: f64 = f64::from_bits(0x3dd0_b461_1a60_0000);
-    pub const PIO2_3: f64 = f64::from_bits(0x3ba3_198a_2e03_7073);
-    /// sin r's Taylor coefficients, r¹⁷ down to r³: (−1)ᵏ / (2k+1)!, k = 8…1.
-    pub const SIN: [f64; 8] = [
-        1.0 / 355_687_428_096_000.0,
-        -1.0 / 1_307_674_368_000.0,
-        1.0 / 6_227_020_800.0,
-        -1.0 / 39_916_800.0,
-        1.0 / 362_880.0,
-        -1.0 / 5040.0,
-        1.0 / 120.0,
-        -1.0 / 6.0,
-    ];
-    /// cos r's, r¹⁸ down to r⁴: (−1)ᵏ / (2k)!, k = 9…2.
-    pub const COS: [f64; 8] = [
-        -1.0 / 6_402_373_705_728_000.0,
-        1.0 / 20_922_789_888_000.0,
-        -1.0 / 87_178_291_200.0,
-        1.0 / 479_001_600.0,
-        -1.0 / 3_628_800.0,
-        1.0 / 40320.0,
-        -1.0 / 720.0,
-        1.0 / 24.0,
-    ];
-}
-
 /// [`sin_cos_lanes`] for |x| ≤ 2¹⁹ in every lane.
 #[inline(always)]
 fn sin_cos_reduced<const L: usize>(x: [f64; L]) -> ([f64; L], [f64; L]) {
-    use sin_cos_consts::{COS, FRAC_2_PI, PIO2_1, PIO2_2, PIO2_3, ROUND, SIN};
+    const FRAC_2_PI: f64 = std::f64::consts::FRAC_2_PI;
+    // 1.5·2⁵²: adding it rounds to an integer held in the low mantissa bits.
+    const ROUND: f64 = 6_755_399_441_055_744.0;
+    const PIO2_1: f64 = f64::from_bits(0x3ff9_21fb_5440_0000); // 1.5707963267341256
+    const PIO2_2: f64 = f64::from_bits(0x3dd0_b461_1a60_0000); // 6.077100506303966e-11
+    const PIO2_3: f64 = f64::from_bits(0x3ba3_198a_2e03_7073); // 2.0222662487959506e-21
     let t = x.map(|v| v * FRAC_2_PI + ROUND);
     let n = t.map(|v| v - ROUND);
     let r: [f64; L] =
@@ -508,7 +480,14 @@ fn sin_cos_reduced<const L: usize>(x: [f64; L]) -> ([f64; L], [f64; L]) {
     // sin r = r + r z S(z), S = Σ (−1)ᵏ z^(k−1) / (2k+1)!, k = 1…8.
     let sin_r: [f64; L] = std::array::from_fn(|i| {
         let z = z[i];
-        let s = SIN[1..].iter().fold(SIN[0], |s, k| k + z * s);
+        let s = 1.0 / 355_687_428_096_000.0;
+        let s = -1.0 / 1_307_674_368_000.0 + z * s;
+        let s = 1.0 / 6_227_020_800.0 + z * s;
+        let s = -1.0 / 39_916_800.0 + z * s;
+        let s = 1.0 / 362_880.0 + z * s;
+        let s = -1.0 / 5040.0 + z * s;
+        let s = 1.0 / 120.0 + z * s;
+        let s = -1.0 / 6.0 + z * s;
         // At r = ±0 the sum would lose the sign of zero.
         if z == 0.0 {
             r[i]
@@ -518,7 +497,14 @@ fn sin_cos_reduced<const L: usize>(x: [f64; L]) -> ([f64; L], [f64; L]) {
     });
     // cos r = 1 − z/2 + z² C(z), C = Σ (−1)ᵏ z^(k−2) / (2k)!, k = 2…9.
     let cos_r = z.map(|z| {
-        let c = COS[1..].iter().fold(COS[0], |c, k| k + z * c);
+        let c = -1.0 / 6_402_373_705_728_000.0;
+        let c = 1.0 / 20_922_789_888_000.0 + z * c;
+        let c = -1.0 / 87_178_291_200.0 + z * c;
+        let c = 1.0 / 479_001_600.0 + z * c;
+        let c = -1.0 / 3_628_800.0 + z * c;
+        let c = 1.0 / 40320.0 + z * c;
+        let c = -1.0 / 720.0 + z * c;
+        let c = 1.0 / 24.0 + z * c;
         1.0 - (0.5 * z - z * z * c)
     });
     // The quadrant q = n mod 4 from the integer's low bits: sin x = (s, c, −s, −c)[q],

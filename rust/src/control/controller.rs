@@ -11,7 +11,7 @@ use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 use simba::simd::SimdValue;
 
 use crate::control::laws::{
-    computed_torque, model_free, time_delay, ArmTerms, OrientationTask, TaskInputs, TaskTerms,
+    computed_torque, model_free, time_delay, OrientationTask, TaskInputs, TaskTerms,
 };
 use crate::control::params::{constant_inertia, ControllerParams, PositionGains, TdcLaw};
 use crate::control::task::Desired;
@@ -350,11 +350,7 @@ impl<T: Real, M, const N: usize> Controller<T, M, N> {
             } => computed_torque(
                 k,
                 v,
-                ArmTerms {
-                    model,
-                    at,
-                    qd: m.qd,
-                },
+                || (model.dynamics(at, m.qd), model.friction(m.qd)),
                 compensation.then_some((m.normal, m.force)),
             ),
             Law::ModelFree => (

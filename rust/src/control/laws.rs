@@ -8,8 +8,8 @@
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 use crate::control::params::TdcLaw;
+use crate::robot::Dynamics;
 use crate::robot::Kinematics;
-use crate::robot::{ArmModel, Dynamics};
 #[cfg(test)]
 use crate::robot::{JointVector, TaskVector};
 use crate::scalar::{finite, mat_t_vec, mat_vec, no_lane, zeros, Real};
@@ -309,41 +309,6 @@ pub(crate) fn solve_square<T: Real, const N: usize>(
     (SVector::<T, N>::from_fn(|i, _| x[i]), singular)
 }
 
-/// The controller model's (D̂, Ĉ q̇, Ĝ) and τ̂_f, evaluated only when a law needs them: a
-/// closure (the tests' fixed terms) or [`ArmTerms`].
-pub(crate) trait ModelTerms<T: Real, const N: usize> {
-    fn terms(self) -> (Dynamics<N, T>, SVector<T, N>);
-}
-
-impl<T: Real, const N: usize, F> ModelTerms<T, N> for F
-where
-    F: FnOnce() -> (Dynamics<N, T>, SVector<T, N>),
-{
-    #[inline(always)]
-    fn terms(self) -> (Dynamics<N, T>, SVector<T, N>) {
-        self()
-    }
-}
-
-/// An arm model's terms at a configuration and q̇. A struct with an `inline(always)` method
-/// rather than a closure: the closure stayed out of line in the native lane builds, where
-/// each vector operation then ran as a call.
-pub(crate) struct ArmTerms<'a, M: ArmModel<T, N>, T: Real, const N: usize> {
-    pub model: &'a M,
-    pub at: &'a M::Config,
-    pub qd: &'a SVector<T, N>,
-}
-
-impl<M: ArmModel<T, N>, T: Real, const N: usize> ModelTerms<T, N> for ArmTerms<'_, M, T, N> {
-    #[inline(always)]
-    fn terms(self) -> (Dynamics<N, T>, SVector<T, N>) {
-        (
-            self.model.dynamics(self.at, self.qd),
-            self.model.friction(self.qd),
-        )
-    }
-}
-
 /// Eq. (7) mapped to joint space with eq. (4): τ = D̂ J⁻¹ (V − J̇q̇) + Ĉ + Ĝ + τ̂_f, plus
 /// f Jᵀ n when the measured contact force is compensated. `model` gives the controller
 /// model's (D̂, Ĉ, Ĝ) and τ̂_f at the measured state. Returns τ and the singular lanes.
@@ -351,14 +316,14 @@ impl<M: ArmModel<T, N>, T: Real, const N: usize> ModelTerms<T, N> for ArmTerms<'
 pub(crate) fn computed_torque<T: Real, const N: usize>(
     k: &Kinematics<N, T>,
     v: &Vector3<T>,
-    model: impl ModelTerms<T, N>,
+    model: impl FnOnce() -> (Dynamics<N, T>, SVector<T, N>),
     compensation: Option<(&Vector3<T>, T)>,
 ) -> (SVector<T, N>, T::SimdBool) {
     let (qdd, singular) = solve_square(&k.jacobian, &(v - k.jdot_qd));
     if T::all(singular) {
         return (qdd, singular);
     }
-    let (d, friction) = model.terms();
+    let (d, friction) = model();
     let mut tau = mat_vec(&d.inertia, &qdd) + d.coriolis + d.gravity + friction;
     if let Some((normal, force)) = compensation {
         // The plant feels Jᵀ(−f n); add it back.

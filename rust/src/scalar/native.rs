@@ -81,12 +81,6 @@ pub trait Isa<const L: usize>: Copy + Send + Sync + 'static {
     fn min(a: Self::V, b: Self::V) -> Self::V;
     /// (bits(t) − bits(ROUND) + 1023) << 52 per lane, wrapping: 2ⁿ from `exp_lanes`' n.
     fn pow2_of_rounded(t: Self::V, round: f64) -> Self::V;
-    /// The lanes where q = bits(t) − bits(ROUND) is odd (`sin_cos_lanes`' quadrant).
-    fn odd_quadrant(t: Self::V, round: f64) -> Self::M;
-    /// Bit 1 of q + `add` (wrapping) moved to the sign bit, every other bit 0.
-    fn quadrant_sign(t: Self::V, round: f64, add: i64) -> Self::V;
-    /// a ^ b, bit by bit.
-    fn xor(a: Self::V, b: Self::V) -> Self::V;
 
     fn lt(a: Self::V, b: Self::V) -> Self::M;
     fn gt(a: Self::V, b: Self::V) -> Self::M;
@@ -185,33 +179,6 @@ impl<I: Isa<L>, const L: usize> Lanes<I, L> {
         let y = c(0.0).select(self.simd_lt(c(LOW)), y);
         let y = c(f64::INFINITY).select(self.simd_gt(c(HIGH)), y);
         self.select(LaneMask(I::unordered(self.0, self.0)), y)
-    }
-}
-
-impl<I: Isa<L>, const L: usize> Lanes<I, L> {
-    /// (sin x, cos x) for |x| ≤ 2¹⁹: `sin_cos_reduced`'s steps, one instruction each, in
-    /// its order (so its bits; tested), for the same reason as [`Self::exp_native`].
-    #[inline(always)]
-    fn sin_cos_native(self) -> (Self, Self) {
-        use super::sin_cos_consts::{COS, FRAC_2_PI, PIO2_1, PIO2_2, PIO2_3, ROUND, SIN};
-        let c = Self::splat;
-        let t = self * c(FRAC_2_PI) + c(ROUND);
-        let n = t - c(ROUND);
-        let r = ((self - n * c(PIO2_1)) - n * c(PIO2_2)) - n * c(PIO2_3);
-        let z = r * r;
-        let s = SIN[1..].iter().fold(c(SIN[0]), |s, &k| c(k) + z * s);
-        // At r = ±0 the sum would lose the sign of zero.
-        let sin_r = r.select(z.simd_eq(c(0.0)), r + r * z * s);
-        let k = COS[1..].iter().fold(c(COS[0]), |k, &e| c(e) + z * k);
-        let cos_r = c(1.0) - (c(0.5) * z - z * z * k);
-        // The quadrant q = n mod 4: sin x = (s, c, −s, −c)[q], cos x = (c, −s, −c, s)[q].
-        let odd = LaneMask(I::odd_quadrant(t.0, ROUND));
-        let sin = cos_r.select(odd, sin_r);
-        let cos = sin_r.select(odd, cos_r);
-        (
-            Self(I::xor(sin.0, I::quadrant_sign(t.0, ROUND, 0))),
-            Self(I::xor(cos.0, I::quadrant_sign(t.0, ROUND, 1))),
-        )
     }
 }
 
@@ -811,25 +778,17 @@ impl<I: Isa<L>, const L: usize> Real for Lanes<I, L> {
 
     #[inline(always)]
     fn sin_cos_each(self) -> (Self, Self) {
-        // A plain loop: the arrays' `map` stayed out of line in the native builds.
-        let x = self.to_array();
-        let (mut s, mut c) = ([0.0; L], [0.0; L]);
-        for i in 0..L {
-            (s[i], c[i]) = libm::sincos(x[i]);
-        }
-        (Self::from_array(s), Self::from_array(c))
+        let sc = self.to_array().map(libm::sincos);
+        (
+            Self::from_array(sc.map(|p| p.0)),
+            Self::from_array(sc.map(|p| p.1)),
+        )
     }
 
     #[inline(always)]
     fn sin_cos_fast(self) -> (Self, Self) {
-        let limit = Self::splat(super::SIN_COS_LIMIT);
-        if SimdSigned::simd_abs(&self).simd_le(limit).all() {
-            self.sin_cos_native()
-        } else {
-            // A lane beyond the reduction's range (or NaN): the array version's libm path.
-            let (s, c) = sin_cos_lanes(self.to_array());
-            (Self::from_array(s), Self::from_array(c))
-        }
+        let (s, c) = sin_cos_lanes(self.to_array());
+        (Self::from_array(s), Self::from_array(c))
     }
 
     #[inline(always)]
@@ -982,44 +941,6 @@ mod tests {
         }
     }
 
-    /// sin and cos over the joint range and beyond (where a lane takes libm), with the
-    /// quadrant edges, ±0, NaN and ∞.
-    fn sin_cos_equals_sin_cos_lanes<I: Isa<L>, const L: usize>() {
-        let check = |v: [f64; L]| {
-            let (s, c) = Lanes::<I, L>::from_array(v).sin_cos_fast();
-            let (t, d) = crate::scalar::sin_cos_lanes(v);
-            assert_eq!(
-                (bits(s.to_array()), bits(c.to_array())),
-                (bits(t), bits(d)),
-                "{v:?}"
-            );
-            let (s, c) = Lanes::<I, L>::from_array(v).sin_cos_each();
-            let each = v.map(libm::sincos);
-            assert_eq!(bits(s.to_array()), bits(each.map(|p| p.0)), "{v:?}");
-            assert_eq!(bits(c.to_array()), bits(each.map(|p| p.1)), "{v:?}");
-        };
-        let mut x = -40.0;
-        while x < 40.0 {
-            check(std::array::from_fn(|l| x + 0.0917 * l as f64));
-            x += 0.613;
-        }
-        let q = std::f64::consts::FRAC_PI_4;
-        for edge in [q, 3.0 * q, 5.0 * q, -q, 1e-300, 524_288.0, 3e5, 1e6] {
-            let around = [
-                edge,
-                edge.next_up(),
-                edge.next_down(),
-                -edge,
-                0.0,
-                -0.0,
-                f64::NAN,
-                f64::INFINITY,
-            ];
-            check(std::array::from_fn(|l| around[l]));
-            check(std::array::from_fn(|l| around[l].min(524_288.0)));
-        }
-    }
-
     fn lanes_are_set_and_read_one_at_a_time<I: Isa<L>, const L: usize>() {
         let mut a = Lanes::<I, L>::from_lanes(|i| i as f64);
         a.replace(L - 1, -1.5);
@@ -1045,7 +966,6 @@ mod tests {
         if runs(LanePath::Avx512) {
             ops_equal_array_lanes::<Avx512, 8>();
             exp_equals_exp_lanes::<Avx512, 8>();
-            sin_cos_equals_sin_cos_lanes::<Avx512, 8>();
             lanes_are_set_and_read_one_at_a_time::<Avx512, 8>();
         }
     }
@@ -1055,7 +975,6 @@ mod tests {
         if runs(LanePath::Avx2) {
             ops_equal_array_lanes::<Avx2, 4>();
             exp_equals_exp_lanes::<Avx2, 4>();
-            sin_cos_equals_sin_cos_lanes::<Avx2, 4>();
             lanes_are_set_and_read_one_at_a_time::<Avx2, 4>();
         }
     }

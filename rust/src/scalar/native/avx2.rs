@@ -132,37 +132,6 @@ impl Isa<4> for Avx2 {
     }
 
     #[inline(always)]
-    fn odd_quadrant(t: __m256d, round: f64) -> __m256d {
-        // Bit 0 moved to the sign bit, which is all blendv and movemask read of a mask.
-        avx2!(_mm256_castsi256_pd(_mm256_slli_epi64::<63>(
-            _mm256_sub_epi64(
-                _mm256_castpd_si256(t),
-                _mm256_set1_epi64x(round.to_bits() as i64)
-            )
-        )))
-    }
-
-    #[inline(always)]
-    fn quadrant_sign(t: __m256d, round: f64, add: i64) -> __m256d {
-        // Bit 1 shifted to bit 63 (bit 0 lands on 62 and is cleared).
-        avx2!(_mm256_and_pd(
-            _mm256_castsi256_pd(_mm256_slli_epi64::<62>(_mm256_add_epi64(
-                _mm256_sub_epi64(
-                    _mm256_castpd_si256(t),
-                    _mm256_set1_epi64x(round.to_bits() as i64)
-                ),
-                _mm256_set1_epi64x(add),
-            ))),
-            sign_bit(),
-        ))
-    }
-
-    #[inline(always)]
-    fn xor(a: __m256d, b: __m256d) -> __m256d {
-        avx2!(_mm256_xor_pd(a, b))
-    }
-
-    #[inline(always)]
     fn lt(a: __m256d, b: __m256d) -> __m256d {
         avx2!(_mm256_cmp_pd::<_CMP_LT_OQ>(a, b))
     }

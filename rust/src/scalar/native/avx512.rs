@@ -6,8 +6,8 @@ use std::arch::x86_64::{
     _mm512_andnot_si512, _mm512_castpd_si512, _mm512_castsi512_pd, _mm512_cmp_pd_mask,
     _mm512_div_pd, _mm512_mask_blend_pd, _mm512_max_pd, _mm512_min_pd, _mm512_mul_pd,
     _mm512_or_si512, _mm512_set1_epi64, _mm512_set1_pd, _mm512_slli_epi64, _mm512_sqrt_pd,
-    _mm512_sub_epi64, _mm512_sub_pd, _mm512_test_epi64_mask, _mm512_xor_si512, _CMP_EQ_OQ,
-    _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _CMP_UNORD_Q,
+    _mm512_sub_epi64, _mm512_sub_pd, _mm512_xor_si512, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ,
+    _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _CMP_UNORD_Q,
 };
 
 use simba::simd::{AutoF64x8, AutoSimd};
@@ -127,40 +127,6 @@ impl Isa<8> for Avx512 {
                 ),
                 _mm512_set1_epi64(1023),
             )
-        )))
-    }
-
-    #[inline(always)]
-    fn odd_quadrant(t: __m512d, round: f64) -> __mmask8 {
-        avx512!(_mm512_test_epi64_mask(
-            _mm512_sub_epi64(
-                _mm512_castpd_si512(t),
-                _mm512_set1_epi64(round.to_bits() as i64)
-            ),
-            _mm512_set1_epi64(1),
-        ))
-    }
-
-    #[inline(always)]
-    fn quadrant_sign(t: __m512d, round: f64, add: i64) -> __m512d {
-        // Bit 1 shifted to bit 63 (bit 0 lands on 62 and is cleared).
-        avx512!(_mm512_castsi512_pd(_mm512_and_si512(
-            _mm512_slli_epi64::<62>(_mm512_add_epi64(
-                _mm512_sub_epi64(
-                    _mm512_castpd_si512(t),
-                    _mm512_set1_epi64(round.to_bits() as i64)
-                ),
-                _mm512_set1_epi64(add),
-            )),
-            _mm512_set1_epi64(i64::MIN),
-        )))
-    }
-
-    #[inline(always)]
-    fn xor(a: __m512d, b: __m512d) -> __m512d {
-        avx512!(_mm512_castsi512_pd(_mm512_xor_si512(
-            _mm512_castpd_si512(a),
-            _mm512_castpd_si512(b)
         )))
     }
 
