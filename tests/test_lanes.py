@@ -9,6 +9,8 @@ Dask, with ragged tails and mixed structures.
 from __future__ import annotations
 
 import math
+import os
+import re
 
 import admit_rs as ar
 import numpy as np
@@ -456,3 +458,49 @@ def test_lane_build_names_are_checked():
     with pytest.raises(ValueError, match="one of auto"):
         _core._lane_path("sse9")
     assert _core._lane_path() == _core._lane_path("auto")
+
+
+@pytest.mark.parametrize(
+    ("value", "expected"),
+    [
+        ("avx3", r"ADMIT_RS_LANES='avx3' is not a lane build \(did you mean avx2, avx512\?\)"),
+        ("sse9", r"'sse9' is not a lane build \(valid: auto, portable, avx2, avx512\)"),
+        ("AVX2", r"'AVX2' is not a lane build \(did you mean avx2"),
+    ],
+)
+def test_a_lane_build_name_the_core_ignores_warns_at_import(value, expected):
+    """The core falls back to the default build on a name it does not know; the package
+    says so once, at import, with the closest names and the build sweeps will use."""
+    import subprocess
+    import sys
+
+    from admit_rs import _core
+
+    env = dict(os.environ, ADMIT_RS_LANES=value)
+    out = subprocess.run(
+        [sys.executable, "-c", "import admit_rs"], env=env, capture_output=True, text=True,
+        check=True,
+    )  # fmt: skip
+    assert "LaneBuildWarning" in out.stderr
+    assert re.search(expected, out.stderr), out.stderr
+    assert f"sweeps use the '{_core._lane_path()}' build" in out.stderr
+
+
+def test_an_unavailable_or_valid_lane_build_name():
+    """A build this CPU lacks warns; one it runs (or ``auto``) is silent."""
+    import subprocess
+    import sys
+
+    from admit_rs import _core
+
+    runs = _core._lane_runs()
+    for name in ("portable", "avx2", "avx512", "auto"):
+        env = dict(os.environ, ADMIT_RS_LANES=name)
+        out = subprocess.run(
+            [sys.executable, "-c", "import admit_rs"], env=env, capture_output=True, text=True,
+            check=True,
+        )  # fmt: skip
+        if name == "auto" or name in runs:
+            assert "LaneBuildWarning" not in out.stderr, (name, out.stderr)
+        else:
+            assert "this CPU cannot run that build" in out.stderr, (name, out.stderr)

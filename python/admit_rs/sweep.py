@@ -39,7 +39,7 @@ from polars.exceptions import PanicException
 
 from admit_rs import _core
 from admit_rs.config import Scenario, _Block, _check_path, _core_value, _python_error
-from admit_rs.errors import AdmitError, ParameterError, for_run
+from admit_rs.errors import AdmitError, ParameterError, closest, for_run
 
 if TYPE_CHECKING:
     from dask.distributed import Client
@@ -71,6 +71,37 @@ class CheckpointMismatchError(AdmitError, ValueError):
 class CheckpointWarning(UserWarning):
     """A checkpoint chunk file that cannot be used (unreadable, or not this sweep's): it is
     named in the message, its runs are computed again and the file is replaced."""
+
+
+class LaneBuildWarning(UserWarning):
+    """``ADMIT_RS_LANES`` names no lane build, or one this CPU cannot run: sweeps take the
+    default build (the message names it and the closest valid names)."""
+
+
+LANE_BUILDS = ("auto", "portable", "avx2", "avx512")
+
+
+def _check_lane_env() -> None:
+    """Warns (once, at import) where ``ADMIT_RS_LANES`` is set but not taken: the core
+    then falls back to the default build silently (docs/performance.md §14)."""
+    value = os.environ.get("ADMIT_RS_LANES")
+    if value is None or value.strip() in ("", "auto"):
+        return
+    name = value.strip()
+    taken = _core._lane_path()
+    if name == taken:
+        return
+    if name in LANE_BUILDS:
+        why = f"ADMIT_RS_LANES={value!r}: this CPU cannot run that build"
+    else:
+        close = closest(name.lower(), LANE_BUILDS)
+        hint = f"did you mean {', '.join(close)}?" if close else f"valid: {', '.join(LANE_BUILDS)}"
+        why = f"ADMIT_RS_LANES={value!r} is not a lane build ({hint})"
+    warnings.warn(
+        f"{why}; sweeps use the {taken!r} build",
+        LaneBuildWarning,
+        stacklevel=2,
+    )
 
 
 class SweepInterrupted(KeyboardInterrupt):
@@ -1002,3 +1033,6 @@ def _assemble(
     if long is not None:
         long = long.sort("run_id", maintain_order=True)
     return table, long
+
+
+_check_lane_env()
