@@ -115,6 +115,13 @@ class SubstepWarning(UserWarning):
     diverges at every count, its traces stop converging, or the count limit)."""
 
 
+def _frame(columns: Mapping[str, Any]) -> pl.DataFrame:
+    """The trace's DataFrame from the core's NumPy columns: one Series each, which is what
+    ``pl.DataFrame(dict)`` builds after checks that cost a third more on the 30 columns
+    (about 0.2 ms of a short run's 0.85 ms in ``ar.simulate``)."""
+    return pl.DataFrame([pl.Series(name, values) for name, values in columns.items()])
+
+
 def _result(scenario: Scenario, columns: dict[str, Any], raw: Mapping[str, Any]) -> Result:
     fixed = scenario.substeps if isinstance(scenario.substeps, int) else 0
     note = raw.get("substep_note")
@@ -122,7 +129,7 @@ def _result(scenario: Scenario, columns: dict[str, Any], raw: Mapping[str, Any])
         warnings.warn(note, SubstepWarning, stacklevel=3)
     return Result(
         scenario=scenario,
-        trace=pl.DataFrame(columns),
+        trace=_frame(columns),
         metrics=MetricsDict(raw["metrics"]),
         diverged_at=raw["diverged_at"],
         divergence_cause=raw["divergence_cause"],
@@ -253,7 +260,7 @@ class Simulation:
     @property
     def trace(self) -> pl.DataFrame:
         """The samples recorded so far (columns as :attr:`Result.trace`)."""
-        return pl.DataFrame(self._core.trace())
+        return _frame(self._core.trace())
 
     def result(self) -> Result:
         """The finished run as a :class:`Result` (trace, metrics, outcome).
