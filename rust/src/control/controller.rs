@@ -17,7 +17,7 @@ use crate::control::params::{constant_inertia, ControllerParams, PositionGains, 
 use crate::control::task::Desired;
 use crate::robot::chain::arm::rotation_vector;
 use crate::robot::{ArmModel, JointVector, Kinematics, Orientation, RobotModel, TaskOptions};
-use crate::scalar::{finite, mask_from, no_lane, put, put_vector, Real, Wide};
+use crate::scalar::{finite, mask_from, mat_vec, no_lane, put, put_vector, Real, Wide};
 
 /// What the controller reads at t_k: the encoders' state, the tip kinematics the plant
 /// evaluated once, the tip orientation terms when the task holds the orientation, and the
@@ -273,7 +273,9 @@ impl<T: Real, M, const N: usize> Controller<T, M, N> {
         M: ArmModel<T, N>,
     {
         let k = m.kinematics;
-        let velocity = k.jacobian * m.qd;
+        // J q̇ written out (nalgebra's sums, the same bits): nalgebra's generic product stays
+        // out of line in the native lane builds, each vector operation a call (§24).
+        let velocity = mat_vec(&k.jacobian, m.qd);
         // eq. (39)
         let v = self.gains.command(desired, &k.position, &velocity);
         let Some(task) = &self.task else {
