@@ -13,7 +13,9 @@ frames, then counted:
   of a period, by the first frame below the lane loop, or else by the out-of-line function
   a sample was in (for a scalar run, every sample outside RK4);
 - ``--by line``: the innermost admit_rs source line outside the RK4 substeps;
-- ``--by rk4``: the innermost admit_rs source line inside them.
+- ``--by rk4``: the innermost admit_rs source line inside them;
+- ``--skip PATH``: with ``line`` or ``rk4``, frames in files whose path contains PATH are
+  passed over (``--skip rust/src/scalar/`` counts a lane op at the line that called it).
 
 Needs ``perf`` and ``llvm-symbolizer`` (Debian ``linux-perf``, ``llvm``). This guest has no
 hardware counters, so ``cpu-clock`` sampling it is; sample skid puts a slow instruction's
@@ -85,7 +87,7 @@ def frames(so: str, addrs: list[int]) -> list[list[tuple[str, str]]]:
     return result
 
 
-def key(chain: list[tuple[str, str]], by: str) -> str | None:
+def key(chain: list[tuple[str, str]], by: str, skip: str | None = None) -> str | None:
     """The row a sample counts in (``None``: not counted), from its inlined frames."""
     names = [f for f, _ in chain]
     in_rk4 = any("rk4_period" in n for n in names)
@@ -100,7 +102,8 @@ def key(chain: list[tuple[str, str]], by: str) -> str | None:
         return "lane loop > " + outer[at + 1].split("<")[0][:50]
     if in_rk4 != (by == "rk4"):
         return None
-    ours = [(f, loc) for f, loc in chain if "rust/src/" in loc]
+    ours = [(f, loc) for f, loc in chain
+            if "rust/src/" in loc and not (skip and skip in loc)]  # fmt: skip
     if not ours:
         return None
     f, loc = ours[0]
@@ -114,13 +117,19 @@ def main() -> None:
     parser.add_argument("so")
     parser.add_argument("--by", choices=("stage", "line", "rk4"), default="stage")
     parser.add_argument("--top", type=int, default=25)
+    parser.add_argument(
+        "--skip",
+        metavar="PATH",
+        help="count a sample at its innermost frame outside files whose path contains PATH "
+        "(e.g. rust/src/scalar/ for the lane types' ops)",
+    )
     args = parser.parse_args()
     ips, total = samples(args.data)
     shift = text_shift(args.so)
     addrs = sorted(ips)
     counts: collections.Counter[str] = collections.Counter()
     for a, chain in zip(addrs, frames(args.so, [a + shift for a in addrs]), strict=True):
-        k = key(chain, args.by)
+        k = key(chain, args.by, args.skip)
         if k is not None:
             counts[k] += ips[a]
     print(f"{total} samples, {sum(ips.values())} in _core.abi3.so")

@@ -126,35 +126,29 @@ where
 }
 
 /// One cell's [h, h_u, h_v, h_uu, h_uv, h_vv] in cell units from the Hermite weights along
-/// u and v (`hermite`'s) and the corners' [h, h_u, h_v, h_uv] (`corner(a, b)`, a along u).
+/// u and v (`hermite`'s) and the corners' [h, h_u, h_v, h_uv] (`corners[a][b]`, a along u).
 /// Summed along v first, so each node value meets one weight (44 products for h, h_u, h_v,
 /// where the tensor form takes 96); corner data may be plain values while the weights are
 /// jets. Callers that drop the second derivatives do not pay for them (all inlined).
+///
+/// Written as `#[inline(always)]` functions, not closures or `array::map`: the release
+/// build called those out of line, compiled without the lane build's target features, so
+/// every lane product in them became a function call (docs/performance.md §25).
 #[inline(always)]
 fn patch<A, N>(
     [wu, dwu, ddwu]: [[A; 4]; 3],
     [wv, dwv, ddwv]: [[A; 4]; 3],
-    corner: impl Fn(usize, usize) -> [N; 4],
+    corners: &[[[N; 4]; 2]; 2],
 ) -> [A; 6]
 where
     A: Copy + Add<Output = A> + Mul<Output = A> + Mul<N, Output = A>,
     N: Copy,
 {
-    let corners = [[corner(0, 0), corner(0, 1)], [corner(1, 0), corner(1, 1)]];
-    // At u-node a, weighted along v by w: the interpolant of h and h_v (`g`, met by the
-    // u value weights) and of h_u and h_uv (`k`, met by the u slope weights).
-    let along_v = |w: &[A; 4]| {
-        corners.map(|[[f0, fu0, fv0, fuv0], [f1, fu1, fv1, fuv1]]| {
-            (
-                w[0] * f0 + w[1] * fv0 + w[2] * f1 + w[3] * fv1,
-                w[0] * fu0 + w[1] * fuv0 + w[2] * fu1 + w[3] * fuv1,
-            )
-        })
-    };
-    let along_u = |w: &[A; 4], [(g0, k0), (g1, k1)]: [(A, A); 2]| {
-        w[0] * g0 + w[1] * k0 + w[2] * g1 + w[3] * k1
-    };
-    let (value, slope, bend) = (along_v(&wv), along_v(&dwv), along_v(&ddwv));
+    let (value, slope, bend) = (
+        along_v(&wv, corners),
+        along_v(&dwv, corners),
+        along_v(&ddwv, corners),
+    );
     [
         along_u(&wu, value),
         along_u(&dwu, value),
@@ -163,6 +157,39 @@ where
         along_u(&dwu, slope),
         along_u(&wu, bend),
     ]
+}
+
+/// At u-nodes 0 and 1, weighted along v by `w`: the interpolant of h and h_v (`g`, met
+/// by the u value weights) and of h_u and h_uv (`k`, met by the u slope weights).
+#[inline(always)]
+fn along_v<A, N>(w: &[A; 4], corners: &[[[N; 4]; 2]; 2]) -> [(A, A); 2]
+where
+    A: Copy + Add<Output = A> + Mul<N, Output = A>,
+    N: Copy,
+{
+    [at_node(w, &corners[0]), at_node(w, &corners[1])]
+}
+
+/// `along_v` at one u-node, from its two corners along v.
+#[inline(always)]
+fn at_node<A, N>(w: &[A; 4], [[f0, fu0, fv0, fuv0], [f1, fu1, fv1, fuv1]]: &[[N; 4]; 2]) -> (A, A)
+where
+    A: Copy + Add<Output = A> + Mul<N, Output = A>,
+    N: Copy,
+{
+    (
+        w[0] * *f0 + w[1] * *fv0 + w[2] * *f1 + w[3] * *fv1,
+        w[0] * *fu0 + w[1] * *fuv0 + w[2] * *fu1 + w[3] * *fuv1,
+    )
+}
+
+/// The u-direction sum of `along_v`'s node pair with the u weights `w`.
+#[inline(always)]
+fn along_u<A>(w: &[A; 4], [(g0, k0), (g1, k1)]: [(A, A); 2]) -> A
+where
+    A: Copy + Add<Output = A> + Mul<Output = A>,
+{
+    w[0] * g0 + w[1] * k0 + w[2] * g1 + w[3] * k1
 }
 
 /// A grid coordinate held inside [0, last] (NaN stays NaN; the callers check first).
@@ -245,9 +272,9 @@ impl HeightGrid {
         let (tu, tv) = (cu - c(i as f64), cv - c(j as f64));
         let scale = |x: f64, a: S| a * x;
         let weights = (hermite(tu, c, scale), hermite(tv, c, scale));
-        let [h, hu, hv, huu, huv, hvv] = patch(weights.0, weights.1, |a, b| {
-            self.nodes[(i + a) * self.cols + j + b]
-        });
+        let node = |a: usize, b: usize| self.nodes[(i + a) * self.cols + j + b];
+        let corners = [[node(0, 0), node(0, 1)], [node(1, 0), node(1, 1)]];
+        let [h, hu, hv, huu, huv, hvv] = patch(weights.0, weights.1, &corners);
         // Per cell → per metre; beyond the grid, the tangent plane at the edge point.
         let (hu, hv) = (hu * pu, hv * pv);
         [
@@ -380,6 +407,19 @@ impl<W: Real> HeightField<W> {
 }
 
 impl<T: Real> HeightField<T> {
+    /// Corner (a, b)'s [h, h_u, h_v, h_uv] in every lane's cell (`at[l]`: the cell's
+    /// first node in lane l's grid), each gathered from the lane's own grid.
+    #[inline(always)]
+    fn corner(&self, at: &[usize; MAX_LANES], a: usize, b: usize) -> [T; 4] {
+        let field = |k: usize| {
+            T::from_lanes(|l| {
+                let g = &self.grids[l];
+                g.nodes[at[l] + a * g.cols + b][k]
+            })
+        };
+        [field(0), field(1), field(2), field(3)]
+    }
+
     /// (h, h_u, h_v) at (u, v), each lane on its own grid: [`HeightGrid::eval`]'s
     /// arithmetic in lanes (the same operations, so a lane's bits are a scalar run's),
     /// with only the cell lookup and the corner data read lane by lane.
@@ -417,14 +457,11 @@ impl<T: Real> HeightField<T> {
         let scale = |x: f64, a: T| c(x) * a;
         let weights = (hermite(tu, c, scale), hermite(tv, c, scale));
         // Corner (a, b)'s [h, h_u, h_v, h_uv], each gathered from every lane's own grid.
-        let [h, hu, hv, ..] = patch(weights.0, weights.1, |a, b| {
-            std::array::from_fn(|field| {
-                T::from_lanes(|l| {
-                    let g = &self.grids[l];
-                    g.nodes[at[l] + a * g.cols + b][field]
-                })
-            })
-        });
+        let corners = [
+            [self.corner(&at, 0, 0), self.corner(&at, 0, 1)],
+            [self.corner(&at, 1, 0), self.corner(&at, 1, 1)],
+        ];
+        let [h, hu, hv, ..] = patch(weights.0, weights.1, &corners);
         let (hu, hv) = (hu * pu, hv * pv);
         let out = (h + hu * (gu - cu) * du + hv * (gv - cv) * dv, hu, hv);
         if finite {
