@@ -5,6 +5,7 @@
 //! object interface to the typed simulation, whose step loop is monomorphised.
 
 use std::any::Any;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::error::{Error, Result};
 use crate::robot::chain::{unsupported_joints, with_joints, JointCount, UrdfArm};
@@ -17,19 +18,60 @@ use crate::sim::simulation::{RunResult, Simulation};
 use crate::sim::substep_choice::{run_all, Request};
 use crate::sim::trace::Trace;
 
+/// The count `substeps = "auto"` climbs to third: its search asks for 1, 2 and then 4
+/// substeps unless the 1 and the 2 already agree within the tolerance (`SubstepSearch`).
+const RUN_AHEAD: usize = 4;
+
 /// Validates, builds and runs one scenario, whatever its arm; `substeps = "auto"` runs
 /// the candidates of `sim::substep_choice` and returns the chosen one.
+///
+/// For `"auto"`, when rayon has more than one thread and this call is not on one of its
+/// workers, the search's 4-substep run starts on a second thread beside the 1 and the 2
+/// (the longest of the three, so the climb's wall time is about that run's); if the search
+/// ends without it, it is stopped. Each run is the same function of the config on either
+/// thread, so the choice and the result are the same bits as one after another
+/// (docs/substeps.md, "Time").
 pub fn simulate(config: &ScenarioConfig) -> Result<RunResult> {
     if config.substeps.count().is_some() {
         return Ok(AnySimulation::new(config)?.run());
     }
     config.validate()?;
-    // The search's runs one after another; the chosen run, with its `choice`.
-    let mut runs = run_all(std::slice::from_ref(config), |requests| {
-        requests
-            .iter()
-            .map(|r| Ok(AnySimulation::for_request(config, r, true)?.run()))
-            .collect::<Result<Vec<_>>>()
+    let ahead = rayon::current_num_threads() > 1 && rayon::current_thread_index().is_none();
+    search_substeps(config, ahead)
+}
+
+/// `"auto"`'s search for a validated `config`, with the 4-substep run started ahead on a
+/// second thread or not (the same result either way: tested).
+fn search_substeps(config: &ScenarioConfig, ahead: bool) -> Result<RunResult> {
+    let run_at = |count: usize, stop: &AtomicBool| -> Result<Option<RunResult>> {
+        let request = Request {
+            index: 0,
+            count,
+            forces: true,
+        };
+        Ok(AnySimulation::for_request(config, &request, true)?.run_unless(stop))
+    };
+    let stop = AtomicBool::new(false);
+    let mut runs = std::thread::scope(|scope| {
+        let mut early = ahead.then(|| scope.spawn(|| run_at(RUN_AHEAD, &stop)));
+        let runs = run_all(std::slice::from_ref(config), |requests| {
+            requests
+                .iter()
+                .map(|r| {
+                    if r.count == RUN_AHEAD {
+                        if let Some(Ok(done)) = early.take().map(|h| h.join()) {
+                            if let Some(run) = done? {
+                                return Ok(run);
+                            }
+                        }
+                    }
+                    Ok(AnySimulation::for_request(config, r, true)?.run())
+                })
+                .collect::<Result<Vec<_>>>()
+        });
+        // The search is over: a 4-substep run it did not ask for stops here.
+        stop.store(true, Ordering::Relaxed);
+        runs
     })?;
     // `run_all` returns one run per config; an empty answer would be a bug of the search.
     runs.pop().ok_or_else(|| {
@@ -55,6 +97,7 @@ impl Clone for AnySimulation {
 /// What the typed simulation of any arm answers (object safe: [`AnySimulation`] holds one).
 trait TypedRun: Send + Sync + std::fmt::Debug {
     fn run(&mut self) -> RunResult;
+    fn run_unless(&mut self, stop: &AtomicBool) -> Option<RunResult>;
     fn reset(&mut self);
     fn step(&mut self, n: usize) -> Option<Outcome>;
     fn sample(&self) -> usize;
@@ -80,6 +123,10 @@ trait TypedRun: Send + Sync + std::fmt::Debug {
 impl<R: RobotModel<N>, const N: usize> TypedRun for Simulation<R, N> {
     fn run(&mut self) -> RunResult {
         Simulation::run(self)
+    }
+
+    fn run_unless(&mut self, stop: &AtomicBool) -> Option<RunResult> {
+        Simulation::run_unless(self, stop)
     }
 
     fn reset(&mut self) {
@@ -210,6 +257,11 @@ impl AnySimulation {
 
     pub fn run(&mut self) -> RunResult {
         self.0.run()
+    }
+
+    /// [`Simulation::run_unless`]: the run, or `None` if `stop` was set before it ended.
+    pub fn run_unless(&mut self, stop: &AtomicBool) -> Option<RunResult> {
+        self.0.run_unless(stop)
     }
 
     pub fn reset(&mut self) {
@@ -348,5 +400,55 @@ pub fn visit_arm<V: ArmVisitor>(robot: &RobotConfig, visitor: V) -> Result<V::Ou
             let n = p.dof().map_err(|e| e.within("robot"))?;
             with_joints(n, Chain(visitor)).ok_or_else(|| unsupported_joints(n))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::scenario::Substeps;
+
+    /// Equal to the bit: `{:?}` prints every float's shortest round trip, and NaN metrics
+    /// (no settling in a short run) compare equal, as `==` would not have them.
+    fn same(a: &RunResult, b: &RunResult) -> bool {
+        format!("{a:?}") == format!("{b:?}")
+    }
+
+    fn auto(tolerance: f64) -> ScenarioConfig {
+        ScenarioConfig {
+            duration: 0.3,
+            substeps: Substeps::Auto,
+            tolerance,
+            ..ScenarioConfig::default()
+        }
+    }
+
+    /// The 4-substep run started ahead gives the search's choice and run bit for bit,
+    /// whether the search asks for it (a tight tolerance) or stops it unasked (a loose one,
+    /// met by the 1 and the 2 alone).
+    #[test]
+    fn running_ahead_changes_no_bit() {
+        for (tolerance, asks_for_four) in [(1e-7, true), (10.0, false)] {
+            let config = auto(tolerance);
+            let alone = search_substeps(&config, false).unwrap();
+            let ahead = search_substeps(&config, true).unwrap();
+            let tried = &alone.choice.as_ref().unwrap().tried;
+            assert_eq!(tried.contains(&RUN_AHEAD), asks_for_four, "{tried:?}");
+            assert!(same(&ahead, &alone), "tolerance {tolerance}");
+        }
+    }
+
+    /// A run told to stop gives nothing; one never told finishes with `run`'s bits.
+    #[test]
+    fn run_unless_stops_or_equals_run() {
+        let config = ScenarioConfig {
+            duration: 0.2,
+            ..ScenarioConfig::default()
+        };
+        let mut sim = AnySimulation::new(&config).unwrap();
+        let whole = sim.run();
+        let unstopped = sim.run_unless(&AtomicBool::new(false)).unwrap();
+        assert!(same(&unstopped, &whole));
+        assert!(sim.run_unless(&AtomicBool::new(true)).is_none());
     }
 }

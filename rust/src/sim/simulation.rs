@@ -8,6 +8,8 @@
 //! `Simulation` all go through the same code. The state is explicit: [`Simulation::state`]
 //! and [`Simulation::set_state`] read and write it as one flat labelled vector.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use crate::control::approach::Approach;
 use crate::control::belief::{Belief, CurvedBelief};
 use crate::control::controller::{Controller, TaskAtStart};
@@ -26,6 +28,9 @@ use crate::sim::trace::{ForceLog, Row, Trace};
 use crate::world::actuator::Actuator;
 use crate::world::sensor::ForceSensor;
 use crate::world::surface::Environment;
+
+/// How many periods [`Simulation::run_unless`] steps between reads of its stop flag.
+pub const STOP_CHECK_SAMPLES: usize = 64;
 
 /// A finished run.
 #[derive(Debug, Clone, PartialEq)]
@@ -283,6 +288,24 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         // A whole run always ends within `samples` steps.
         self.step(self.samples);
         self.take_result()
+    }
+
+    /// [`Self::run`], given up (`None`) once `stop` is set. The flag is read every
+    /// [`STOP_CHECK_SAMPLES`] periods, so a run told to stop ends within that much work;
+    /// the samples are stepped as [`Self::step`] steps them, so a run that finishes has
+    /// [`Self::run`]'s bits.
+    pub fn run_unless(&mut self, stop: &AtomicBool) -> Option<RunResult> {
+        self.reset();
+        let mut left = self.samples;
+        while left > 0 && self.outcome.is_none() {
+            if stop.load(Ordering::Relaxed) {
+                return None;
+            }
+            let n = left.min(STOP_CHECK_SAMPLES);
+            self.step(n);
+            left -= n;
+        }
+        Some(self.take_result())
     }
 
     /// The result of a run that has ended; the trace moves out.
