@@ -213,6 +213,19 @@ pub fn zeros<T: Real, const R: usize, const C: usize>() -> SMatrix<T, R, C> {
     SMatrix::from_array_storage(nalgebra::ArrayStorage([[T::zero(); R]; C]))
 }
 
+/// a × b, the same products and differences as nalgebra's `cross` (so the same bits),
+/// written out so that it inlines: the release build left nalgebra's `cross` out of line in
+/// the lanes' AVX2 loop (47 call sites, the URDF chain's spatial algebra among them), each
+/// of its lane products and differences a call (docs/performance.md §25).
+#[inline(always)]
+pub fn cross<T: Real>(a: &Vector3<T>, b: &Vector3<T>) -> Vector3<T> {
+    Vector3::new(
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    )
+}
+
 /// m v, summed as nalgebra's `*` sums it (column by column, so the same bits), written out
 /// so that it inlines: in the lanes' AVX2 loop LLVM left nalgebra's generic product out of
 /// line, where it ran as baseline x86-64 code.

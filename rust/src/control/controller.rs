@@ -17,7 +17,7 @@ use crate::control::params::{constant_inertia, ControllerParams, PositionGains, 
 use crate::control::task::Desired;
 use crate::robot::chain::arm::rotation_vector;
 use crate::robot::{ArmModel, JointVector, Kinematics, Orientation, RobotModel, TaskOptions};
-use crate::scalar::{finite, mask_from, mat_vec, no_lane, put, put_vector, Real, Wide};
+use crate::scalar::{cross, finite, mask_from, mat_vec, no_lane, put, put_vector, Real, Wide};
 
 /// What the controller reads at t_k: the encoders' state, the tip kinematics the plant
 /// evaluated once, the tip orientation terms when the task holds the orientation, and the
@@ -544,7 +544,7 @@ impl<W: Real, M, const N: usize> Controller<W, M, N> {
 /// a = b; 1 + c is kept from 0 (a normal turned by π names no one rotation).
 #[inline(always)]
 pub(crate) fn shortest_turn<T: Real>(a: &Vector3<T>, b: &Vector3<T>) -> Matrix3<T> {
-    let v = a.cross(b);
+    let v = cross(a, b);
     let c = a.dot(b);
     let k = Matrix3::new(
         T::zero(),

@@ -8,7 +8,7 @@ use nalgebra::{SMatrix, SVector, Vector3};
 
 use super::model::{JointKind, SerialChain};
 use super::spatial::{mul3tv, mul3v, turn, Pose, Real, SVec};
-use crate::scalar::zeros;
+use crate::scalar::{cross, zeros};
 
 /// The frames of one configuration: each body in its parent (`up`) and in the base
 /// (`world`), and the tip in the base.
@@ -92,8 +92,8 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
             let b = &self.bodies[i];
             let p = f.world[i].pos;
             let a = mul3v(&f.world[i].rot, &b.axis);
-            v_origin += omega.cross(&(p - p_prev));
-            axis_rates[i] = omega.cross(&a);
+            v_origin += cross(&omega, &(p - p_prev));
+            axis_rates[i] = cross(&omega, &a);
             match b.kind {
                 JointKind::Revolute => omega += a * qd[i],
                 JointKind::Prismatic => v_origin += a * qd[i],
@@ -102,16 +102,16 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
             origins_v[i] = v_origin;
             p_prev = p;
         }
-        let v_tip = v_origin + omega.cross(&(p_tip - p_prev));
+        let v_tip = v_origin + cross(&omega, &(p_tip - p_prev));
         for i in 0..N {
             let (a, adot) = (axes[i], axis_rates[i]);
             let (lin, ang, lin_rate, ang_rate) = match self.bodies[i].kind {
                 JointKind::Revolute => {
                     let r = p_tip - f.world[i].pos;
                     (
-                        a.cross(&r),
+                        cross(&a, &r),
                         a,
-                        adot.cross(&r) + a.cross(&(v_tip - origins_v[i])),
+                        cross(&adot, &r) + cross(&a, &(v_tip - origins_v[i])),
                         adot,
                     )
                 }
@@ -137,21 +137,21 @@ impl<T: Real, const N: usize> SerialChain<T, N> {
             let b = &self.bodies[i];
             let p = f.world[i].pos;
             let a = mul3v(&f.world[i].rot, &b.axis);
-            v += omega.cross(&(p - p_prev));
+            v += cross(&omega, &(p - p_prev));
             match b.kind {
                 JointKind::Revolute => omega += a * qd[i],
                 JointKind::Prismatic => v += a * qd[i],
             }
             p_prev = p;
         }
-        v + omega.cross(&(f.tip.pos - p_prev))
+        v + cross(&omega, &(f.tip.pos - p_prev))
     }
 
     /// A world force `force` at the tip origin as a spatial force on body N, in its frame.
     #[inline(always)]
     pub fn tip_wrench(&self, f: &Frames<T, N>, force: &Vector3<T>) -> SVec<T> {
         let lin = mul3tv(&f.world[N - 1].rot, force);
-        SVec::new(self.tip.pos.cross(&lin), lin)
+        SVec::new(cross(&self.tip.pos, &lin), lin)
     }
 }
 

@@ -10,8 +10,8 @@
 
 use nalgebra::{Matrix3, Matrix6, Vector3};
 
-use crate::scalar::zeros;
 pub use crate::scalar::Real;
+use crate::scalar::{cross, zeros};
 
 /// A 6-D spatial vector: motion [ω; v] or force [n; f].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -35,8 +35,8 @@ impl<T: Real> SVec<T> {
     #[inline(always)]
     pub fn cross_motion(&self, m: &SVec<T>) -> SVec<T> {
         SVec::new(
-            self.ang.cross(&m.ang),
-            self.ang.cross(&m.lin) + self.lin.cross(&m.ang),
+            cross(&self.ang, &m.ang),
+            cross(&self.ang, &m.lin) + cross(&self.lin, &m.ang),
         )
     }
 
@@ -44,8 +44,8 @@ impl<T: Real> SVec<T> {
     #[inline(always)]
     pub fn cross_force(&self, f: &SVec<T>) -> SVec<T> {
         SVec::new(
-            self.ang.cross(&f.ang) + self.lin.cross(&f.lin),
-            self.ang.cross(&f.lin),
+            cross(&self.ang, &f.ang) + cross(&self.lin, &f.lin),
+            cross(&self.ang, &f.lin),
         )
     }
 
@@ -136,7 +136,7 @@ impl<T: Real> Pose<T> {
     pub fn motion_to_child(&self, m: &SVec<T>) -> SVec<T> {
         SVec::new(
             mul3tv(&self.rot, &m.ang),
-            mul3tv(&self.rot, &(m.lin - self.pos.cross(&m.ang))),
+            mul3tv(&self.rot, &(m.lin - cross(&self.pos, &m.ang))),
         )
     }
 
@@ -144,7 +144,7 @@ impl<T: Real> Pose<T> {
     #[inline(always)]
     pub fn force_to_parent(&self, f: &SVec<T>) -> SVec<T> {
         let lin = mul3v(&self.rot, &f.lin);
-        SVec::new(mul3v(&self.rot, &f.ang) + self.pos.cross(&lin), lin)
+        SVec::new(mul3v(&self.rot, &f.ang) + cross(&self.pos, &lin), lin)
     }
 
     /// The 6×6 motion transform X (parent → child).
@@ -247,18 +247,18 @@ pub(crate) fn mul3tv<T: Real>(a: &Matrix3<T>, v: &Vector3<T>) -> Vector3<T> {
 /// [p]× m: the columns of m crossed from the left by p.
 #[inline(always)]
 fn cross_columns<T: Real>(p: &Vector3<T>, m: &Matrix3<T>) -> Matrix3<T> {
-    let x = p.cross(&Vector3::new(m[(0, 0)], m[(1, 0)], m[(2, 0)]));
-    let y = p.cross(&Vector3::new(m[(0, 1)], m[(1, 1)], m[(2, 1)]));
-    let z = p.cross(&Vector3::new(m[(0, 2)], m[(1, 2)], m[(2, 2)]));
+    let x = cross(p, &Vector3::new(m[(0, 0)], m[(1, 0)], m[(2, 0)]));
+    let y = cross(p, &Vector3::new(m[(0, 1)], m[(1, 1)], m[(2, 1)]));
+    let z = cross(p, &Vector3::new(m[(0, 2)], m[(1, 2)], m[(2, 2)]));
     Matrix3::new(x[0], y[0], z[0], x[1], y[1], z[1], x[2], y[2], z[2])
 }
 
 /// m [p]×: the rows of m crossed from the right by p.
 #[inline(always)]
 fn rows_cross<T: Real>(m: &Matrix3<T>, p: &Vector3<T>) -> Matrix3<T> {
-    let x = Vector3::new(m[(0, 0)], m[(0, 1)], m[(0, 2)]).cross(p);
-    let y = Vector3::new(m[(1, 0)], m[(1, 1)], m[(1, 2)]).cross(p);
-    let z = Vector3::new(m[(2, 0)], m[(2, 1)], m[(2, 2)]).cross(p);
+    let x = cross(&Vector3::new(m[(0, 0)], m[(0, 1)], m[(0, 2)]), p);
+    let y = cross(&Vector3::new(m[(1, 0)], m[(1, 1)], m[(1, 2)]), p);
+    let z = cross(&Vector3::new(m[(2, 0)], m[(2, 1)], m[(2, 2)]), p);
     Matrix3::new(x[0], x[1], x[2], y[0], y[1], y[2], z[0], z[1], z[2])
 }
 
@@ -393,8 +393,8 @@ impl<T: Real> RigidInertia<T> {
     #[inline(always)]
     pub fn apply(&self, m: &SVec<T>) -> SVec<T> {
         SVec::new(
-            T::mat3_vec(&self.ibar, &m.ang) + self.h.cross(&m.lin),
-            m.lin * self.mass - self.h.cross(&m.ang),
+            T::mat3_vec(&self.ibar, &m.ang) + cross(&self.h, &m.lin),
+            m.lin * self.mass - cross(&self.h, &m.ang),
         )
     }
 
