@@ -15,12 +15,12 @@ use crate::sim::metrics::Metrics;
 use crate::sim::outcome::Outcome;
 use crate::sim::scenario::{RobotConfig, ScenarioConfig};
 use crate::sim::simulation::{RunResult, Simulation};
-use crate::sim::substep_choice::{run_all, Request};
+use crate::sim::substep_choice::{run_all, Request, SubstepSearch};
 use crate::sim::trace::Trace;
 
-/// The count `substeps = "auto"` climbs to third: its search asks for 1, 2 and then 4
-/// substeps unless the 1 and the 2 already agree within the tolerance (`SubstepSearch`).
-const RUN_AHEAD: usize = 4;
+/// The count `substeps = "auto"` climbs to third, the longest of the runs its search
+/// always starts with (unless the first two settle it).
+const RUN_AHEAD: usize = SubstepSearch::CLIMB_START[2];
 
 /// Validates, builds and runs one scenario, whatever its arm; `substeps = "auto"` runs
 /// the candidates of `sim::substep_choice` and returns the chosen one.

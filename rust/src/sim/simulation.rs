@@ -30,7 +30,7 @@ use crate::world::sensor::ForceSensor;
 use crate::world::surface::Environment;
 
 /// How many periods [`Simulation::run_unless`] steps between reads of its stop flag.
-pub const STOP_CHECK_SAMPLES: usize = 64;
+const STOP_CHECK_SAMPLES: usize = 64;
 
 /// A finished run.
 #[derive(Debug, Clone, PartialEq)]
@@ -291,7 +291,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
     }
 
     /// [`Self::run`], given up (`None`) once `stop` is set. The flag is read every
-    /// [`STOP_CHECK_SAMPLES`] periods, so a run told to stop ends within that much work;
+    /// `STOP_CHECK_SAMPLES` (64) periods, so a run told to stop ends within that much work;
     /// the samples are stepped as [`Self::step`] steps them, so a run that finishes has
     /// [`Self::run`]'s bits.
     pub fn run_unless(&mut self, stop: &AtomicBool) -> Option<RunResult> {

@@ -92,6 +92,10 @@ pub struct SubstepSearch {
 }
 
 impl SubstepSearch {
+    /// The counts every climb starts with, in order: 1 and 2, then 4 unless those two
+    /// already settle the search (`observe`). A driver may start them early (`dispatch`).
+    pub const CLIMB_START: [usize; 3] = [1, 2, 4];
+
     /// A search for `tolerance` [N], and the count of its first run.
     pub fn new(tolerance: f64) -> (Self, usize) {
         let search = Self {
@@ -101,9 +105,9 @@ impl SubstepSearch {
             orders: Vec::new(),
             descent: None,
             known_fail: 0,
-            tried: vec![1],
+            tried: vec![Self::CLIMB_START[0]],
         };
-        (search, 1)
+        (search, Self::CLIMB_START[0])
     }
 
     /// The run just asked for (`count`), by its forces and whether it diverged; returns
@@ -126,7 +130,7 @@ impl SubstepSearch {
             self.climb[j - 3].forces = ForceLog::default();
         }
         if j == 0 {
-            return self.ask(2);
+            return self.ask(Self::CLIMB_START[1]);
         }
         let gap = self.climb[j].forces.distance(&self.climb[j - 1].forces);
         self.gaps.push(gap);
@@ -185,7 +189,10 @@ impl SubstepSearch {
         // Aim at the count the error model says meets half the tolerance, at most twice
         // this one (the model is fitted on coarser runs).
         let aim = f as f64 * (e_fine / (AIM * self.tolerance)).powf(1.0 / order);
-        let next = if aim.is_finite() {
+        // Before an order is measured (j = 1) the model cannot aim: the climb doubles.
+        let next = if j == 1 {
+            Self::CLIMB_START[2]
+        } else if aim.is_finite() {
             (aim.ceil() as usize).clamp(f + 1, 2 * f)
         } else {
             2 * f
@@ -477,6 +484,8 @@ mod tests {
             runs += 1;
         }
         assert!(runs >= 5, "{:?}", s.tried);
+        // The climb starts as it says (a driver starts these runs early).
+        assert_eq!(s.tried[..3], SubstepSearch::CLIMB_START);
     }
 
     /// A run converging at a lower order (a contact onset within a substep, a damper
