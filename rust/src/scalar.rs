@@ -248,6 +248,29 @@ pub fn mat_vec<T: Real, const R: usize, const C: usize>(
     y
 }
 
+/// a b, summed as nalgebra's `*` sums it (each column of the product as [`mat_vec`] sums
+/// a b_c, so the same bits), written out so that it inlines: the lanes' AVX2 loop called
+/// nalgebra's 3×3 product out of line in the URDF pose task (docs/performance.md §26).
+/// `K` ≥ 1.
+#[inline(always)]
+pub fn mat_mul<T: Real, const R: usize, const K: usize, const C: usize>(
+    a: &SMatrix<T, R, K>,
+    b: &SMatrix<T, K, C>,
+) -> SMatrix<T, R, C> {
+    let mut y = zeros::<T, R, C>();
+    for c in 0..C {
+        for r in 0..R {
+            y[(r, c)] = a[(r, 0)] * b[(0, c)];
+        }
+        for k in 1..K {
+            for r in 0..R {
+                y[(r, c)] += a[(r, k)] * b[(k, c)];
+            }
+        }
+    }
+    y
+}
+
 /// mᵀ v, summed as nalgebra's `m.transpose() * v` sums it; see [`mat_vec`].
 #[inline(always)]
 pub fn mat_t_vec<T: Real, const R: usize, const C: usize>(
@@ -648,5 +671,34 @@ mod tests {
         assert_eq!(lane(a.exp_fast(), 2), lane(b.exp_fast(), 2));
         let (s, c) = a.sin_cos_each();
         assert_eq!((lane(s, 3), lane(c, 3)), libm::sincos(-0.3 * 3.0));
+    }
+
+    /// The written-out products are nalgebra's to the bit: a rounding-sensitive spread of
+    /// magnitudes, and ±0 entries (a sum starting at +0 would turn −0 into +0).
+    #[test]
+    fn written_out_products_are_nalgebra_s_bits() {
+        let entry = |i: usize| {
+            let x = (i as f64 * 0.7548).sin() * 10f64.powi((i % 7) as i32 - 3);
+            if i.is_multiple_of(5) {
+                -0.0 * x.signum()
+            } else {
+                x
+            }
+        };
+        let a = SMatrix::<f64, 3, 4>::from_fn(|r, c| entry(3 * c + r));
+        let b = SMatrix::<f64, 4, 2>::from_fn(|r, c| entry(17 + 4 * c + r));
+        let v = SVector::<f64, 4>::from_fn(|r, _| -entry(31 + r));
+        let bits = |m: &[f64]| m.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(mat_mul(&a, &b).as_slice()), bits((a * b).as_slice()));
+        assert_eq!(bits(mat_vec(&a, &v).as_slice()), bits((a * v).as_slice()));
+        let r = a.fixed_rows::<3>(0).fixed_columns::<3>(0).into_owned();
+        let bt = b.fixed_rows::<3>(0).into_owned();
+        let w = Vector3::new(bt[0], bt[1], bt[2]);
+        let u = Vector3::new(bt[3], bt[4], bt[5]);
+        assert_eq!(bits(cross(&w, &u).as_slice()), bits(w.cross(&u).as_slice()));
+        assert_eq!(
+            bits(mat_mul(&r, &r.transpose()).as_slice()),
+            bits((r * r.transpose()).as_slice())
+        );
     }
 }

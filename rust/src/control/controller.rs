@@ -17,7 +17,9 @@ use crate::control::params::{constant_inertia, ControllerParams, PositionGains, 
 use crate::control::task::Desired;
 use crate::robot::chain::arm::rotation_vector;
 use crate::robot::{ArmModel, JointVector, Kinematics, Orientation, RobotModel, TaskOptions};
-use crate::scalar::{cross, finite, mask_from, mat_vec, no_lane, put, put_vector, Real, Wide};
+use crate::scalar::{
+    cross, finite, mask_from, mat_mul, mat_vec, no_lane, put, put_vector, Real, Wide,
+};
 
 /// What the controller reads at t_k: the encoders' state, the tip kinematics the plant
 /// evaluated once, the tip orientation terms when the task holds the orientation, and the
@@ -286,11 +288,11 @@ impl<T: Real, M, const N: usize> Controller<T, M, N> {
         let orientation = match (&task.start_rotation, m.orientation) {
             (Some(r0), Some(o)) => {
                 let target = match &task.start_normal {
-                    Some(n0) => shortest_turn(n0, m.normal) * r0,
+                    Some(n0) => mat_mul(&shortest_turn(n0, m.normal), r0),
                     None => *r0,
                 };
                 Some(OrientationTask {
-                    error: rotation_vector(&(target * o.rotation.transpose())),
+                    error: rotation_vector(&mat_mul(&target, &o.rotation.transpose())),
                     jacobian: o.jacobian,
                     jdot_qd: o.jdot_qd,
                 })
@@ -558,7 +560,17 @@ pub(crate) fn shortest_turn<T: Real>(a: &Vector3<T>, b: &Vector3<T>) -> Matrix3<
         T::zero(),
     );
     let scale = T::one() / (T::one() + c).simd_max(T::splat(1e-12));
-    Matrix3::identity() + k + k * k * scale
+    // (I + K) + K² · scale entry by entry, as nalgebra's operators sum it (the same bits,
+    // −0 entries of K included), inlined (`mat_mul`).
+    let k2 = mat_mul(&k, &k);
+    let mut turn = k;
+    for col in 0..3 {
+        for row in 0..3 {
+            let identity = if row == col { T::one() } else { T::zero() };
+            turn[(row, col)] = identity + k[(row, col)] + k2[(row, col)] * scale;
+        }
+    }
+    turn
 }
 
 /// The lanes where any entry of `v` is not finite.
@@ -632,6 +644,36 @@ mod tests {
             .gravity
     }
 
+    /// The rotation taking a to b (Rodrigues), written out entry by entry, equals
+    /// nalgebra's operator form I + K + K² / (1 + c) to the bit, and turns a onto b.
+    #[test]
+    fn shortest_turn_is_the_operator_form() {
+        let pairs = [
+            (
+                TaskVector::new(0.0, 0.0, -1.0),
+                TaskVector::new(0.1, -0.2, -0.97),
+            ),
+            (
+                TaskVector::new(0.3, 0.4, 0.5),
+                TaskVector::new(-0.2, 0.9, 0.1),
+            ),
+            (
+                TaskVector::new(1.0, 0.0, 0.0),
+                TaskVector::new(1.0, 0.0, 0.0),
+            ),
+        ];
+        for (a, b) in pairs {
+            let (a, b) = (a.normalize(), b.normalize());
+            let v = a.cross(&b);
+            let k = Matrix3::new(0.0, -v[2], v[1], v[2], 0.0, -v[0], -v[1], v[0], 0.0);
+            let scale = 1.0 / (1.0 + a.dot(&b)).max(1e-12);
+            let operators = Matrix3::identity() + k + k * k * scale;
+            let turn = shortest_turn(&a, &b);
+            let bits = |m: &Matrix3<f64>| m.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&turn), bits(&operators));
+            assert!((turn * a - b).norm() < 1e-15, "{a} to {b}");
+        }
+    }
     #[test]
     fn computed_torque_holds_still_with_gravity_compensation() {
         let (r, q, k) = at_q0();
