@@ -674,6 +674,7 @@ mod tests {
             assert!((turn * a - b).norm() < 1e-15, "{a} to {b}");
         }
     }
+
     #[test]
     fn computed_torque_holds_still_with_gravity_compensation() {
         let (r, q, k) = at_q0();
