@@ -18,7 +18,7 @@ use crate::control::task::Desired;
 use crate::robot::chain::arm::rotation_vector;
 use crate::robot::{ArmModel, JointVector, Kinematics, Orientation, RobotModel, TaskOptions};
 use crate::scalar::{
-    cross, finite, mask_from, mat_mul, mat_vec, no_lane, put, put_vector, Real, Wide,
+    cross, finite, mask_from, mat_mul, mat_vec, no_lane, put, put_vector, zeros, Real, Wide,
 };
 
 /// What the controller reads at t_k: the encoders' state, the tip kinematics the plant
@@ -563,7 +563,7 @@ pub(crate) fn shortest_turn<T: Real>(a: &Vector3<T>, b: &Vector3<T>) -> Matrix3<
     // (I + K) + K² · scale entry by entry, as nalgebra's operators sum it (the same bits,
     // −0 entries of K included), inlined (`mat_mul`).
     let k2 = mat_mul(&k, &k);
-    let mut turn = k;
+    let mut turn = zeros::<T, 3, 3>();
     for col in 0..3 {
         for row in 0..3 {
             let identity = if row == col { T::one() } else { T::zero() };
