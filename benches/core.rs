@@ -45,17 +45,15 @@ struct Replay {
 impl Replay {
     fn new(cfg: &ScenarioConfig) -> Self {
         let r = simulate(cfg).expect("fig14 config is valid");
-        let tr = &r.trace;
-        let v = |c: &[Vec<f64>], k: usize| Vec3::new(c[0][k], c[1][k], c[2][k]);
-        let states = (0..tr.len())
-            .map(|k| {
-                let s = PlantState {
-                    q: v(&tr.q, k),
-                    qd: v(&tr.qd, k),
-                };
-                (s, v(&tr.tau, k))
-            })
-            .collect();
+        let v = |c: &[f64]| Vec3::new(c[0], c[1], c[2]);
+        let mut states = Vec::with_capacity(r.trace.len());
+        r.trace.for_each_row(|row| {
+            let s = PlantState {
+                q: v(row.q),
+                qd: v(row.qd),
+            };
+            states.push((s, v(row.tau)));
+        });
         Self { states, next: 0 }
     }
 

@@ -8,7 +8,7 @@ dotted field, an unknown key ``UnknownParameterError`` with the closest valid na
 wrong type ``TypeError``.
 """
 
-from typing import Any, Final
+from typing import Any, Final, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -16,7 +16,8 @@ import numpy.typing as npt
 __version__: Final[str]
 TRACE_COLUMNS: Final[list[str]]
 """Trace column names in order: t, q1..q3, qd1..qd3, x, y, z, x_ref, y_ref, z_ref, f,
-f_measured, f_d, penetration, x_a, xa_dot, tau1..tau3, tau_cmd1..tau_cmd3."""
+f_measured, f_d, penetration, x_a, xa_dot, fx, fy, fz, f_t, slip_speed, tau1..tau3,
+tau_cmd1..tau_cmd3 (an n-joint arm has q1..qn and so on)."""
 METRIC_NAMES: Final[list[str]]
 """Float metric names (see ``admit_rs.METRICS``); ``stable`` and ``diverged`` come besides."""
 PREDICTION_NAMES: Final[list[str]]
@@ -24,6 +25,14 @@ PREDICTION_NAMES: Final[list[str]]
 
 # Errors: the extension raises admit_rs.errors.ParameterError (defined in Python so that it
 # is both a ValueError and an admit_rs.AdmitError); it defines no exception class itself.
+
+class FlatTrace(TypedDict):
+    """A recorded run in one buffer: column ``names[c]`` is ``data[c * len:(c + 1) * len]``
+    (``admit_rs.simulation._frame`` slices it into a DataFrame without a copy)."""
+
+    names: list[str]
+    len: int
+    data: npt.NDArray[np.float64]
 
 def defaults() -> dict[str, dict[str, Any]]:
     """Every block's Rust ``Default``, serialised by its serde declaration, keyed like
@@ -54,7 +63,7 @@ def validate(scenario: dict[str, Any]) -> None:
 def simulate(scenario: dict[str, Any]) -> dict[str, Any]:
     """Run one scenario with the GIL released.
 
-    Returns ``{"columns": {name: ndarray},
+    Returns ``{"columns": FlatTrace,
     "metrics": {name: float, "stable": bool | None, "diverged": bool},
     "verdict": str, "diverged_at": float | None, "divergence_cause": str | None}``;
     ``stable`` and ``verdict`` are judged by the scenario's ``criteria`` (None: not
@@ -130,7 +139,7 @@ def simulate_batch(
     ``"auto"`` chose), "substep_error": ndarray (``"auto"``: the estimated largest force
     error [N]; NaN for a fixed count), "substep_standing": list[str | None] ("met",
     "diverged", "not converging", "limit"; None for a fixed count),
-    "traces": list[dict] | None}``.
+    "traces": list[FlatTrace] | None}``.
     An invalid scenario raises ``ParameterError`` (with ``index``) before anything runs.
     """
 
@@ -167,8 +176,8 @@ class Stepper:
     def state(self) -> npt.NDArray[np.float64]: ...
     def state_labels(self) -> list[str]: ...
     def set_state(self, values: list[float]) -> None: ...
-    def trace(self) -> dict[str, npt.NDArray[np.float64]]:
-        """The samples so far, as columns (copies)."""
+    def trace(self) -> FlatTrace:
+        """The samples so far (a copy)."""
     def outcome(self) -> dict[str, Any] | None:
         """``None`` while the run goes on; then ``metrics``, ``diverged_at``,
         ``divergence_cause`` as from :func:`simulate`."""

@@ -38,6 +38,7 @@ import polars as pl
 from polars.exceptions import PanicException
 
 from admit_rs import _core
+from admit_rs._trace import trace_frame
 from admit_rs.config import Scenario, _Block, _check_path, _core_value, _python_error
 from admit_rs.errors import AdmitError, ParameterError, closest, for_run
 
@@ -445,7 +446,7 @@ def _run_chunk(
     if traces:
         long = pl.concat(
             [
-                pl.DataFrame(t).with_columns(pl.lit(rid, dtype=pl.Int64).alias("run_id"))
+                trace_frame(t).with_columns(pl.lit(rid, dtype=pl.Int64).alias("run_id"))
                 for rid, t in zip(run_ids, raw["traces"], strict=True)
             ]
         )

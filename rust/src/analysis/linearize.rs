@@ -184,17 +184,17 @@ impl<R: RobotModel<N>, const N: usize> Map<'_, R, N> {
         }
         let tr = self.sim.trace();
         let last = tr.len() - 1;
-        let p = nalgebra::Vector3::new(tr.x[last], tr.y[last], tr.z[last]);
-        let r = nalgebra::Vector3::new(tr.x_ref[last], tr.y_ref[last], tr.z_ref[last]);
+        let p = nalgebra::Vector3::new(tr.x()[last], tr.y()[last], tr.z()[last]);
+        let r = nalgebra::Vector3::new(tr.x_ref()[last], tr.y_ref()[last], tr.z_ref()[last]);
         let fr = self.sim.frame();
         let y = [
-            tr.f[last],
+            tr.f()[last],
             fr.normal.dot(&p),
             fr.tangent.dot(&p),
-            tr.f_measured[last],
+            tr.f_measured()[last],
         ];
         let reference_normal = fr.normal.dot(&r);
-        let penetration = tr.penetration[last];
+        let penetration = tr.penetration()[last];
         let mut next = self.sim.state();
         next.remove(0);
         Ok(Eval {
@@ -486,7 +486,7 @@ where
             if starts_apart(config) {
                 let most = (MAX_APPROACH / config.period) as usize;
                 for _ in 0..most {
-                    let touching = sim.trace().f.last().is_some_and(|&f| f > 0.0);
+                    let touching = sim.trace().f().last().is_some_and(|&f| f > 0.0);
                     if touching || sim.step(1).is_some() {
                         break;
                     }

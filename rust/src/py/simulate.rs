@@ -146,7 +146,7 @@ impl Stepper {
         self.sim()?.set_state(&values).map_err(|e| to_py_err(py, e))
     }
 
-    /// The trace so far as a dict of columns (copies).
+    /// The trace so far (a copy), as `simulate` gives it.
     fn trace<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let trace = self.sim()?.trace().clone();
         trace_dict(py, trace)
@@ -174,19 +174,22 @@ pub(super) fn simulate<'py>(scenario: &Bound<'py, PyAny>) -> PyResult<Bound<'py,
     run_to_dict(py, run.map_err(|e| to_py_err(py, e))?)
 }
 
+/// A trace as `{"names": [...], "len": n, "data": ndarray}`: column c is
+/// `data[c * n:(c + 1) * n]`, one array that polars slices into columns without a copy.
 fn trace_dict<'py>(py: Python<'py>, trace: Trace) -> PyResult<Bound<'py, PyDict>> {
-    let columns = PyDict::new(py);
-    for (name, col) in trace.into_named_columns() {
-        columns.set_item(name, PyArray1::from_vec(py, col))?;
-    }
-    Ok(columns)
+    let flat = trace.into_flat();
+    let out = PyDict::new(py);
+    out.set_item("names", PyList::new(py, flat.names)?)?;
+    out.set_item("len", flat.len)?;
+    out.set_item("data", PyArray1::from_vec(py, flat.data))?;
+    Ok(out)
 }
 
 /// Runs a batch of scenario dicts on `threads` threads (None: all cores) with the GIL
 /// released. Returns metric columns (one entry per run, in order), `stable` (a list of
 /// True, False or None: not assessed), `verdict` (words), `diverged`,
-/// `diverged_at` (NaN when stable), `divergence_cause` and, with `traces`, one column
-/// dict per run. An invalid scenario raises before anything runs, naming its index.
+/// `diverged_at` (NaN when stable), `divergence_cause` and, with `traces`, one flat trace
+/// per run (as `simulate` gives it). An invalid scenario raises before anything runs, naming its index.
 /// `lanes`: runs advance four or eight at a time in SIMD lanes (within 1e-9 of off).
 #[pyfunction]
 #[pyo3(signature = (scenarios, threads=None, traces=false, lanes=true))]

@@ -547,35 +547,7 @@ impl OnlineMetrics {
 
     /// Pushes every sample of a recorded trace.
     pub fn replay(&mut self, trace: &Trace) {
-        let joints = trace.joints();
-        let (mut q, mut qd) = (vec![0.0; joints], vec![0.0; joints]);
-        let (mut tau, mut tau_cmd) = (vec![0.0; joints], vec![0.0; joints]);
-        for i in 0..trace.len() {
-            for j in 0..joints {
-                q[j] = trace.q[j][i];
-                qd[j] = trace.qd[j][i];
-                tau[j] = trace.tau[j][i];
-                tau_cmd[j] = trace.tau_cmd[j][i];
-            }
-            self.push(&Row {
-                t: trace.t[i],
-                q: &q,
-                qd: &qd,
-                position: [trace.x[i], trace.y[i], trace.z[i]],
-                reference: [trace.x_ref[i], trace.y_ref[i], trace.z_ref[i]],
-                f: trace.f[i],
-                f_measured: trace.f_measured[i],
-                f_d: trace.f_d[i],
-                penetration: trace.penetration[i],
-                x_a: trace.x_a[i],
-                xa_dot: trace.xa_dot[i],
-                surface_force: [trace.fx[i], trace.fy[i], trace.fz[i]],
-                f_t: trace.f_t[i],
-                slip_speed: trace.slip_speed[i],
-                tau: &tau,
-                tau_cmd: &tau_cmd,
-            });
-        }
+        trace.for_each_row(|row| self.push(row));
     }
 
     /// The time of sample k, as the loop computes it.

@@ -274,7 +274,9 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         self.stages.reset();
         self.k = 0;
         self.outcome = None;
-        self.trace.truncate(0);
+        // A run's whole room again (a finished run handed its trace out).
+        self.trace
+            .clear(if self.recording { self.samples } else { 0 });
         if let Some(f) = &mut self.forces {
             f.clear();
         }
@@ -603,7 +605,7 @@ mod tests {
     use crate::world::sensor::SensorParams;
 
     fn final_force(r: &RunResult) -> f64 {
-        *r.trace.f.last().unwrap()
+        *r.trace.f().last().unwrap()
     }
 
     /// eq. (26) with the admittance gain: f(∞) = f_d · r / (1 + r), r = k_a k_e / k.
@@ -643,7 +645,7 @@ mod tests {
         };
         let r = simulate(&cfg).unwrap();
         assert!((final_force(&r) - 8.5).abs() < 1e-6, "{}", final_force(&r));
-        assert!((r.trace.f_measured.last().unwrap() - 10.0).abs() < 1e-6);
+        assert!((r.trace.f_measured().last().unwrap() - 10.0).abs() < 1e-6);
     }
 
     #[test]
@@ -654,12 +656,16 @@ mod tests {
         };
         let r = simulate(&cfg).unwrap();
         assert_eq!(r.trace.len(), 51);
-        assert_eq!(r.trace.t[50], 50.0 * 1e-3);
+        assert_eq!(r.trace.t()[50], 50.0 * 1e-3);
         // Sample 0 is the initial state: touching the wall with zero force.
-        assert_eq!(r.trace.f[0], 0.0);
-        assert_eq!(r.trace.penetration[0], 0.0);
-        assert_eq!(r.trace.f_d[0], 10.0);
-        assert_eq!(r.trace.tau, r.trace.tau_cmd);
+        assert_eq!(r.trace.f()[0], 0.0);
+        assert_eq!(r.trace.penetration()[0], 0.0);
+        assert_eq!(r.trace.f_d()[0], 10.0);
+        for j in 1..=3 {
+            let applied = r.trace.named(&format!("tau{j}"));
+            assert!(applied.is_some());
+            assert_eq!(applied, r.trace.named(&format!("tau_cmd{j}")));
+        }
     }
 
     #[test]
@@ -796,16 +802,16 @@ mod tests {
         };
         let r = simulate(&cfg).unwrap();
         let tr = &r.trace;
-        assert!((tr.penetration[0] + d).abs() < 1e-15);
-        let first = tr.f.iter().position(|&f| f > 0.0).unwrap();
+        assert!((tr.penetration()[0] + d).abs() < 1e-15);
+        let first = tr.f().iter().position(|&f| f > 0.0).unwrap();
         assert!(first > 10, "{first}");
-        assert!(tr.f[..first].iter().all(|&f| f == 0.0));
-        assert!(tr.penetration[..first].iter().all(|&p| p <= 0.0));
-        assert!(tr.penetration[first] > 0.0);
+        assert!(tr.f()[..first].iter().all(|&f| f == 0.0));
+        assert!(tr.penetration()[..first].iter().all(|&p| p <= 0.0));
+        assert!(tr.penetration()[first] > 0.0);
         let m = &r.metrics;
-        assert_eq!(m.first_contact_time, tr.t[first]);
-        assert_eq!(m.contact_start, tr.t[first]);
-        let window = &tr.f[first..=first + 500];
+        assert_eq!(m.first_contact_time, tr.t()[first]);
+        assert_eq!(m.contact_start, tr.t()[first]);
+        let window = &tr.f()[first..=first + 500];
         assert_eq!(m.impact_peak, window.iter().cloned().fold(0.0, f64::max));
         assert_eq!(
             m.assessed_time,
@@ -849,7 +855,7 @@ mod tests {
             let r = simulate(&cfg).unwrap();
             assert_eq!(r.outcome, Outcome::Completed);
             // f_d − f̃ along n̂ over the last 2 s (f_d = 10 N).
-            let tail = &r.trace.f_measured[8000..];
+            let tail = &r.trace.f_measured()[8000..];
             10.0 - tail.iter().sum::<f64>() / tail.len() as f64
         };
         let expected = b * v * theta.tan() / ka;
@@ -917,31 +923,31 @@ mod tests {
         assert!((transient - 4.122e-10).abs() < 1e-13, "{transient:e}");
         // The hold's steady error, read off the last free samples (the transient is gone:
         // v t e^{−ωt} < 3e-11 m): constant to 1e-10 m, a lag far below one period.
-        let e_ss = tr.x_ref[199] - tr.x[199];
-        assert!((190..200).all(|k| (tr.x_ref[k] - tr.x[k] - e_ss).abs() < 1e-10));
+        let e_ss = tr.x_ref()[199] - tr.x()[199];
+        assert!((190..200).all(|k| (tr.x_ref()[k] - tr.x()[k] - e_ss).abs() < 1e-10));
         assert!(e_ss.abs() / v < 0.01 * t, "{e_ss:e}");
         let predicted = ((d + e_ss) / (v * t)).floor() as usize + 1;
-        let first = tr.f.iter().position(|&f| f > 0.0).unwrap();
+        let first = tr.f().iter().position(|&f| f > 0.0).unwrap();
         assert_eq!(first, predicted);
         let tc = r.metrics.first_contact_time;
-        assert_eq!(tc, tr.t[first]);
+        assert_eq!(tc, tr.t()[first]);
         let lag = transient - e_ss / v;
         assert!((tc - (arrival + lag)).abs() <= t, "{tc}");
         // The switch: the first sample whose measured force exceeds 5 N.
-        let ks = tr.f_measured.iter().position(|&f| f > 5.0).unwrap();
+        let ks = tr.f_measured().iter().position(|&f| f > 5.0).unwrap();
         assert!(ks > first + 1);
         // X_d continues the approach's ramp to rounding; Ẋ_d (along n: ẋ_a) is v at the
         // switch and then changes by at most T |ẍ_a| per period (the filter's exact ZOH
         // step: Δẋ_a = (1 − e^{−bT/m}) (k_a e_f / b − ẋ_a), |Δẋ_a| ≤ T |ẍ_a|).
-        let continued = tr.x_ref[ks - 1] + t * tr.xa_dot[ks - 1];
-        assert!((tr.x_ref[ks] - continued).abs() < 1e-12);
-        assert_eq!(tr.xa_dot[ks], v);
-        assert_eq!(tr.xa_dot[ks - 1], v);
-        let accel = (1.0 * (10.0 - tr.f_measured[ks]) - 800.0 * v) / 1.0;
-        let step = tr.xa_dot[ks + 1] - tr.xa_dot[ks];
+        let continued = tr.x_ref()[ks - 1] + t * tr.xa_dot()[ks - 1];
+        assert!((tr.x_ref()[ks] - continued).abs() < 1e-12);
+        assert_eq!(tr.xa_dot()[ks], v);
+        assert_eq!(tr.xa_dot()[ks - 1], v);
+        let accel = (1.0 * (10.0 - tr.f_measured()[ks]) - 800.0 * v) / 1.0;
+        let step = tr.xa_dot()[ks + 1] - tr.xa_dot()[ks];
         assert!(step.abs() <= t * accel.abs(), "{step} vs {}", t * accel);
         // Re-anchored at the tip's position at the switch: x_a = p − x̂_e = X_d − X there.
-        assert!((tr.x_a[ks] - (tr.x_ref[ks] - tr.x[ks])).abs() < 1e-12);
+        assert!((tr.x_a()[ks] - (tr.x_ref()[ks] - tr.x()[ks])).abs() < 1e-12);
         // Stepping through the approach in pieces gives the run's bits.
         let mut sim = Simulation::new(&cfg).unwrap();
         sim.step(ks);
@@ -976,17 +982,17 @@ mod tests {
         let omega = 100.0; // `ideal_inner_loop`'s
         let step_peak = v / (omega * std::f64::consts::E);
         let worst = (0..220)
-            .map(|k| (tr.x_ref[k] - tr.x[k]).abs())
+            .map(|k| (tr.x_ref()[k] - tr.x()[k]).abs())
             .fold(0.0, f64::max);
         assert!(worst < 0.05 * step_peak, "{worst:e}");
         let arrival = d / v + v / (2.0 * accel);
         let tc = r.metrics.first_contact_time;
         assert!((tc - arrival).abs() <= t, "{tc} vs {arrival}");
         // Bumpless at the switch, as with velocity steps.
-        let ks = tr.f_measured.iter().position(|&f| f > 5.0).unwrap();
-        let continued = tr.x_ref[ks - 1] + t * tr.xa_dot[ks - 1];
-        assert!((tr.x_ref[ks] - continued).abs() < 1e-12);
-        assert_eq!(tr.xa_dot[ks], v);
+        let ks = tr.f_measured().iter().position(|&f| f > 5.0).unwrap();
+        let continued = tr.x_ref()[ks - 1] + t * tr.xa_dot()[ks - 1];
+        assert!((tr.x_ref()[ks] - continued).abs() < 1e-12);
+        assert_eq!(tr.xa_dot()[ks], v);
     }
 
     /// An approach needs an admittance filter to hand over to.

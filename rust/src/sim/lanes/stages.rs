@@ -606,7 +606,7 @@ mod every_kind {
                     let what = format!("{kind} {friction}");
                     for r in lanes_match_simulate(&robot, &arm, &configs, &what) {
                         if friction > 0.0 {
-                            let felt = r.trace.f_t.iter().any(|&f| f > 0.0);
+                            let felt = r.trace.f_t().iter().any(|&f| f > 0.0);
                             assert!(felt, "{kind}: no friction");
                         }
                         completed += 1;
