@@ -28,7 +28,7 @@ PREDICTION_NAMES: Final[list[str]]
 
 class FlatTrace(TypedDict):
     """A recorded run in one buffer: column ``names[c]`` is ``data[c * len:(c + 1) * len]``
-    (``admit_rs.simulation._frame`` slices it into a DataFrame without a copy)."""
+    (``admit_rs._trace.trace_frame`` slices it into a DataFrame without a copy)."""
 
     names: list[str]
     len: int
