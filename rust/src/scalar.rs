@@ -416,37 +416,46 @@ mod exp_consts {
 /// relative), in Estrin's scheme for a short dependency chain; 2ⁿ by building the exponent
 /// bits. Within 2 ulp of libm's e^x over the normal range (tested); 0 below −745.2,
 /// +∞ above 709.78, NaN for NaN.
+///
+/// Each a·b + c is one fused multiply-add (`f64::mul_add`: one rounding, the same bits on
+/// every CPU). In the lane builds that is one FMA instruction, and it shortens the chain
+/// an RK4 stage waits on (joint friction's tanh starts here): fig. 19 sweeps 4 % faster on
+/// AVX-512, 7–13 % on AVX2 (docs/performance.md §30). Where the CPU has no FMA (before
+/// AVX2, where the portable lane loop runs) libm computes it exactly in software: the same
+/// bits, more slowly. x is not clamped before the reduction: inside [−745.2, 709.78] a
+/// clamp changes nothing, and outside it the selects at the end replace whatever the
+/// reduction made, so leaving it out takes two steps off the chain and no bit changes.
 #[inline(always)]
 pub fn exp_lanes<const L: usize>(x: [f64; L]) -> [f64; L] {
     use exp_consts::{HIGH, LN2_HI, LN2_LO, LOG2_E, LOW, ROUND};
     // Written as whole-array steps with no branch, so each becomes one vector instruction.
-    let xc = x.map(|v| v.clamp(LOW, HIGH));
-    let t = xc.map(|v| v * LOG2_E + ROUND);
+    let t = x.map(|v| v.mul_add(LOG2_E, ROUND));
     let n = t.map(|v| v - ROUND);
-    let r: [f64; L] = std::array::from_fn(|i| (xc[i] - n[i] * LN2_HI) - n[i] * LN2_LO);
+    let r: [f64; L] =
+        std::array::from_fn(|i| (-n[i]).mul_add(LN2_LO, (-n[i]).mul_add(LN2_HI, x[i])));
     // Estrin: e^r = Σ rᵏ/k!, k ≤ 13, paired so independent products run side by side.
     let poly = r.map(|r| {
         let r2 = r * r;
         let r4 = r2 * r2;
         let r8 = r4 * r4;
         let p01 = 1.0 + r;
-        let p23 = 1.0 / 2.0 + r * (1.0 / 6.0);
-        let p45 = 1.0 / 24.0 + r * (1.0 / 120.0);
-        let p67 = 1.0 / 720.0 + r * (1.0 / 5040.0);
-        let p89 = 1.0 / 40320.0 + r * (1.0 / 362_880.0);
-        let p1011 = 1.0 / 3_628_800.0 + r * (1.0 / 39_916_800.0);
-        let p1213 = 1.0 / 479_001_600.0 + r * (1.0 / 6_227_020_800.0);
-        let p03 = p01 + r2 * p23;
-        let p47 = p45 + r2 * p67;
-        let p811 = p89 + r2 * p1011;
-        let p07 = p03 + r4 * p47;
-        let p813 = p811 + r4 * p1213;
-        p07 + r8 * p813
+        let p23 = r.mul_add(1.0 / 6.0, 1.0 / 2.0);
+        let p45 = r.mul_add(1.0 / 120.0, 1.0 / 24.0);
+        let p67 = r.mul_add(1.0 / 5040.0, 1.0 / 720.0);
+        let p89 = r.mul_add(1.0 / 362_880.0, 1.0 / 40320.0);
+        let p1011 = r.mul_add(1.0 / 39_916_800.0, 1.0 / 3_628_800.0);
+        let p1213 = r.mul_add(1.0 / 6_227_020_800.0, 1.0 / 479_001_600.0);
+        let p03 = r2.mul_add(p23, p01);
+        let p47 = r2.mul_add(p67, p45);
+        let p811 = r2.mul_add(p1011, p89);
+        let p07 = r4.mul_add(p47, p03);
+        let p813 = r4.mul_add(p1213, p811);
+        r8.mul_add(p813, p07)
     });
     // 2ⁿ as 2^n1 · 2^n2 with n1 = round(n/2), each built from its exponent bits (an integer
     // k sits in the low bits of k + ROUND, two's complement), so both stay normal over the
     // clamped range and a subnormal result rounds once, in the last product.
-    let t1 = n.map(|v| v * 0.5 + ROUND);
+    let t1 = n.map(|v| v.mul_add(0.5, ROUND));
     let t2: [f64; L] = std::array::from_fn(|i| (n[i] - (t1[i] - ROUND)) + ROUND);
     let pow2 = |t: [f64; L]| {
         t.map(|v| {

@@ -9,13 +9,15 @@
 //! instruction and a condition stays in a mask register.
 //!
 //! Bits: the arithmetic (+ − × ÷ √, |x|, −x, copysign) is the same IEEE operation per lane,
-//! never contracted into an FMA; comparisons are the ordered ones f64's `<`, `>`, `<=`,
+//! never contracted into an FMA (e^x's fused multiply-adds are written out, as `mul_add`
+//! in [`super::exp_lanes`] and `Isa::fma` here, one rounding each); comparisons are the ordered ones f64's `<`, `>`, `<=`,
 //! `>=`, `==` use (`!=` unordered); e^x repeats [`super::exp_lanes`]' steps in its order.
 //! Every other operation (trig, powers, min/max, ...) is taken lane by lane through the
 //! matching `AutoSimd`, so it gives that type's bits. The tests below compare each operation
 //! with `AutoSimd` bit for bit; the lane loop's tests compare whole runs on every build.
 //!
-//! Safety: every method may execute the ISA's instructions (AVX-512 F; AVX and AVX2). A lane
+//! Safety: every method may execute the ISA's instructions (AVX-512 F; AVX and AVX2; FMA in
+//! e^x, which both builds are compiled for and `LanePath::available` checks). A lane
 //! type is only instantiated inside the lane-loop build compiled for its ISA
 //! (`sim::lanes::lanes_avx512`, `lanes_avx2`), which is entered after `LanePath::available`
 //! detected the features; nothing else may use it. Code the build does not inline calls
@@ -69,6 +71,8 @@ pub trait Isa<const L: usize>: Copy + Send + Sync + 'static {
     fn sub(a: Self::V, b: Self::V) -> Self::V;
     fn mul(a: Self::V, b: Self::V) -> Self::V;
     fn div(a: Self::V, b: Self::V) -> Self::V;
+    /// a·b + c rounded once (the FMA instruction), for e^x only (see the module note).
+    fn fma(a: Self::V, b: Self::V, c: Self::V) -> Self::V;
     fn sqrt(a: Self::V) -> Self::V;
     /// The sign bit cleared.
     fn abs(a: Self::V) -> Self::V;
@@ -151,28 +155,28 @@ impl<I: Isa<L>, const L: usize> Lanes<I, L> {
     fn exp_native(self) -> Self {
         use super::exp_consts::{HIGH, LN2_HI, LN2_LO, LOG2_E, LOW, ROUND};
         let c = Self::splat;
-        // max then min is f64::clamp wherever x is not NaN; a NaN lane is x at the end.
-        let xc = Self(I::min(I::max(self.0, c(LOW).0), c(HIGH).0));
-        let t = xc * c(LOG2_E) + c(ROUND);
+        let f = |a: Self, b: Self, d: Self| Self(I::fma(a.0, b.0, d.0));
+        let x = self;
+        let t = f(x, c(LOG2_E), c(ROUND));
         let n = t - c(ROUND);
-        let r = (xc - n * c(LN2_HI)) - n * c(LN2_LO);
+        let r = f(-n, c(LN2_LO), f(-n, c(LN2_HI), x));
         let r2 = r * r;
         let r4 = r2 * r2;
         let r8 = r4 * r4;
         let p01 = c(1.0) + r;
-        let p23 = c(1.0 / 2.0) + r * c(1.0 / 6.0);
-        let p45 = c(1.0 / 24.0) + r * c(1.0 / 120.0);
-        let p67 = c(1.0 / 720.0) + r * c(1.0 / 5040.0);
-        let p89 = c(1.0 / 40320.0) + r * c(1.0 / 362_880.0);
-        let p1011 = c(1.0 / 3_628_800.0) + r * c(1.0 / 39_916_800.0);
-        let p1213 = c(1.0 / 479_001_600.0) + r * c(1.0 / 6_227_020_800.0);
-        let p03 = p01 + r2 * p23;
-        let p47 = p45 + r2 * p67;
-        let p811 = p89 + r2 * p1011;
-        let p07 = p03 + r4 * p47;
-        let p813 = p811 + r4 * p1213;
-        let poly = p07 + r8 * p813;
-        let t1 = n * c(0.5) + c(ROUND);
+        let p23 = f(r, c(1.0 / 6.0), c(1.0 / 2.0));
+        let p45 = f(r, c(1.0 / 120.0), c(1.0 / 24.0));
+        let p67 = f(r, c(1.0 / 5040.0), c(1.0 / 720.0));
+        let p89 = f(r, c(1.0 / 362_880.0), c(1.0 / 40320.0));
+        let p1011 = f(r, c(1.0 / 39_916_800.0), c(1.0 / 3_628_800.0));
+        let p1213 = f(r, c(1.0 / 6_227_020_800.0), c(1.0 / 479_001_600.0));
+        let p03 = f(r2, p23, p01);
+        let p47 = f(r2, p67, p45);
+        let p811 = f(r2, p1011, p89);
+        let p07 = f(r4, p47, p03);
+        let p813 = f(r4, p1213, p811);
+        let poly = f(r8, p813, p07);
+        let t1 = f(n, c(0.5), c(ROUND));
         let t2 = (n - (t1 - c(ROUND))) + c(ROUND);
         let pow2 = |t: Self| Self(I::pow2_of_rounded(t.0, ROUND));
         let y = poly * pow2(t1) * pow2(t2);

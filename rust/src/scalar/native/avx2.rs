@@ -1,14 +1,14 @@
 //! AVX2: four f64 lanes in a ymm register, conditions as all-ones / all-zeros lanes of
 //! another. See the parent module's safety note: every function here executes AVX (and, for
-//! the 64-bit integer steps of e^x, AVX2) instructions.
+//! the 64-bit integer steps of e^x, AVX2; for its multiply-adds, FMA) instructions.
 
 use std::arch::x86_64::{
     __m256d, _mm256_add_epi64, _mm256_add_pd, _mm256_and_pd, _mm256_andnot_pd, _mm256_blendv_pd,
-    _mm256_castpd_si256, _mm256_castsi256_pd, _mm256_cmp_pd, _mm256_div_pd, _mm256_max_pd,
-    _mm256_min_pd, _mm256_movemask_pd, _mm256_mul_pd, _mm256_or_pd, _mm256_set1_epi64x,
-    _mm256_set1_pd, _mm256_slli_epi64, _mm256_sqrt_pd, _mm256_sub_epi64, _mm256_sub_pd,
-    _mm256_xor_pd, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ,
-    _CMP_UNORD_Q,
+    _mm256_castpd_si256, _mm256_castsi256_pd, _mm256_cmp_pd, _mm256_div_pd, _mm256_fmadd_pd,
+    _mm256_max_pd, _mm256_min_pd, _mm256_movemask_pd, _mm256_mul_pd, _mm256_or_pd,
+    _mm256_set1_epi64x, _mm256_set1_pd, _mm256_slli_epi64, _mm256_sqrt_pd, _mm256_sub_epi64,
+    _mm256_sub_pd, _mm256_xor_pd, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ,
+    _CMP_NEQ_UQ, _CMP_UNORD_Q,
 };
 
 use simba::simd::{AutoF64x4, AutoSimd};
@@ -83,6 +83,11 @@ impl Isa<4> for Avx2 {
     #[inline(always)]
     fn div(a: __m256d, b: __m256d) -> __m256d {
         avx2!(_mm256_div_pd(a, b))
+    }
+
+    #[inline(always)]
+    fn fma(a: __m256d, b: __m256d, c: __m256d) -> __m256d {
+        avx2!(_mm256_fmadd_pd(a, b, c))
     }
 
     #[inline(always)]

@@ -1,13 +1,14 @@
 //! AVX-512 F: eight f64 lanes in a zmm register, conditions in a `k` mask (`__mmask8`).
-//! See the parent module's safety note: every function here executes AVX-512 F instructions.
+//! See the parent module's safety note: every function here executes AVX-512 F
+//! instructions.
 
 use std::arch::x86_64::{
     __m512d, __mmask8, _mm512_abs_pd, _mm512_add_epi64, _mm512_add_pd, _mm512_and_si512,
     _mm512_andnot_si512, _mm512_castpd_si512, _mm512_castsi512_pd, _mm512_cmp_pd_mask,
-    _mm512_div_pd, _mm512_mask_blend_pd, _mm512_max_pd, _mm512_min_pd, _mm512_mul_pd,
-    _mm512_or_si512, _mm512_set1_epi64, _mm512_set1_pd, _mm512_slli_epi64, _mm512_sqrt_pd,
-    _mm512_sub_epi64, _mm512_sub_pd, _mm512_xor_si512, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ,
-    _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _CMP_UNORD_Q,
+    _mm512_div_pd, _mm512_fmadd_pd, _mm512_mask_blend_pd, _mm512_max_pd, _mm512_min_pd,
+    _mm512_mul_pd, _mm512_or_si512, _mm512_set1_epi64, _mm512_set1_pd, _mm512_slli_epi64,
+    _mm512_sqrt_pd, _mm512_sub_epi64, _mm512_sub_pd, _mm512_xor_si512, _CMP_EQ_OQ, _CMP_GE_OQ,
+    _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _CMP_UNORD_Q,
 };
 
 use simba::simd::{AutoF64x8, AutoSimd};
@@ -76,6 +77,11 @@ impl Isa<8> for Avx512 {
     #[inline(always)]
     fn div(a: __m512d, b: __m512d) -> __m512d {
         avx512!(_mm512_div_pd(a, b))
+    }
+
+    #[inline(always)]
+    fn fma(a: __m512d, b: __m512d, c: __m512d) -> __m512d {
+        avx512!(_mm512_fmadd_pd(a, b, c))
     }
 
     #[inline(always)]
