@@ -419,8 +419,8 @@ mod exp_consts {
 ///
 /// Each a·b + c is one fused multiply-add (`f64::mul_add`: one rounding, the same bits on
 /// every CPU). In the lane builds that is one FMA instruction, and it shortens the chain
-/// an RK4 stage waits on (joint friction's tanh starts here): fig. 19 sweeps 4 % faster on
-/// AVX-512, 7–13 % on AVX2 (docs/performance.md §30). Where the CPU has no FMA (before
+/// an RK4 stage waits on (joint friction's tanh starts here): fig. 19 sweeps about 4 % faster
+/// on AVX-512 and 7 % on AVX2 (docs/performance.md §30). Where the CPU has no FMA (before
 /// AVX2, where the portable lane loop runs) libm computes it exactly in software: the same
 /// bits, more slowly. x is not clamped before the reduction: inside [−745.2, 709.78] a
 /// clamp changes nothing, and outside it the selects at the end replace whatever the
