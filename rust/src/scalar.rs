@@ -453,8 +453,9 @@ pub fn exp_lanes<const L: usize>(x: [f64; L]) -> [f64; L] {
         r8.mul_add(p813, p07)
     });
     // 2ⁿ as 2^n1 · 2^n2 with n1 = round(n/2), each built from its exponent bits (an integer
-    // k sits in the low bits of k + ROUND, two's complement), so both stay normal over the
-    // clamped range and a subnormal result rounds once, in the last product.
+    // k sits in the low bits of k + ROUND, two's complement), so both stay normal for x in
+    // [LOW, HIGH] and a subnormal result rounds once, in the last product (outside that
+    // range the selects below decide).
     let t1 = n.map(|v| v.mul_add(0.5, ROUND));
     let t2: [f64; L] = std::array::from_fn(|i| (n[i] - (t1[i] - ROUND)) + ROUND);
     let pow2 = |t: [f64; L]| {

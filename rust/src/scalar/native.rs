@@ -9,9 +9,9 @@
 //! instruction and a condition stays in a mask register.
 //!
 //! Bits: the arithmetic (+ − × ÷ √, |x|, −x, copysign) is the same IEEE operation per lane,
-//! never contracted into an FMA (e^x's fused multiply-adds are written out, as `mul_add`
-//! in [`super::exp_lanes`] and `Isa::fma` here, one rounding each); comparisons are the ordered ones f64's `<`, `>`, `<=`,
-//! `>=`, `==` use (`!=` unordered); e^x repeats [`super::exp_lanes`]' steps in its order.
+//! never contracted into an FMA; comparisons are the ordered ones f64's `<`, `>`, `<=`,
+//! `>=`, `==` use (`!=` unordered); e^x repeats [`super::exp_lanes`]' steps in its order,
+//! its fused multiply-adds included (`Isa::fma` here, `mul_add` there: one rounding each).
 //! Every other operation (trig, powers, min/max, ...) is taken lane by lane through the
 //! matching `AutoSimd`, so it gives that type's bits. The tests below compare each operation
 //! with `AutoSimd` bit for bit; the lane loop's tests compare whole runs on every build.
