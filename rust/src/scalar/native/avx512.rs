@@ -1,6 +1,6 @@
 //! AVX-512 F: eight f64 lanes in a zmm register, conditions in a `k` mask (`__mmask8`).
-//! See the parent module's safety note: every function here executes AVX-512 F
-//! instructions.
+//! See the parent module's safety note: every function here executes AVX-512 F instructions (and
+//! FMA in e^x's multiply-adds).
 
 use std::arch::x86_64::{
     __m512d, __mmask8, _mm512_abs_pd, _mm512_add_epi64, _mm512_add_pd, _mm512_and_si512,
