@@ -582,6 +582,52 @@ mod tests {
         (a.to_bits() as i64 - b.to_bits() as i64).unsigned_abs()
     }
 
+    /// A joint at rest takes the short form; it must be the series' value at d = ±0 bit for
+    /// bit (signed zeros included), in `f64` and in every lane type.
+    #[test]
+    fn a_joint_at_rest_rotates_as_the_series_does() {
+        // The series of `rotate_small_in`, written out here as the oracle.
+        let series = |s: f64, c: f64, d: f64| {
+            let d2 = d * d;
+            let sd = d * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0)));
+            let cd = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0)));
+            (s * cd + c * sd, c * cd - s * sd)
+        };
+        let angles = [
+            0.0,
+            -0.0,
+            0.3,
+            -2.9,
+            std::f64::consts::FRAC_PI_2,
+            1e-300,
+            3.0,
+        ];
+        for a in angles {
+            let (s, c) = (libm::sin(a), libm::cos(a));
+            for (s, c) in [(s, c), (-0.0, 1.0), (0.0, -1.0), (-0.0, -1.0)] {
+                for d in [0.0, -0.0] {
+                    let want = series(s, c, d);
+                    let got = rotate_small(s, c, d);
+                    assert_eq!(
+                        (got.0.to_bits(), got.1.to_bits()),
+                        (want.0.to_bits(), want.1.to_bits()),
+                        "s {s:e}, c {c:e}, d {d:e}"
+                    );
+                    let lanes =
+                        F64x4::rotate_small(F64x4::splat(s), F64x4::splat(c), F64x4::splat(d));
+                    assert_eq!(lanes.0.extract(2).to_bits(), want.0.to_bits());
+                    assert_eq!(lanes.1.extract(2).to_bits(), want.1.to_bits());
+                }
+            }
+        }
+        // A group with one moving lane takes the series in every lane.
+        let d = F64x4::from_lanes(|i| if i == 1 { 1e-3 } else { 0.0 });
+        let (s, c) = F64x4::rotate_small(F64x4::splat(0.3), F64x4::splat(0.9), d);
+        let want = series(0.3, 0.9, 1e-3);
+        assert_eq!((s.extract(1), c.extract(1)), want);
+        assert_eq!((s.extract(0), c.extract(0)), series(0.3, 0.9, 0.0));
+    }
+
     /// Against libm's exp over the whole range, densely near 0 where friction evaluates it.
     #[test]
     fn exp_lanes_within_two_ulp_of_libm() {
