@@ -583,7 +583,9 @@ mod tests {
     }
 
     /// A joint at rest takes the short form; it must be the series' value at d = ±0 bit for
-    /// bit (signed zeros included), in `f64` and in every lane type.
+    /// bit (signed zeros included), in `f64` and in the portable lane type (which rotates
+    /// lane by lane). The native lane types are held to the same bits by the every-path
+    /// comparisons of `sim::lanes::paths`.
     #[test]
     fn a_joint_at_rest_rotates_as_the_series_does() {
         // The series of `rotate_small_in`, written out here as the oracle.
@@ -620,7 +622,7 @@ mod tests {
                 }
             }
         }
-        // A group with one moving lane takes the series in every lane.
+        // A group where one lane moves: every lane is the series at its own d.
         let d = F64x4::from_lanes(|i| if i == 1 { 1e-3 } else { 0.0 });
         let (s, c) = F64x4::rotate_small(F64x4::splat(0.3), F64x4::splat(0.9), d);
         let want = series(0.3, 0.9, 1e-3);
