@@ -14,6 +14,7 @@ use nalgebra::{Matrix3, SMatrix, SVector, SimdRealField, Vector3};
 use simba::simd::SimdBool;
 use simba::simd::SimdValue;
 
+mod libm_exp;
 #[cfg(target_arch = "x86_64")]
 mod native;
 #[cfg(target_arch = "x86_64")]
@@ -48,7 +49,8 @@ pub trait Real:
     /// Number of runs this scalar carries.
     const LANES: usize;
 
-    /// e^x. `f64::exp` for one run; lanes evaluate [`exp_lanes`] in every lane at once.
+    /// e^x. `f64::exp`'s bits for one run (libm's, without its errno wrapper: `libm_exp`);
+    /// lanes evaluate [`exp_lanes`] in every lane at once.
     fn exp_fast(self) -> Self;
 
     /// (sin x, cos x) per lane by libm's `sincos` (one range reduction for both).
@@ -91,7 +93,7 @@ impl Real for f64 {
 
     #[inline(always)]
     fn exp_fast(self) -> Self {
-        self.exp()
+        libm_exp::exp(self)
     }
 
     #[inline(always)]
