@@ -11,46 +11,64 @@
 //!
 //! Where the symbol is not found (another C library, another platform), `f64::exp` is used.
 
-use std::sync::OnceLock;
+use std::sync::atomic::{AtomicPtr, Ordering};
 
-type ExpFn = unsafe extern "C" fn(f64) -> f64;
+type ExpFn = extern "C" fn(f64) -> f64;
 
-/// The implementation found once per process, or `None` to use `f64::exp`.
-static IMPLEMENTATION: OnceLock<Option<ExpFn>> = OnceLock::new();
+/// The function `exp` calls: first `resolve`, which looks the implementation up once and
+/// puts it here. So a call is one load and one indirect call, with no branch or cold path
+/// inlined where it is used (a `OnceLock` there cost a Panda run, which never calls it,
+/// 2.5 %: docs/performance.md §32).
+static IMPLEMENTATION: AtomicPtr<()> = AtomicPtr::new(resolve as ExpFn as *mut ());
 
 /// e^x with `f64::exp`'s bits.
 #[inline(always)]
 pub fn exp(x: f64) -> f64 {
-    match IMPLEMENTATION.get_or_init(find) {
-        // SAFETY: `find` returned glibc's `double __exp_finite(double)`, which reads no
-        // memory of ours and is defined for every double.
-        Some(f) => unsafe { f(x) },
-        None => x.exp(),
-    }
+    let address = IMPLEMENTATION.load(Ordering::Relaxed);
+    // SAFETY: the static only ever holds an `ExpFn`: `resolve`, `rust_exp` or glibc's
+    // `double __exp_finite(double)`.
+    let f = unsafe { std::mem::transmute::<*mut (), ExpFn>(address) };
+    f(x)
 }
 
-/// glibc's `__exp_finite@GLIBC_2.15`, if this process has it.
+/// The first call: find the implementation, keep it for every later call, and use it.
+/// Racing threads store the same value.
+extern "C" fn resolve(x: f64) -> f64 {
+    let f = find().unwrap_or(rust_exp as ExpFn);
+    IMPLEMENTATION.store(f as *mut (), Ordering::Relaxed);
+    f(x)
+}
+
+/// Rust's own `f64::exp`, where glibc's implementation is not found.
+extern "C" fn rust_exp(x: f64) -> f64 {
+    x.exp()
+}
+
+/// glibc's `__exp_finite@GLIBC_2.15`, if this process has it, and if it is `exp`.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 fn find() -> Option<ExpFn> {
-    // SAFETY: dlvsym with NUL-terminated names; a non-null result is the address of the
-    // function the symbol names (ifuncs are resolved by the lookup).
+    // libm is loaded (this library links it), but maybe not in the global scope (a Python
+    // extension is loaded RTLD_LOCAL): ask for its handle, then the default scope.
+    // SAFETY: dlopen/dlvsym with NUL-terminated names; RTLD_NOLOAD never loads anything.
     let address = unsafe {
-        libc::dlvsym(
-            libc::RTLD_DEFAULT,
-            c"__exp_finite".as_ptr(),
-            c"GLIBC_2.15".as_ptr(),
-        )
+        let libm = libc::dlopen(c"libm.so.6".as_ptr(), libc::RTLD_LAZY | libc::RTLD_NOLOAD);
+        let scope = if libm.is_null() {
+            libc::RTLD_DEFAULT
+        } else {
+            libm
+        };
+        libc::dlvsym(scope, c"__exp_finite".as_ptr(), c"GLIBC_2.15".as_ptr())
     };
     if address.is_null() {
         return None;
     }
-    // SAFETY: a function address, cast to its C signature.
+    // SAFETY: the address of glibc's `double __exp_finite(double)` (an ifunc, resolved by
+    // the lookup to this CPU's implementation), cast to that signature.
     let f = unsafe { std::mem::transmute::<*mut libc::c_void, ExpFn>(address) };
     // Trust it only if it is `exp`: a handful of values, bit for bit.
     let agrees = [0.0, -1.0, 0.5, -700.0, 1e-300, -37.5]
         .iter()
-        // SAFETY: as in `exp`.
-        .all(|&x| unsafe { f(x) }.to_bits() == x.exp().to_bits());
+        .all(|&x| f(x).to_bits() == x.exp().to_bits());
     agrees.then_some(f)
 }
 
@@ -102,6 +120,10 @@ mod tests {
     #[test]
     fn glibc_s_implementation_is_found_on_linux() {
         // The speed-up is real only if the lookup succeeds where it is expected to.
-        assert!(IMPLEMENTATION.get_or_init(find).is_some());
+        assert!(find().is_some());
+        exp(1.0);
+        let resolved = IMPLEMENTATION.load(Ordering::Relaxed);
+        assert_ne!(resolved, resolve as ExpFn as *mut ());
+        assert_ne!(resolved, rust_exp as ExpFn as *mut ());
     }
 }
