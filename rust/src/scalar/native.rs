@@ -19,7 +19,7 @@
 //! Safety: every method may execute the ISA's instructions (AVX-512 F; AVX and AVX2; FMA in
 //! e^x, which both builds are compiled for and `LanePath::available` checks). A lane
 //! type is only instantiated inside the lane-loop build compiled for its ISA
-//! (`sim::lanes::lanes_avx512`, `lanes_avx2`), which is entered after `LanePath::available`
+//! (`sim::lanes::builds::avx512::run`, `builds::avx2::run`), which is entered after `LanePath::available`
 //! detected the features; nothing else may use it. Code the build does not inline calls
 //! each intrinsic as a function: correct, but slow, so the hot paths are `inline(always)`.
 

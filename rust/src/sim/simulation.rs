@@ -341,18 +341,9 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
     pub fn step(&mut self, n: usize) -> Option<Outcome> {
         #[cfg(target_arch = "x86_64")]
         if crate::sim::plant::has_avx2_fma() {
-            // SAFETY: the features `step_avx2` is compiled for were detected just above.
-            return unsafe { self.step_avx2(n) };
+            // SAFETY: the features `avx2_build::step` is compiled for were detected just above.
+            return unsafe { avx2_build::step(self, n) };
         }
-        self.step_baseline(n)
-    }
-
-    /// The step loop compiled for x86-64 with AVX2 and FMA (three-operand VEX code, about
-    /// 8 % faster). Bit-identical to the baseline: Rust never fuses a multiply and an add on
-    /// its own, so enabling FMA changes the encoding, not the arithmetic (tested).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn step_avx2(&mut self, n: usize) -> Option<Outcome> {
         self.step_baseline(n)
     }
 
@@ -591,6 +582,27 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
     /// and perturbs it; SPEC §12).
     pub fn set_force_reference(&mut self, signal: crate::control::reference::Signal) {
         self.config.force_reference = signal;
+    }
+}
+
+/// The step loop compiled for x86-64 with AVX2 and FMA (three-operand VEX code, about 8 %
+/// faster). Bit-identical to the baseline: Rust never fuses a multiply and an add on its
+/// own, so enabling FMA changes the encoding, not the arithmetic (tested). A module of its
+/// own, so that its nine instances get a codegen unit of their own (rustc places a generic
+/// function's instances in its defining module's unit, a method's in its type's), optimised
+/// beside the baseline's rather than after it; see `sim::lanes::builds`.
+#[cfg(target_arch = "x86_64")]
+mod avx2_build {
+    use super::*;
+
+    /// # Safety
+    /// The CPU must have AVX2 and FMA.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn step<R: RobotModel<N>, const N: usize>(
+        sim: &mut Simulation<R, N>,
+        n: usize,
+    ) -> Option<Outcome> {
+        sim.step_baseline(n)
     }
 }
 

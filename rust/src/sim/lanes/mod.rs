@@ -2,7 +2,7 @@
 //!
 //! Each lane is one ordinary `Simulation`, built by the ordinary constructor; it keeps the
 //! run's trace, online metrics and outcome. Stage 9, the plant's RK4 substeps, runs once
-//! for all lanes on a lane type `W` ([`F64x4`], or eight lanes, see [`LanePath`]): the same
+//! for all lanes on a lane type `W` ([`F64x4`](crate::scalar::F64x4), or eight lanes, see [`LanePath`]): the same
 //! `rk4_period` and the same [`ArmModel`] code (the three-link closed form, a chain's ABA)
 //! and `Wall` code the scalar plant runs, with the arms' and walls' parameters packed
 //! ([`RobotModel::pack`]). Stages 1–8 (environment, sensor, references, filter, controller,
@@ -30,15 +30,14 @@ use nalgebra::SVector;
 
 use crate::robot::chain::TaskKind;
 use crate::robot::RobotModel;
-use crate::scalar::{F64x4, Real, Wide};
-#[cfg(target_arch = "x86_64")]
-use crate::scalar::{F64x4Avx2, F64x8Avx512};
+use crate::scalar::{Real, Wide};
 use crate::sim::pipeline::StageKey;
 use crate::sim::plant::{rk4_period_on, Plant, PlantState};
 use crate::sim::simulation::{RunResult, Simulation};
 use crate::world::surface::{Environment, EnvironmentKey};
 use stages::LaneStages;
 
+mod builds;
 #[cfg(test)]
 mod chain;
 #[cfg(test)]
@@ -161,12 +160,12 @@ pub fn run_lanes_via<R: RobotModel<N>, const N: usize>(
     };
     let stages = match path {
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `available` detected the features `lanes_avx2` is compiled for.
-        LanePath::Avx2 => unsafe { lanes_avx2(sims) },
+        // SAFETY: `available` detected the features `builds::avx2::run` is compiled for.
+        LanePath::Avx2 => unsafe { builds::avx2::run(sims) },
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: as above, for `lanes_avx512`'s.
-        LanePath::Avx512 => unsafe { lanes_avx512(sims) },
-        _ => lanes_loop::<F64x4, 4, R, N>(sims),
+        // SAFETY: as above, for `builds::avx512::run`'s.
+        LanePath::Avx512 => unsafe { builds::avx512::run(sims) },
+        _ => builds::portable::run(sims),
     };
     if stages == StagePath::Lanes {
         RUNS[path as usize].fetch_add(sims.len() as u64, Ordering::Relaxed);
@@ -174,33 +173,17 @@ pub fn run_lanes_via<R: RobotModel<N>, const N: usize>(
     (sims.iter_mut().map(|s| s.take_result()).collect(), stages)
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn lanes_avx2<R: RobotModel<N>, const N: usize>(sims: &mut [Simulation<R, N>]) -> StagePath {
-    lanes_loop::<F64x4Avx2, 4, R, N>(sims)
-}
-
-/// Eight lanes in AVX-512 registers (F for the 512-bit arithmetic, DQ for the 64-bit
-/// integer conversions and masks of `exp_lanes`' exponent bits, VL for the narrower ops).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
-unsafe fn lanes_avx512<R: RobotModel<N>, const N: usize>(
-    sims: &mut [Simulation<R, N>],
-) -> StagePath {
-    lanes_loop::<F64x8Avx512, 8, R, N>(sims)
-}
-
 /// A build of the lane loop: the lane type it runs and the instructions it may use. All
 /// three give the same bits (tested); they differ only in speed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LanePath {
-    /// [`F64x4`] in baseline x86-64 (SSE2) or the target's own code: any CPU.
+    /// [`F64x4`](crate::scalar::F64x4) in baseline x86-64 (SSE2) or the target's own code: any CPU.
     Portable = 0,
-    /// [`F64x4Avx2`] (one ymm register per value) with AVX2 and FMA instructions available
+    /// [`F64x4Avx2`](crate::scalar::F64x4Avx2) (one ymm register per value) with AVX2 and FMA instructions available
     /// (the compiler never contracts a multiply and an add: FMA only speeds up what it
     /// emits on its own, e.g. none).
     Avx2 = 1,
-    /// [`F64x8Avx512`] (one AVX-512 register per value) with AVX-512 F, DQ and VL.
+    /// [`F64x8Avx512`](crate::scalar::F64x8Avx512) (one AVX-512 register per value) with AVX-512 F, DQ and VL.
     Avx512 = 2,
 }
 
@@ -248,7 +231,7 @@ impl LanePath {
     }
 
     /// The default on this CPU: the 8-wide AVX-512 build where AVX-512 F, DQ and VL exist,
-    /// else AVX2, else portable. With its native lane type ([`F64x8Avx512`]) the 8-wide
+    /// else AVX2, else portable. With its native lane type ([`F64x8Avx512`](crate::scalar::F64x8Avx512)) the 8-wide
     /// build ran fig. 19 sweeps 1.4× and Panda sweeps 1.7× faster than the 4-wide AVX2 one
     /// on an Intel Xeon (docs/performance.md §23); on Zen 4, which splits each 512-bit
     /// operation in two, it is not measured (`ADMIT_RS_LANES=avx2` picks the 4-wide build).
