@@ -16,12 +16,12 @@
 //! matching `AutoSimd`, so it gives that type's bits. The tests below compare each operation
 //! with `AutoSimd` bit for bit; the lane loop's tests compare whole runs on every build.
 //!
-//! Safety: every method may execute the ISA's instructions (AVX-512 F; AVX and AVX2; FMA in
-//! e^x, which both builds are compiled for and `LanePath::available` checks). A lane
-//! type is only instantiated inside the lane-loop build compiled for its ISA
-//! (`sim::lanes::builds::avx512::run`, `builds::avx2::run`), which is entered after `LanePath::available`
-//! detected the features; nothing else may use it. Code the build does not inline calls
-//! each intrinsic as a function: correct, but slow, so the hot paths are `inline(always)`.
+//! Safety: every method may execute the ISA's instructions (AVX-512 F; AVX and AVX2; FMA in e^x,
+//! which both builds are compiled for and `LanePath::available` checks). A lane type is only
+//! instantiated inside the lane-loop build compiled for its ISA (`sim::lanes::builds::avx512::run`,
+//! `builds::avx2::run`), which is entered after `LanePath::available` detected the features;
+//! nothing else may use it. Code the build does not inline calls each intrinsic as a function:
+//! correct, but slow, so the hot paths are `inline(always)`.
 
 use std::fmt;
 use std::ops::{

@@ -1,16 +1,16 @@
 //! SIMD lanes for sweeps (SPEC §13): runs of one structure advance four or eight at a time.
 //!
-//! Each lane is one ordinary `Simulation`, built by the ordinary constructor; it keeps the
-//! run's trace, online metrics and outcome. Stage 9, the plant's RK4 substeps, runs once
-//! for all lanes on a lane type `W` ([`F64x4`](crate::scalar::F64x4), or eight lanes, see [`LanePath`]): the same
-//! `rk4_period` and the same [`ArmModel`] code (the three-link closed form, a chain's ABA)
-//! and `Wall` code the scalar plant runs, with the arms' and walls' parameters packed
+//! Each lane is one ordinary `Simulation`, built by the ordinary constructor; it keeps the run's
+//! trace, online metrics and outcome. Stage 9, the plant's RK4 substeps, runs once for all lanes on
+//! a lane type `W` ([`F64x4`](crate::scalar::F64x4), or eight lanes, see [`LanePath`]): the same
+//! `rk4_period` and the same [`ArmModel`] code (the three-link closed form, a chain's ABA) and
+//! `Wall` code the scalar plant runs, with the arms' and walls' parameters packed
 //! ([`RobotModel::pack`]). Stages 1–8 (environment, sensor, references, filter, controller,
 //! actuator, record) run in lanes too, for every arm (`stages::LaneStages`: the same
-//! `sim::pipeline::Pipeline` a scalar run steps, over `W`). An arm brings nothing else:
-//! what runs in lanes is its `ArmModel<W, N>`. A group whose runs do not share one stage
-//! structure (a caller's mixed group; sweeps group by [`LaneKey`]) runs its stages lane by
-//! lane through `Simulation::step_to_plant`.
+//! `sim::pipeline::Pipeline` a scalar run steps, over `W`). An arm brings nothing else: what runs
+//! in lanes is its `ArmModel<W, N>`. A group whose runs do not share one stage structure (a
+//! caller's mixed group; sweeps group by [`LaneKey`]) runs its stages lane by lane through
+//! `Simulation::step_to_plant`.
 //!
 //! The loop is written once, generic over the lane type and its width `L`, and compiled
 //! three times (issue #25): portable 4-wide, AVX2 + FMA 4-wide, AVX-512 8-wide; a runtime
@@ -177,13 +177,15 @@ pub fn run_lanes_via<R: RobotModel<N>, const N: usize>(
 /// three give the same bits (tested); they differ only in speed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LanePath {
-    /// [`F64x4`](crate::scalar::F64x4) in baseline x86-64 (SSE2) or the target's own code: any CPU.
+    /// [`F64x4`](crate::scalar::F64x4) in baseline x86-64 (SSE2) or the target's own code:
+    /// any CPU.
     Portable = 0,
-    /// [`F64x4Avx2`](crate::scalar::F64x4Avx2) (one ymm register per value) with AVX2 and FMA instructions available
-    /// (the compiler never contracts a multiply and an add: FMA only speeds up what it
-    /// emits on its own, e.g. none).
+    /// [`F64x4Avx2`](crate::scalar::F64x4Avx2) (one ymm register per value) with AVX2 and
+    /// FMA instructions available (the compiler never contracts a multiply and an add: FMA
+    /// only speeds up what it emits on its own, e.g. none).
     Avx2 = 1,
-    /// [`F64x8Avx512`](crate::scalar::F64x8Avx512) (one AVX-512 register per value) with AVX-512 F, DQ and VL.
+    /// [`F64x8Avx512`](crate::scalar::F64x8Avx512) (one AVX-512 register per value) with
+    /// AVX-512 F, DQ and VL.
     Avx512 = 2,
 }
 
@@ -230,10 +232,10 @@ impl LanePath {
         }
     }
 
-    /// The default on this CPU: the 8-wide AVX-512 build where AVX-512 F, DQ and VL exist,
-    /// else AVX2, else portable. With its native lane type ([`F64x8Avx512`](crate::scalar::F64x8Avx512)) the 8-wide
-    /// build ran fig. 19 sweeps 1.4× and Panda sweeps 1.7× faster than the 4-wide AVX2 one
-    /// on an Intel Xeon (docs/performance.md §23); on Zen 4, which splits each 512-bit
+    /// The default on this CPU: the 8-wide AVX-512 build where AVX-512 F, DQ and VL exist, else
+    /// AVX2, else portable. With its native lane type ([`F64x8Avx512`](crate::scalar::F64x8Avx512))
+    /// the 8-wide build ran fig. 19 sweeps 1.4× and Panda sweeps 1.7× faster than the 4-wide AVX2
+    /// one on an Intel Xeon (docs/performance.md §23); on Zen 4, which splits each 512-bit
     /// operation in two, it is not measured (`ADMIT_RS_LANES=avx2` picks the 4-wide build).
     pub fn fastest() -> Self {
         [LanePath::Avx512, LanePath::Avx2, LanePath::Portable]
