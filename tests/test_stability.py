@@ -11,15 +11,17 @@ import pytest
 
 def test_bouncing_on_a_stiff_wall_is_unstable_and_says_why():
     """fig14 with k_e = 7e5, b = 200 completes without diverging but bounces off the wall
-    for the whole run: not stable, and the verdict names contact loss."""
+    for the whole run: not stable, and the verdict names contact loss. The run is chaotic:
+    its counts move with the last bit of any input (they moved from 88 % and 200 bounces
+    when z's sine reference took libm's sin instead of the C library's, session 32)."""
     sc = ar.paper.scenario("fig14").replace(**{"wall.stiffness": 7e5, "admittance.b": 200})
     r = ar.simulate(sc)
     assert r.diverged is False and r.metrics["diverged"] is False
     assert r.metrics["contact_loss"] > 0.5
     assert r.metrics["force_oscillation"] > 1.0
     assert r.stable is False and r.metrics["stable"] is False
-    assert r.verdict.startswith("unstable: loss of contact: f = 0 in 88 % of samples after "
-                                "t = 1 s, 200 bounces (max_contact_loss 5 %)")
+    assert r.verdict.startswith("unstable: loss of contact: f = 0 in 89 % of samples after "
+                                "t = 1 s, 198 bounces (max_contact_loss 5 %)")
     assert "force oscillation with loss of contact" in r.verdict
     assert r.verdict in repr(r)
 

@@ -15,6 +15,7 @@ use simba::simd::SimdBool;
 use simba::simd::SimdValue;
 
 mod libm_exp;
+pub mod libm_sincos;
 #[cfg(target_arch = "x86_64")]
 mod native;
 #[cfg(target_arch = "x86_64")]
@@ -53,7 +54,8 @@ pub trait Real:
     /// lanes evaluate [`exp_lanes`] in every lane at once.
     fn exp_fast(self) -> Self;
 
-    /// (sin x, cos x) per lane by libm's `sincos` (one range reduction for both).
+    /// (sin x, cos x) per lane with libm's `sincos`'s bits (one range reduction for both):
+    /// `libm::sincos` for one run, [`libm_sincos::sincos`] in every lane at once.
     fn sin_cos_each(self) -> (Self, Self);
 
     /// (sin x, cos x): `f64::sin_cos` for one run; lanes evaluate [`sin_cos_lanes`] in
@@ -135,11 +137,7 @@ macro_rules! real_lanes {
 
             #[inline(always)]
             fn sin_cos_each(self) -> (Self, Self) {
-                let sc = self.0.map(libm::sincos);
-                (
-                    simba::simd::AutoSimd(sc.map(|p| p.0)),
-                    simba::simd::AutoSimd(sc.map(|p| p.1)),
-                )
+                libm_sincos::sincos(self)
             }
 
             #[inline(always)]

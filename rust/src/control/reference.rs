@@ -144,7 +144,8 @@ impl Signal {
                 omega,
                 phase,
             } => {
-                let (s, c) = (omega * t + phase).sin_cos();
+                // libm's sincos, whose bits the lanes reproduce (`LaneSignal`).
+                let (s, c) = libm::sincos(omega * t + phase);
                 Sample {
                     value: offset + amplitude * s,
                     rate: amplitude * omega * c,
@@ -158,6 +159,137 @@ impl Signal {
     /// True for a step: the step-response metrics (rise, settling, overshoot) apply.
     pub fn is_step(&self) -> bool {
         matches!(self, Signal::Step { .. })
+    }
+}
+
+/// Runs' signals in lanes (SPEC §13): one kind, each lane's own parameters, evaluated in
+/// every lane at once with `Signal::at`'s bits (a sine by `scalar::libm_sincos`). Sampled
+/// signals, or lanes of different kinds, are evaluated lane by lane.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LaneSignal<W: Real> {
+    Step {
+        value: W,
+        time: W,
+        initial: W,
+    },
+    Sine {
+        offset: W,
+        amplitude: W,
+        omega: W,
+        phase: W,
+    },
+    PerLane,
+}
+
+impl<W: Real> LaneSignal<W> {
+    /// `L` runs' signals.
+    pub fn pack<const L: usize>(s: [&Signal; L]) -> Self
+    where
+        W: Wide<L>,
+    {
+        let mut out = Self::lane_zero(s[0]);
+        for (l, signal) in s.iter().enumerate() {
+            out.put_lane(l, signal);
+        }
+        out
+    }
+
+    /// Every lane at 0 in `s`'s kind.
+    fn lane_zero(s: &Signal) -> Self {
+        let z = W::zero();
+        match s {
+            Signal::Step { .. } => Self::Step {
+                value: z,
+                time: z,
+                initial: z,
+            },
+            Signal::Sine { .. } => Self::Sine {
+                offset: z,
+                amplitude: z,
+                omega: z,
+                phase: z,
+            },
+            Signal::Sampled { .. } => Self::PerLane,
+        }
+    }
+
+    /// Lane `l` takes the signal `s` (a new run's). One of another kind makes the group's
+    /// signals lane by lane from now on: the same bits, more slowly.
+    pub fn put_lane(&mut self, l: usize, s: &Signal) {
+        match (self, s) {
+            (
+                Self::Step {
+                    value,
+                    time,
+                    initial,
+                },
+                Signal::Step {
+                    value: v,
+                    time: t,
+                    initial: i,
+                },
+            ) => {
+                value.replace(l, *v);
+                time.replace(l, *t);
+                initial.replace(l, *i);
+            }
+            (
+                Self::Sine {
+                    offset,
+                    amplitude,
+                    omega,
+                    phase,
+                },
+                Signal::Sine {
+                    offset: o,
+                    amplitude: a,
+                    omega: w,
+                    phase: p,
+                },
+            ) => {
+                offset.replace(l, *o);
+                amplitude.replace(l, *a);
+                omega.replace(l, *w);
+                phase.replace(l, *p);
+            }
+            (this, _) => *this = Self::PerLane,
+        }
+    }
+
+    /// Each lane's signal at its own time `t`; `each(l)`: lane l's signal, for the lanes
+    /// evaluated one by one.
+    #[inline(always)]
+    pub fn at<'a, const L: usize>(&self, t: W, each: impl Fn(usize) -> &'a Signal) -> Sample<W>
+    where
+        W: Wide<L>,
+    {
+        match self {
+            Self::Step {
+                value,
+                time,
+                initial,
+            } => Sample {
+                value: value.select(t.simd_ge(*time), *initial),
+                ..Sample::default()
+            },
+            Self::Sine {
+                offset,
+                amplitude,
+                omega,
+                phase,
+            } => {
+                let (s, c) = (*omega * t + *phase).sin_cos_each();
+                Sample {
+                    value: *offset + *amplitude * s,
+                    rate: *amplitude * *omega * c,
+                    accel: -*amplitude * *omega * *omega * s,
+                }
+            }
+            Self::PerLane => {
+                let each: [Sample; L] = std::array::from_fn(|l| each(l).at(t.extract(l)));
+                Sample::pack(each.each_ref())
+            }
+        }
     }
 }
 
@@ -213,6 +345,51 @@ mod tests {
         assert!((x.value - (10.0 + 5.0 * 0.6f64.sin())).abs() < 1e-15);
         assert!((x.rate - 10.0 * 0.6f64.cos()).abs() < 1e-14);
         assert!((x.accel + 20.0 * 0.6f64.sin()).abs() < 1e-14);
+    }
+
+    /// Lanes of one kind, each with its own parameters and time, give `Signal::at`'s bits;
+    /// a lane of another kind turns the group lane by lane, with the same bits.
+    #[test]
+    fn lane_signals_are_each_lane_s_own() {
+        use crate::scalar::{lane, F64x4};
+        let sine = |i: usize| Signal::Sine {
+            offset: 0.1 * i as f64,
+            amplitude: 0.05 + 0.01 * i as f64,
+            omega: 1.0 + 3.0 * i as f64,
+            phase: -0.7 * i as f64,
+        };
+        let step = |i: usize| Signal::Step {
+            value: 10.0 + i as f64,
+            time: 0.25 * i as f64,
+            initial: -(i as f64),
+        };
+        let sampled = Signal::Sampled {
+            times: vec![0.0, 1.0, 3.0],
+            values: vec![0.0, 2.0, 0.0],
+        };
+        for kind in [sine as fn(usize) -> Signal, step] {
+            let mut signals: Vec<Signal> = (0..4).map(kind).collect();
+            let mut lanes = LaneSignal::<F64x4>::pack(std::array::from_fn(|i| &signals[i]));
+            for round in 0..2 {
+                for k in 0..2000 {
+                    let t = F64x4::from_lanes(|i| (k + 37 * i) as f64 * 1e-3);
+                    let got = lanes.at(t, |l| &signals[l]);
+                    for (i, signal) in signals.iter().enumerate() {
+                        let want = signal.at(lane(t, i));
+                        let bits = |x: Sample<F64x4>| {
+                            [x.value, x.rate, x.accel].map(|v| lane(v, i).to_bits())
+                        };
+                        let want = [want.value, want.rate, want.accel].map(f64::to_bits);
+                        assert_eq!(bits(got), want, "{signal:?} at {}", lane(t, i));
+                    }
+                }
+                // Lane 2 takes a run of another kind: lane by lane from then on.
+                assert_eq!(round == 0, lanes != LaneSignal::PerLane);
+                signals[2] = sampled.clone();
+                lanes.put_lane(2, &signals[2]);
+                assert_eq!(lanes, LaneSignal::PerLane);
+            }
+        }
     }
 
     #[test]

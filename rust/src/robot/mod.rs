@@ -185,12 +185,6 @@ pub trait RobotModel<const N: usize>: Clone + Send + Sync + std::fmt::Debug + 's
     /// Runs' equations in lanes of `W` (four or eight runs).
     type Lanes<W: Real>: ArmModel<W, N>;
 
-    /// Whether the lanes' configuration values are packed from each run's own (its
-    /// plant's `config`, kept fresh at every write-back; the three-link arm's libm sincos)
-    /// rather than evaluated afresh from the lanes' q (a chain's frames), which lets the
-    /// lanes defer each run's own until it is done.
-    const READS_EACH_CONFIG: bool;
-
     /// The arm's equations.
     fn model(&self) -> &Self::Model;
 
@@ -202,13 +196,6 @@ pub trait RobotModel<const N: usize>: Clone + Send + Sync + std::fmt::Debug + 's
 
     /// Lane `l` takes the model `model` (a new run's).
     fn put_lane<W: Real>(lanes: &mut Self::Lanes<W>, l: usize, model: &Self::Model);
-
-    /// The lanes' configuration values at `q`, given each lane's own (`configs`, at q).
-    fn pack_config<W: Wide<L>, const L: usize>(
-        lanes: &Self::Lanes<W>,
-        q: &SVector<W, N>,
-        configs: [&ConfigOf<Self, N>; L],
-    ) -> LaneConfigOf<Self, W, N>;
 
     /// The model a controller believes in: masses (and inertias) scaled by `mass_scale`,
     /// friction by `friction_scale`; geometry shared with the plant.

@@ -778,7 +778,6 @@ impl ThreeLinkArm {
 impl RobotModel<3> for ThreeLinkArm {
     type Model = ClosedForm;
     type Lanes<W: Real> = ClosedForm<W>;
-    const READS_EACH_CONFIG: bool = true;
 
     #[inline(always)]
     fn model(&self) -> &ClosedForm {
@@ -795,16 +794,6 @@ impl RobotModel<3> for ThreeLinkArm {
 
     fn put_lane<W: Real>(lanes: &mut ClosedForm<W>, l: usize, model: &ClosedForm) {
         lanes.put_lane(l, model);
-    }
-
-    #[inline(always)]
-    fn pack_config<W: Wide<L>, const L: usize>(
-        _: &ClosedForm<W>,
-        _: &Vector3<W>,
-        configs: [&Trig; L],
-    ) -> Trig<W> {
-        // Each lane's own fresh evaluation (libm's sincos), as the scalar plant starts from.
-        Trig::pack(configs)
     }
 
     fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {

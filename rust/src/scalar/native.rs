@@ -63,6 +63,10 @@ pub trait Isa<const L: usize>: Copy + Send + Sync + 'static {
 
     fn to_array(v: Self::V) -> [f64; L];
     fn from_array(a: [f64; L]) -> Self::V;
+    /// The vector of `L` values held one by one (in registers), built by register moves:
+    /// `from_array` of an array just written one value at a time is a wide load of
+    /// narrow stores, which the CPU cannot forward (a stall per gather).
+    fn set(a: [f64; L]) -> Self::V;
     fn auto(a: [f64; L]) -> Self::Auto;
     fn auto_array(a: Self::Auto) -> [f64; L];
 
@@ -782,11 +786,7 @@ impl<I: Isa<L>, const L: usize> Real for Lanes<I, L> {
 
     #[inline(always)]
     fn sin_cos_each(self) -> (Self, Self) {
-        let sc = self.to_array().map(libm::sincos);
-        (
-            Self::from_array(sc.map(|p| p.0)),
-            Self::from_array(sc.map(|p| p.1)),
-        )
+        super::libm_sincos::sincos(self)
     }
 
     #[inline(always)]
@@ -797,7 +797,7 @@ impl<I: Isa<L>, const L: usize> Real for Lanes<I, L> {
 
     #[inline(always)]
     fn from_lanes(f: impl FnMut(usize) -> f64) -> Self {
-        Self::from_array(std::array::from_fn(f))
+        Self(I::set(std::array::from_fn(f)))
     }
 
     #[inline(always)]

@@ -81,11 +81,15 @@ impl<R: RobotModel<N>, const N: usize> Plant<R, N> {
         self.config = self.arm.model().configure(&state.q);
     }
 
-    /// The state only, its configuration values left stale until [`Self::refresh_config`]:
-    /// for the lanes, whose stages compute a chain's frames from the packed state and never
-    /// read each plant's.
-    pub(crate) fn set_state_deferred(&mut self, state: PlantState<N>) {
-        self.state = state;
+    /// The state, joint by joint, its configuration values left stale until
+    /// [`Self::refresh_config`]: for the lanes, which evaluate theirs from the packed state
+    /// and never read each plant's.
+    #[inline(always)]
+    pub(crate) fn write_state(&mut self, q: impl Fn(usize) -> f64, qd: impl Fn(usize) -> f64) {
+        for j in 0..N {
+            self.state.q[j] = q(j);
+            self.state.qd[j] = qd(j);
+        }
     }
 
     /// The configuration values of the current state, after [`Self::set_state_deferred`].

@@ -513,7 +513,6 @@ impl<const N: usize> UrdfArm<N> {
 impl<const N: usize> RobotModel<N> for UrdfArm<N> {
     type Model = Chain<f64, N>;
     type Lanes<W: Real> = Chain<W, N>;
-    const READS_EACH_CONFIG: bool = false;
 
     #[inline(always)]
     fn model(&self) -> &Chain<f64, N> {
@@ -530,16 +529,6 @@ impl<const N: usize> RobotModel<N> for UrdfArm<N> {
 
     fn put_lane<W: Real>(lanes: &mut Chain<W, N>, l: usize, model: &Chain<f64, N>) {
         lanes.put_lane(l, model);
-    }
-
-    #[inline(always)]
-    fn pack_config<W: Wide<L>, const L: usize>(
-        lanes: &Chain<W, N>,
-        q: &SVector<W, N>,
-        _: [&Frames<f64, N>; L],
-    ) -> Frames<W, N> {
-        // The chain evaluates its frames afresh at every stage anyway.
-        lanes.chain.frames(q)
     }
 
     fn with_model_error(&self, mass_scale: f64, friction_scale: f64) -> Self {

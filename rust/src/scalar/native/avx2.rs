@@ -6,9 +6,9 @@ use std::arch::x86_64::{
     __m256d, _mm256_add_epi64, _mm256_add_pd, _mm256_and_pd, _mm256_andnot_pd, _mm256_blendv_pd,
     _mm256_castpd_si256, _mm256_castsi256_pd, _mm256_cmp_pd, _mm256_div_pd, _mm256_fmadd_pd,
     _mm256_max_pd, _mm256_min_pd, _mm256_movemask_pd, _mm256_mul_pd, _mm256_or_pd,
-    _mm256_set1_epi64x, _mm256_set1_pd, _mm256_slli_epi64, _mm256_sqrt_pd, _mm256_sub_epi64,
-    _mm256_sub_pd, _mm256_xor_pd, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ,
-    _CMP_NEQ_UQ, _CMP_UNORD_Q,
+    _mm256_set1_epi64x, _mm256_set1_pd, _mm256_setr_pd, _mm256_slli_epi64, _mm256_sqrt_pd,
+    _mm256_sub_epi64, _mm256_sub_pd, _mm256_xor_pd, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ,
+    _CMP_LT_OQ, _CMP_NEQ_UQ, _CMP_UNORD_Q,
 };
 
 use simba::simd::{AutoF64x4, AutoSimd};
@@ -48,6 +48,11 @@ impl Isa<4> for Avx2 {
     fn from_array(a: [f64; 4]) -> __m256d {
         // SAFETY: as in `to_array`.
         unsafe { std::mem::transmute::<[f64; 4], __m256d>(a) }
+    }
+
+    #[inline(always)]
+    fn set(a: [f64; 4]) -> __m256d {
+        avx2!(_mm256_setr_pd(a[0], a[1], a[2], a[3]))
     }
 
     #[inline(always)]

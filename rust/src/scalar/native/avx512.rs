@@ -6,9 +6,9 @@ use std::arch::x86_64::{
     __m512d, __mmask8, _mm512_abs_pd, _mm512_add_epi64, _mm512_add_pd, _mm512_and_si512,
     _mm512_andnot_si512, _mm512_castpd_si512, _mm512_castsi512_pd, _mm512_cmp_pd_mask,
     _mm512_div_pd, _mm512_fmadd_pd, _mm512_mask_blend_pd, _mm512_max_pd, _mm512_min_pd,
-    _mm512_mul_pd, _mm512_or_si512, _mm512_set1_epi64, _mm512_set1_pd, _mm512_slli_epi64,
-    _mm512_sqrt_pd, _mm512_sub_epi64, _mm512_sub_pd, _mm512_xor_si512, _CMP_EQ_OQ, _CMP_GE_OQ,
-    _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _CMP_UNORD_Q,
+    _mm512_mul_pd, _mm512_or_si512, _mm512_set1_epi64, _mm512_set1_pd, _mm512_setr_pd,
+    _mm512_slli_epi64, _mm512_sqrt_pd, _mm512_sub_epi64, _mm512_sub_pd, _mm512_xor_si512,
+    _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _CMP_UNORD_Q,
 };
 
 use simba::simd::{AutoF64x8, AutoSimd};
@@ -42,6 +42,13 @@ impl Isa<8> for Avx512 {
     fn from_array(a: [f64; 8]) -> __m512d {
         // SAFETY: as in `to_array`.
         unsafe { std::mem::transmute::<[f64; 8], __m512d>(a) }
+    }
+
+    #[inline(always)]
+    fn set(a: [f64; 8]) -> __m512d {
+        avx512!(_mm512_setr_pd(
+            a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7]
+        ))
     }
 
     #[inline(always)]

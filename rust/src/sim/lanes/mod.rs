@@ -29,8 +29,8 @@ use std::sync::atomic::{AtomicU64, AtomicU8, Ordering};
 use nalgebra::SVector;
 
 use crate::robot::chain::TaskKind;
-use crate::robot::RobotModel;
-use crate::scalar::{Real, Wide};
+use crate::robot::{ArmModel, LaneConfigOf, RobotModel};
+use crate::scalar::{lane, pack_vector, Real, Wide};
 use crate::sim::pipeline::StageKey;
 use crate::sim::plant::{rk4_period_on, Plant, PlantState};
 use crate::sim::simulation::{RunResult, Simulation};
@@ -328,6 +328,7 @@ fn lanes_loop<W: Wide<L>, const L: usize, R: RobotModel<N>, const N: usize>(
         // Idle lanes repeat an active run (their results are discarded).
         let run: [usize; L] = slot.map(|s| s.or(slot[first]).unwrap_or(0));
         let plant = repack(&mut packed, sims, run);
+        let mut start = LaneStart::gather(plant, sims, run);
         if !tried {
             front = if one_structure {
                 LaneStages::pack(run.map(|i| &sims[i]))
@@ -344,7 +345,7 @@ fn lanes_loop<W: Wide<L>, const L: usize, R: RobotModel<N>, const N: usize>(
         }
         // Stages 1–8: in lanes, or lane by lane.
         let tau = match &mut front {
-            Some(f) => f.step(plant, sims, &slot, &run),
+            Some(f) => f.step(plant, &start, sims, &slot, &run),
             None => per_lane(sims, &slot),
         };
         for (s, t) in slot.iter_mut().zip(&tau) {
@@ -355,40 +356,40 @@ fn lanes_loop<W: Wide<L>, const L: usize, R: RobotModel<N>, const N: usize>(
         let Some(first) = slot.iter().position(Option::is_some) else {
             continue;
         };
-        let run: [usize; L] = slot.map(|s| s.or(slot[first]).unwrap_or(0));
+        let moved = slot.map(|s| s.or(slot[first]).unwrap_or(0));
         let lane_tau: [SVector<f64, N>; L] = std::array::from_fn(|l| {
             tau[if slot[l].is_some() { l } else { first }].unwrap_or_else(SVector::zeros)
         });
-        let plant = repack(&mut packed, sims, run);
-        // Stage 9 in lanes.
-        let pack =
-            |v: [&SVector<f64, N>; L]| SVector::<W, N>::from_fn(|j, _| W::from_lanes(|i| v[i][j]));
-        let states = run.map(|i| sims[i].plant().state());
-        let q = pack(states.map(|s| &s.q));
-        let config = R::pack_config(&plant.arm, &q, run.map(|i| sims[i].plant().config()));
+        let plant = repack(&mut packed, sims, moved);
+        // Stage 9 in lanes, from the state stage 1 read (gathered again only if a lane's
+        // run ended at this sample and the lane now repeats another).
+        if moved != run {
+            start = LaneStart::gather(plant, sims, moved);
+        }
         let (q, qd) = rk4_period_on(
             &plant.arm,
             &plant.environment,
-            (q, pack(states.map(|s| &s.qd))),
-            config,
+            (start.q, start.qd),
+            start.config,
             plant.substep,
             plant.substeps,
-            &pack(std::array::from_fn(|l| &lane_tau[l])),
+            &pack_vector(std::array::from_fn(|l| &lane_tau[l])),
         );
-        // Stage 9's write-back and the divergence check, per lane. A chain's frames per lane
-        // are computed once its run is done, unless its stages run lane by lane.
-        let deferred = !R::READS_EACH_CONFIG && front.is_some();
+        // Stage 9's write-back and the divergence check, per lane. Each run's own
+        // configuration values are computed once its run is done (the lanes evaluate
+        // theirs from q), unless its stages run lane by lane.
+        let deferred = front.is_some();
+        // Each value's lanes once, then each run's state written value by value: built
+        // whole on the stack, a state was stored as scalars and copied as wide words, a
+        // stalled store-to-load forward per lane (docs/performance.md §34).
+        let lanes = |v: &SVector<W, N>| v.map(|x| std::array::from_fn::<f64, L, _>(|l| lane(x, l)));
+        let (q, qd) = (lanes(&q), lanes(&qd));
         for (l, s) in slot.iter_mut().enumerate() {
             if let Some(i) = *s {
-                let unpack = |v: &SVector<W, N>| v.map(|x| crate::scalar::lane(x, l));
-                let state = PlantState {
-                    q: unpack(&q),
-                    qd: unpack(&qd),
-                };
-                if deferred {
-                    sims[i].plant_mut().set_state_deferred(state);
-                } else {
-                    sims[i].plant_mut().set_state(state);
+                let plant = sims[i].plant_mut();
+                plant.write_state(|j| q[j][l], |j| qd[j][l]);
+                if !deferred {
+                    plant.refresh_config();
                 }
                 sims[i].after_plant();
                 if sims[i].outcome().is_some() {
@@ -397,10 +398,8 @@ fn lanes_loop<W: Wide<L>, const L: usize, R: RobotModel<N>, const N: usize>(
             }
         }
     }
-    if !R::READS_EACH_CONFIG {
-        for s in sims.iter_mut() {
-            s.plant_mut().refresh_config();
-        }
+    for s in sims.iter_mut() {
+        s.plant_mut().refresh_config();
     }
     if front.is_some() || sims.is_empty() {
         StagePath::Lanes
@@ -428,6 +427,37 @@ fn put_lane<W: Real, R: RobotModel<N>, const N: usize>(
     sim: &Simulation<R, N>,
 ) -> bool {
     stages.put_lane(l, sim)
+}
+
+/// The lanes' plant state at a period's start: stage 1 measures it, stage 9 integrates
+/// from it. The configuration values (the three-link arm's trig, a chain's frames) are
+/// evaluated once, in lanes, from q: for the three-link arm the same bits as each run's own
+/// (`scalar::libm_sincos`).
+pub struct LaneStart<W: Real, R: RobotModel<N>, const N: usize, const L: usize> {
+    pub(crate) states: [PlantState<N>; L],
+    pub(crate) q: SVector<W, N>,
+    pub(crate) qd: SVector<W, N>,
+    pub(crate) config: LaneConfigOf<R, W, N>,
+}
+
+impl<W: Wide<L>, R: RobotModel<N>, const N: usize, const L: usize> LaneStart<W, R, N, L> {
+    #[inline(always)]
+    fn gather(
+        plant: &PackedPlant<W, R::Lanes<W>>,
+        sims: &[Simulation<R, N>],
+        run: [usize; L],
+    ) -> Self {
+        let states = run.map(|i| *sims[i].plant().state());
+        let q = pack_vector(states.each_ref().map(|s| &s.q));
+        let qd = pack_vector(states.each_ref().map(|s| &s.qd));
+        let config = plant.arm.configure(&q);
+        Self {
+            states,
+            q,
+            qd,
+            config,
+        }
+    }
 }
 
 /// The packed plants and the runs they were packed from.

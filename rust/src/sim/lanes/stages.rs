@@ -1,20 +1,20 @@
 //! Stages 1–8 of a period in lanes (SPEC §10, §13, §14): `L` runs' stages 2–7 packed into
 //! one [`Pipeline`] over a lane type `W` (`F64x4`, `F64x8`), the same code a scalar run steps
 //! as `Pipeline<f64>`, with computed torque's models packed as the plant's are
-//! ([`RobotModel::pack`]). What is here is only what is per lane: gathering the runs' plant states, their
-//! noise draws (each run's own seeded generator at its own sample index) and references
-//! (each a function of that lane's own t), and closing each lane's sample in its own
-//! `Simulation` (`close_sample`: the record and online metrics exist once). Stage 1 is the
-//! arm's `ArmModel::measure` over `W`, at the lanes' configuration values
-//! ([`RobotModel::pack_config`]), as a scalar run's is over `f64`.
+//! ([`RobotModel::pack`]). What is here is only what is per lane: gathering the runs' noise
+//! draws (each run's own seeded generator at its own sample index) and references (each a
+//! function of that lane's own t), and closing each lane's sample in its own `Simulation`
+//! (`close_sample`: the record and online metrics exist once). Stage 1 is the arm's
+//! `ArmModel::measure` over `W`, at the lanes' configuration values ([`LaneStart`], which
+//! the lane loop gathers once for stages 1 and 9), as a scalar run's is over `f64`.
 
 use nalgebra::SVector;
 use simba::simd::SimdValue;
 
-use crate::control::reference::Sample;
+use crate::control::reference::LaneSignal;
 use crate::robot::{ArmModel, RobotModel};
-use crate::scalar::{lane, lane_of, mask_from, pack_vector, Real, Wide};
-use crate::sim::lanes::PackedPlant;
+use crate::scalar::{lane, lane_of, mask_from, Real, Wide};
+use crate::sim::lanes::{LaneStart, PackedPlant};
 use crate::sim::outcome::Divergence;
 use crate::sim::pipeline::{Inputs, Pipeline};
 use crate::sim::simulation::Simulation;
@@ -23,6 +23,9 @@ use crate::sim::trace::Row;
 /// Runs' stages 1–8 in lanes of `W`, for any arm.
 pub struct LaneStages<W: Real, R: RobotModel<N>, const N: usize> {
     pub(crate) stages: Pipeline<W, R::Lanes<W>, N>,
+    /// The runs' f_d(t) and s(t).
+    force_reference: LaneSignal<W>,
+    motion_reference: LaneSignal<W>,
 }
 
 impl<W: Real, R: RobotModel<N>, const N: usize> LaneStages<W, R, N> {
@@ -34,14 +37,25 @@ impl<W: Real, R: RobotModel<N>, const N: usize> LaneStages<W, R, N> {
     where
         W: Wide<L>,
     {
-        Pipeline::pack(sims.map(|s| s.stages()), R::pack).map(|stages| Self { stages })
+        Pipeline::pack(sims.map(|s| s.stages()), R::pack).map(|stages| Self {
+            stages,
+            force_reference: LaneSignal::pack(sims.map(|s| &s.config().force_reference)),
+            motion_reference: LaneSignal::pack(sims.map(|s| &s.config().z_reference)),
+        })
     }
 
     /// Lane `l` takes the fresh run `sim`; false if its structure differs from the
     /// group's (never in `run_lanes`, which packs only groups whose every run fits).
     pub fn put_lane(&mut self, l: usize, sim: &Simulation<R, N>) -> bool {
-        self.stages
-            .put_lane(l, sim.stages(), |model, arm| R::put_lane(model, l, arm))
+        let fits = self
+            .stages
+            .put_lane(l, sim.stages(), |model, arm| R::put_lane(model, l, arm));
+        if fits {
+            self.force_reference
+                .put_lane(l, &sim.config().force_reference);
+            self.motion_reference.put_lane(l, &sim.config().z_reference);
+        }
+        fits
     }
 
     /// Stages 1–8 for the runs in `slot` (`run`: the run each lane computes; an idle lane
@@ -51,6 +65,7 @@ impl<W: Real, R: RobotModel<N>, const N: usize> LaneStages<W, R, N> {
     pub fn step<const L: usize>(
         &mut self,
         plant: &PackedPlant<W, R::Lanes<W>>,
+        start: &LaneStart<W, R, N, L>,
         sims: &mut [Simulation<R, N>],
         slot: &[Option<usize>; L],
         run: &[usize; L],
@@ -62,38 +77,38 @@ impl<W: Real, R: RobotModel<N>, const N: usize> LaneStages<W, R, N> {
         let k = lanes.map(|s| s.sample());
         let t = W::from_lanes(|l| k[l] as f64 * lanes[l].config().period);
         // 1. plant state (the encoders) and the tip's kinematics at it
-        let states = lanes.map(|s| *s.plant().state());
-        let q = pack_vector(states.each_ref().map(|s| &s.q));
-        let qd = pack_vector(states.each_ref().map(|s| &s.qd));
-        let at = R::pack_config(&plant.arm, &q, lanes.map(|s| s.plant().config()));
-        let (kin, orientation) = plant.arm.measure(&at, &qd, self.stages.controller.pose());
+        let (states, q, qd, at) = (&start.states, &start.q, &start.qd, &start.config);
+        let (kin, orientation) = plant.arm.measure(at, qd, self.stages.controller.pose());
         let rotation = self
             .stages
             .sensor
             .needs_rotation()
-            .then(|| plant.arm.tip_rotation(&at));
+            .then(|| plant.arm.tip_rotation(at));
         // Each run's noise draws at its own sample, its references at its own t.
         let draws: [[f64; 3]; L] =
             std::array::from_fn(|l| lanes[l].stages().sensor.noise_draws(k[l]));
         let noise: [W; 3] = std::array::from_fn(|a| W::from_lanes(|l| draws[l][a]));
-        let f_d: [Sample; L] =
-            std::array::from_fn(|l| lanes[l].config().force_reference.at(lane(t, l)));
-        let s: [Sample; L] = std::array::from_fn(|l| lanes[l].config().z_reference.at(lane(t, l)));
+        let f_d = self
+            .force_reference
+            .at(t, |l| &lanes[l].config().force_reference);
+        let s = self
+            .motion_reference
+            .at(t, |l| &lanes[l].config().z_reference);
         // 2.–7.
         let out = self.stages.step(
             &Inputs {
                 first: mask_from::<W>(|l| k[l] == 0),
-                q: &q,
-                qd: &qd,
+                q,
+                qd,
                 kinematics: &kin,
                 orientation: orientation.as_ref(),
                 rotation: rotation.as_ref(),
                 environment: &plant.environment,
                 noise,
-                force_reference: Sample::pack(f_d.each_ref()),
-                motion_reference: Sample::pack(s.each_ref()),
+                force_reference: f_d,
+                motion_reference: s,
             },
-            &at,
+            at,
         );
         // 8. record sample k, per lane (a lane whose law failed ends its run instead)
         std::array::from_fn(|l| {
@@ -119,7 +134,7 @@ impl<W: Real, R: RobotModel<N>, const N: usize> LaneStages<W, R, N> {
                 reference: [reference[0], reference[1], reference[2]],
                 f: lane(out.force, l),
                 f_measured: lane(out.measured, l),
-                f_d: f_d[l].value,
+                f_d: lane(f_d.value, l),
                 penetration: lane(out.penetration, l),
                 x_a: lane(out.x_a.value, l),
                 xa_dot: lane(out.x_a.rate, l),
