@@ -202,26 +202,6 @@ impl<T: Real> Trig<T> {
     }
 }
 
-impl<W: Real> Trig<W> {
-    /// Four configurations' trig in four lanes.
-    pub fn pack<const L: usize>(t: [&Trig; L]) -> Self
-    where
-        W: Wide<L>,
-    {
-        let p = |f: fn(&Trig) -> f64| W::from_lanes(|i| f(t[i]));
-        Self {
-            s1: p(|t| t.s1),
-            c1: p(|t| t.c1),
-            s2: p(|t| t.s2),
-            c2: p(|t| t.c2),
-            s3: p(|t| t.s3),
-            c3: p(|t| t.c3),
-            s23: p(|t| t.s23),
-            c23: p(|t| t.c23),
-        }
-    }
-}
-
 /// The arm's closed form (kinematics, eq. (1)'s D, C, G and friction) with its constants
 /// folded once, over any scalar: `f64` for one arm, [`F64x4`] for four arms (whose
 /// parameters may differ) advancing in lanes.
