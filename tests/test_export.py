@@ -238,3 +238,19 @@ def test_a_tool_is_exported_as_gravity_compensation(tmp_path):
     assert cog["force"] == pytest.approx(1.2 * 9.81)
     assert cog["pos"] == [0.0, 0.0, 0.0]
     assert "1.2 kg" in text
+
+
+def test_numpy_scalars_are_written_as_plain_toml_numbers():
+    """A block holds NumPy scalars as the Python numbers they are (issue #53, item 4): the
+    TOML export wrote ``stiffness = np.float64(50000.0)`` and refused ``np.int64``."""
+    import tomllib
+
+    sc = ar.paper.scenario("fig14").replace(**{
+        "wall.stiffness": np.float64(5e4), "sensor.latency": np.int64(2),
+        "actuator.torque_limit": (np.float64(60.0), 40, np.float32(20.0)), "seed": np.int64(3),
+    })  # fmt: skip
+    assert type(sc.wall.stiffness) is float and type(sc.sensor.latency) is int
+    assert type(sc.seed) is int and [type(t) for t in sc.actuator.torque_limit] == [float] * 3
+    text = ar.export.toml(sc)
+    assert "stiffness = 50000.0" in text and "latency = 2" in text and "np." not in text
+    assert ar.Scenario.from_dict(tomllib.loads(text)) == sc

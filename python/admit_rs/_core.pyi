@@ -36,20 +36,24 @@ class FlatTrace(TypedDict):
 
 def defaults() -> dict[str, dict[str, Any]]:
     """Every block's Rust ``Default``, serialised by its serde declaration, keyed like
-    :func:`schema` (three_link, urdf, wall, sensor, actuator, model, computed_torque,
-    model_free, time_delay, admittance, scenario); tagged blocks carry ``kind``."""
+    :func:`schema`; tagged blocks carry ``kind``."""
 
 def schema() -> dict[str, dict[str, Any]]:
     """Every block's JSON schema (draft 2020-12) from its Rust declaration: ``properties``
-    with ``description`` (the field docs), ``type`` and, where the block has a Rust
-    ``Default``, ``default``. Keyed by the blocks' kind tags (three_link, urdf, wall, sphere,
-    cylinder, height_field, sensor,
-    actuator, model, computed_torque, model_free, time_delay, admittance, impedance, step,
-    sine, sampled, criteria, approach) and ``scenario``."""
+    in declaration order with ``description`` (the field docs), ``type``, ``default`` and
+    ``x-ui`` slider hints. Keyed by the registry's keys (three_link, urdf, wall, sphere,
+    cylinder, height_field, sensor, actuator, model, computed_torque, model_free,
+    time_delay, admittance, impedance, step, sine, sampled, criteria, approach, scenario)."""
 
-def check_block(kind: str, params: dict[str, Any]) -> None:
-    """Validate one block (kind: robot, wall, controller, admittance, signal, model, sensor,
-    actuator)."""
+def registry() -> list[dict[str, Any]]:
+    """The block registry (``rust/src/schema/registry.rs``): one dict per family, in order,
+    with ``name``, ``python`` (the Python type of a field holding it), ``type_name`` (its
+    Rust schema name, the ``$defs`` key a field refers to) and ``kinds`` (dicts with
+    ``key``, ``class``, ``tag`` and ``core_tag``)."""
+
+def check_block(family: str, params: dict[str, Any]) -> None:
+    """Validate one block of a registry family (robot, surface, sensor, actuator, model,
+    controller, force_control, signal, criteria, approach)."""
 
 def surface_directions(
     params: dict[str, Any],

@@ -128,10 +128,8 @@ def _round_sig(x: float, digits: int) -> float:
 
 
 def schema_key(block: _Block) -> str:
-    """The block's key in ``_core.schema()``: its kind tag, else the slot it checks as."""
-    if isinstance(block, Scenario):
-        return "scenario"
-    return block._kind or block._check
+    """The block's key in ``_core.schema()`` (the core's registry)."""
+    return block._key
 
 
 def _nullable(prop: Mapping[str, Any]) -> bool:

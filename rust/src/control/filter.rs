@@ -321,12 +321,21 @@ impl<T: Real> AdaptiveFilter<T> {
 /// Eq. (20): x_d = x̂_e + f_d / k_eff with k_eff = k k̂_e / (k + k̂_e), an assumed wall
 /// stiffness and no force feedback. The baseline the admittance schemes improve on.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct ImpedanceParams {
     /// Impedance stiffness [N/m].
     pub k: f64,
     /// The wall stiffness the designer assumes, k̂_e [N/m].
     pub assumed_stiffness: f64,
+}
+
+impl Default for ImpedanceParams {
+    fn default() -> Self {
+        Self {
+            k: 10_000.0,
+            assumed_stiffness: 30_000.0,
+        }
+    }
 }
 
 impl ImpedanceParams {

@@ -43,38 +43,59 @@ impl<W: Real> Sample<W> {
 
 /// A scalar signal of time. Derivatives are analytic where the signal has them; a step
 /// contributes no impulse to the derivatives. Tagged by `kind` as the Python blocks are;
-/// no `Default` (a signal's defaults depend on what it drives).
+/// a field left out takes its default (a 10 N step, a unit sine, one sample at 0).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Signal {
     /// `initial` before `time`, `value` from `time` on.
     Step {
         /// Value from ``time`` on [unit of the signal: N for a force, m for z].
+        #[serde(default = "ten")]
         value: f64,
         /// Step time [s].
+        #[serde(default)]
         time: f64,
         /// Value before ``time`` [unit of the signal].
+        #[serde(default)]
         initial: f64,
     },
     /// `offset + amplitude · sin(omega t + phase)`, omega in rad/s.
     Sine {
         /// Mean value [unit of the signal: N for a force, m for z].
+        #[serde(default)]
         offset: f64,
         /// Amplitude [unit of the signal].
+        #[serde(default = "one")]
         amplitude: f64,
         /// Angular frequency [rad/s], >= 0 (a negative one is a phase shift: use ``phase``).
+        #[serde(default = "one")]
         omega: f64,
         /// Phase at t = 0 [rad].
+        #[serde(default)]
         phase: f64,
     },
     /// Linear interpolation through (times, values), held constant outside; the rate is
     /// the segment's slope and the acceleration zero.
     Sampled {
         /// Sample times, increasing [s].
+        #[serde(default = "one_sample")]
         times: Vec<f64>,
         /// Sample values, one per time [unit of the signal: N for a force, m for z].
+        #[serde(default = "one_sample")]
         values: Vec<f64>,
     },
+}
+
+fn ten() -> f64 {
+    10.0
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+fn one_sample() -> Vec<f64> {
+    vec![0.0]
 }
 
 impl Signal {

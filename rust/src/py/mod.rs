@@ -44,6 +44,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<simulate::Stepper>()?;
     m.add_function(wrap_pyfunction!(params::defaults, m)?)?;
     m.add_function(wrap_pyfunction!(params::schema, m)?)?;
+    m.add_function(wrap_pyfunction!(params::registry, m)?)?;
     m.add_function(wrap_pyfunction!(params::check_block, m)?)?;
     m.add_function(wrap_pyfunction!(params::validate, m)?)?;
     m.add_function(wrap_pyfunction!(params::surface_directions, m)?)?;

@@ -256,16 +256,24 @@ pub(super) fn schema(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
     to_python(py, &crate::schema::schemas())
 }
 
-/// Validates one building block on its own, so a dataclass can fail at construction.
+/// The block registry (`schema::registry`): each family's name, Python type, Rust schema
+/// name and kinds (key, class, tag, core tag).
 #[pyfunction]
-pub(super) fn check_block(kind: &str, params: &Bound<'_, PyAny>) -> PyResult<()> {
+pub(super) fn registry(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+    to_python(py, &crate::schema::registry::registry())
+}
+
+/// Validates one building block of `family` (a registry family) on its own, so a block
+/// can fail at construction.
+#[pyfunction]
+pub(super) fn check_block(family: &str, params: &Bound<'_, PyAny>) -> PyResult<()> {
     let py = params.py();
-    let checked = match kind {
+    let checked = match family {
         "robot" => decode::<RobotConfig>(params, "")?.validate().map(|_| ()),
-        "wall" => decode_surface(params, "")?.validate(),
+        "surface" => decode_surface(params, "")?.validate(),
         "controller" => decode::<ControllerParams>(params, "")?.validate(),
         // The discretisation is checked with the scenario's period, in `validate`.
-        "admittance" => match decode::<ForceControlParams>(params, "")? {
+        "force_control" => match decode::<ForceControlParams>(params, "")? {
             ForceControlParams::Admittance(p) => p.validate(),
             ForceControlParams::Impedance(p) => p.validate(),
         },
@@ -283,7 +291,7 @@ pub(super) fn check_block(kind: &str, params: &Bound<'_, PyAny>) -> PyResult<()>
         "approach" => decode::<crate::control::approach::ApproachParams>(params, "")?.validate(),
         other => {
             return Err(PyValueError::new_err(format!(
-                "unknown block kind '{other}'"
+                "unknown block family '{other}'"
             )))
         }
     };

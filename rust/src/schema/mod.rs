@@ -2,33 +2,17 @@
 //! from its `Default`, unknown keys refused, enum tags spelled as the Python API spells them)
 //! whose JSON schema carries the field docs. This module holds the few serde helpers the
 //! blocks need (one number or many, whole numbers given as integral floats, the constant
-//! inertia D̄ as one field) and the two tables the Python blocks are checked against:
-//! [`schemas`] (fields, types, docs) and [`defaults`] (every block's `Default`, serialised).
-//! Nothing here knows Python. The field helpers the blocks use are in [`fields`].
+//! inertia D̄ as one field), the [`registry`] of block families and kinds, and the two
+//! tables the Python blocks are generated from (`admit_rs._codegen`): [`schemas`] (fields,
+//! types, docs, defaults) and [`defaults`] (every block's `Default`, serialised). Nothing
+//! here knows Python. The field helpers the blocks use are in [`fields`].
 
 pub mod fields;
+pub mod registry;
 
-use schemars::{JsonSchema, Schema};
-use serde::Serialize;
-use serde_json::{Map, Value};
+use serde_json::Value;
 
-use crate::control::approach::ApproachParams;
-use crate::control::filter::{AdmittanceParams, ImpedanceParams};
-use crate::control::params::{
-    ComputedTorqueParams, ModelError, ModelFreeBlock, ModelFreeParams, TimeDelayBlock,
-    TimeDelayParams,
-};
-use crate::control::reference::Signal;
 use crate::error::Error;
-use crate::robot::chain::UrdfArmParams;
-use crate::robot::RobotParams;
-use crate::sim::criteria::CriteriaParams;
-use crate::sim::scenario::ScenarioConfig;
-use crate::world::actuator::ActuatorParams;
-use crate::world::environment::WallParams;
-use crate::world::height_field::HeightFieldParams;
-use crate::world::round::{CylinderParams, SphereParams};
-use crate::world::sensor::SensorParams;
 
 /// The field an enum of the blocks is held in, named by its first variant: serde's
 /// "unknown variant" message names the variants but not the field when the enum sits
@@ -59,118 +43,30 @@ pub fn parse_parameter_message(msg: &str) -> Option<(String, String, String)> {
     Some((field.to_owned(), value.to_owned(), allowed.to_owned()))
 }
 
-fn schema_value<T: JsonSchema>() -> Value {
-    schemars::schema_for!(T).to_value()
-}
-
-/// A tagged block's schema: its struct's, with the `kind` it is tagged by.
-fn tagged_schema<T: JsonSchema>(kind: &str) -> Value {
-    let mut v = schema_value::<T>();
-    if let Some(props) = v.get_mut("properties").and_then(Value::as_object_mut) {
-        props.insert(
-            "kind".into(),
-            serde_json::json!({"type": "string", "const": kind}),
-        );
-    }
-    v
-}
-
-/// The variants of a `kind`-tagged enum's schema, by tag.
-fn variants(schema: &Schema) -> Map<String, Value> {
-    let mut out = Map::new();
-    let defs = schema.get("$defs").cloned();
-    for v in schema
-        .get("oneOf")
-        .and_then(Value::as_array)
-        .into_iter()
-        .flatten()
-    {
-        if let Some(kind) = v.pointer("/properties/kind/const").and_then(Value::as_str) {
-            let mut v = v.clone();
-            if let (Some(defs), Some(obj)) = (&defs, v.as_object_mut()) {
-                obj.insert("$defs".into(), defs.clone());
-            }
-            out.insert(kind.to_owned(), v);
-        }
-    }
-    out
-}
-
-/// Every block's JSON schema (draft 2020-12: properties with `description` from the doc
-/// comments, `type`, `default` where the block has a `Default`), keyed as the Python blocks
-/// are tagged: `three_link`, `urdf`, `wall`, `sphere`, `cylinder`, `height_field`, `sensor`, `actuator`, `model`,
-/// `computed_torque`, `model_free`, `time_delay`, `admittance`, `impedance`, `step`, `sine`,
-/// `sampled`, `criteria`, `approach` and `scenario`.
+/// Every block's JSON schema (draft 2020-12: properties in declaration order with
+/// `description` from the doc comments, `type`, `default`, and `x-ui` slider hints), keyed
+/// by the registry's keys (`three_link`, `urdf`, `wall`, `sphere`, …, `scenario`).
 pub fn schemas() -> Value {
-    let mut out = Map::new();
-    out.insert("three_link".into(), schema_value::<RobotParams>());
-    out.insert("urdf".into(), schema_value::<UrdfArmParams>());
-    out.insert("wall".into(), schema_value::<WallParams>());
-    out.insert("sphere".into(), tagged_schema::<SphereParams>("sphere"));
-    out.insert(
-        "cylinder".into(),
-        tagged_schema::<CylinderParams>("cylinder"),
-    );
-    out.insert(
-        "height_field".into(),
-        tagged_schema::<HeightFieldParams>("height_field"),
-    );
-    out.insert("sensor".into(), schema_value::<SensorParams>());
-    out.insert("actuator".into(), schema_value::<ActuatorParams>());
-    out.insert("model".into(), schema_value::<ModelError>());
-    out.insert(
-        "computed_torque".into(),
-        schema_value::<ComputedTorqueParams>(),
-    );
-    out.insert("model_free".into(), schema_value::<ModelFreeBlock>());
-    out.insert("time_delay".into(), schema_value::<TimeDelayBlock>());
-    out.insert("admittance".into(), schema_value::<AdmittanceParams>());
-    out.insert("impedance".into(), schema_value::<ImpedanceParams>());
-    out.extend(variants(&schemars::schema_for!(Signal)));
-    out.insert("criteria".into(), schema_value::<CriteriaParams>());
-    out.insert("approach".into(), schema_value::<ApproachParams>());
-    out.insert("scenario".into(), schema_value::<ScenarioConfig>());
-    Value::Object(out)
-}
-
-fn to_value<T: Serialize>(v: &T) -> Value {
-    // Every block serialises to JSON (plain numbers, strings, lists and maps).
-    serde_json::to_value(v).unwrap_or(Value::Null)
+    registry::by_key(|k| (k.schema)(k))
 }
 
 /// Every block's `Default`, serialised as the blocks cross to Python (keys as in
-/// [`schemas`]; blocks without a `Default` — impedance, the signals — are absent).
+/// [`schemas`]); tagged blocks carry their `kind`.
 pub fn defaults() -> Value {
-    let mut out = Map::new();
-    out.insert("three_link".into(), to_value(&RobotParams::default()));
-    out.insert("urdf".into(), to_value(&UrdfArmParams::default()));
-    out.insert("wall".into(), to_value(&WallParams::default()));
-    out.insert("sphere".into(), to_value(&SphereParams::default()));
-    out.insert("cylinder".into(), to_value(&CylinderParams::default()));
-    out.insert(
-        "height_field".into(),
-        to_value(&HeightFieldParams::default()),
-    );
-    out.insert("sensor".into(), to_value(&SensorParams::default()));
-    out.insert("actuator".into(), to_value(&ActuatorParams::default()));
-    out.insert("model".into(), to_value(&ModelError::default()));
-    out.insert(
-        "computed_torque".into(),
-        to_value(&ComputedTorqueParams::default()),
-    );
-    out.insert("model_free".into(), to_value(&ModelFreeParams::default()));
-    out.insert("time_delay".into(), to_value(&TimeDelayParams::default()));
-    out.insert("admittance".into(), to_value(&AdmittanceParams::default()));
-    out.insert("criteria".into(), to_value(&CriteriaParams::default()));
-    out.insert("approach".into(), to_value(&ApproachParams::default()));
-    out.insert("scenario".into(), to_value(&ScenarioConfig::default()));
-    Value::Object(out)
+    registry::by_key(|k| (k.default)(k))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::control::params::ControllerParams;
+    use crate::sim::scenario::ScenarioConfig;
+    use crate::world::environment::WallParams;
+    use crate::world::sensor::SensorParams;
+
+    fn to_value<T: serde::Serialize>(v: &T) -> Value {
+        serde_json::to_value(v).expect("serialises")
+    }
 
     #[test]
     fn every_default_round_trips() {
