@@ -404,3 +404,21 @@ def test_grid_of_ints_and_floats_is_one_table_whatever_the_threads_or_chunks(kw)
                  chunk_size=1, progress=False)  # fmt: skip
     assert t.schema["wall.normal"] == pl.List(pl.Float64)
     assert t["wall.normal"].to_list() == [[1.0, 0.0, 0.0], [1.0, 0.0, -0.1]]
+
+
+def test_run_configs_copy_only_the_tables_they_change():
+    """A sweep's runs share every table they do not vary with the base (no deep copy per
+    run, a URDF text included) and never write into it."""
+    import copy
+
+    from admit_rs.config import _core_dict_with
+
+    base = ar.paper.scenario("fig19")._to_core()
+    before = copy.deepcopy(base)
+    run = _core_dict_with(base, {"wall.stiffness": 5.0, "wall.gap": 0.1, "seed": 3})
+    assert (run["wall"]["stiffness"], run["wall"]["gap"], run["seed"]) == (5.0, 0.1, 3)
+    assert base == before
+    assert run["robot"] is base["robot"] and run["wall"] is not base["wall"]
+    nested = _core_dict_with(base, {"controller.model.mass_scale": 1.2})
+    assert nested["controller"]["model"]["mass_scale"] == 1.2 and base == before
+    assert nested["controller"]["model"] is not base["controller"]["model"]

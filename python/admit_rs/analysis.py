@@ -15,7 +15,6 @@ How the linearisation is built and what it assumes: docs/analysis.md.
 
 from __future__ import annotations
 
-import copy
 import itertools
 import math
 from collections.abc import Mapping, Sequence
@@ -26,7 +25,7 @@ import numpy as np
 import polars as pl
 
 from admit_rs import _core
-from admit_rs.config import Scenario, Step, _check_path, _core_value
+from admit_rs.config import Scenario, Step, _check_path, _core_dict_with, _core_value
 from admit_rs.errors import AnalysisError, ParameterError
 
 __all__ = [
@@ -319,17 +318,11 @@ def _cell_configs(
 ) -> list[dict[str, Any]]:
     base = scenario._to_core()
     ints = {p for p in points[0] if isinstance(_value_at(scenario, p), int)} if points else set()
-    out = []
-    for point in points:
-        config = copy.deepcopy(base)
-        for path, value in point.items():
-            node = config
-            *parents, leaf = path.split(".")
-            for p in parents:
-                node = node[p]
-            node[leaf] = int(round(value)) if path in ints else _core_value(value)
-        out.append(config)
-    return out
+    return [
+        _core_dict_with(base, {path: int(round(value)) if path in ints else _core_value(value)
+                               for path, value in point.items()})  # fmt: skip
+        for point in points
+    ]
 
 
 def _value_at(scenario: Scenario, path: str) -> Any:
@@ -393,9 +386,11 @@ def _predict_step(
         if todo.size == 0:
             break
         amp[todo] = new[todo]
-        configs = [copy.deepcopy(base[i]) for i in todo]
-        for config, i in zip(configs, todo, strict=True):
-            config["robot"]["coulomb_friction"] = list(c0 * friction_gain(float(amp[i]), eps))
+        configs = [
+            _core_dict_with(base[i], {"robot.coulomb_friction":
+                                      list(c0 * friction_gain(float(amp[i]), eps))})  # fmt: skip
+            for i in todo
+        ]
         update = _core.predict_batch(configs, threads)
         for name, values in update.items():
             for i, v in zip(todo, values, strict=True):

@@ -86,6 +86,27 @@ def _core_value(value: Any) -> Any:
     return value
 
 
+def _core_dict_with(base: Mapping[str, Any], changes: Mapping[str, Any]) -> dict[str, Any]:
+    """The core dict ``base`` with ``changes`` (dotted path -> value, as the core takes it)
+    set, copying only the tables on those paths: the rest is shared with ``base``, which the
+    core only reads (a sweep's runs no longer deep-copy every table, a URDF text included,
+    per run)."""
+    out = dict(base)
+    copied: set[int] = {id(out)}
+    for path, value in changes.items():
+        *parents, leaf = path.split(".")
+        node = out
+        for part in parents:
+            child = node[part]
+            if id(child) not in copied:
+                child = dict(child)
+                copied.add(id(child))
+                node[part] = child
+            node = child
+        node[leaf] = value
+    return out
+
+
 def _plain_scalar(value: Any, depth: int = 2) -> Any:
     """``value`` with NumPy scalars, also inside tuples and lists (``depth`` levels: no field
     nests deeper, and the core refuses deeper values), as Python ones; ``value`` itself when

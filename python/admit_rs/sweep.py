@@ -16,7 +16,6 @@ resumed from a checkpoint, or computed on Dask workers.
 from __future__ import annotations
 
 import contextlib
-import copy
 import dataclasses
 import hashlib
 import itertools
@@ -39,7 +38,14 @@ from polars.exceptions import PanicException
 
 from admit_rs import _core
 from admit_rs._trace import trace_frame
-from admit_rs.config import Scenario, _Block, _check_path, _core_value, _python_error
+from admit_rs.config import (
+    Scenario,
+    _Block,
+    _check_path,
+    _core_dict_with,
+    _core_value,
+    _python_error,
+)
 from admit_rs.errors import AdmitError, ParameterError, closest, for_run
 
 if TYPE_CHECKING:
@@ -366,14 +372,6 @@ def _plan(
     return _Plan(scenario._to_core(), paths, rows, seed, manifest, dtypes)
 
 
-def _set_path(config: dict[str, Any], path: str, value: Any) -> None:
-    *parents, leaf = path.split(".")
-    node = config
-    for p in parents:
-        node = node[p]
-    node[leaf] = _core_value(value)
-
-
 def noise_seed(seed: int, run_id: int) -> int:
     """The sensor-noise seed (``Scenario.seed``) of run ``run_id`` of a sweep with ``seed``.
 
@@ -390,11 +388,10 @@ def _configs(
 ) -> list[dict[str, Any]]:
     out = []
     for row, run_id in zip(rows, run_ids, strict=True):
-        config = copy.deepcopy(base)
-        config["seed"] = noise_seed(seed, run_id)  # a varied "seed" path overrides it
-        for path, value in row.items():
-            _set_path(config, path, value)
-        out.append(config)
+        # A varied "seed" path overrides the run's own noise seed.
+        changes = {"seed": noise_seed(seed, run_id)}
+        changes.update((path, _core_value(value)) for path, value in row.items())
+        out.append(_core_dict_with(base, changes))
     return out
 
 
