@@ -182,3 +182,20 @@ def test_numpy_scalars_cross_as_numbers():
     sc = ar.Scenario(duration=0.01).replace(**{"sensor.latency": np.int64(2)})
     assert sc._to_core()["sensor"]["latency"] == 2
     ar.simulate(sc)
+
+
+def test_sequences_take_the_declared_tuple_shape():
+    """No block converts its tuple fields by hand any more where the declaration suffices:
+    ``Sampled`` has no conversion of its own, yet lists and arrays become tuples of floats
+    (so the block hashes and compares by value), and an int beyond the float range is a
+    ParameterError naming the field (it was an OverflowError)."""
+    import numpy as np
+
+    s = ar.Sampled(times=np.arange(3), values=[1, 2, 3.5])
+    assert s.times == (0.0, 1.0, 2.0) and s.values == (1.0, 2.0, 3.5)
+    assert all(type(v) is float for v in s.times + s.values)
+    assert hash(s) == hash(ar.Sampled(times=(0, 1, 2), values=(1, 2, 3.5)))
+    assert "__post_init__" not in vars(ar.Sampled)
+    with pytest.raises(ar.ParameterError) as info:
+        ar.Sampled(times=(0.0,), values=[10**400])
+    assert info.value.field == "values" and info.value.allowed == "finite numbers"

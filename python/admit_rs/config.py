@@ -107,6 +107,24 @@ def _core_dict_with(base: Mapping[str, Any], changes: Mapping[str, Any]) -> dict
     return out
 
 
+def _declared_shape(name: str, annotation: str, value: Any) -> Any:
+    """``value`` as the tuple (or tuple of rows) ``annotation`` declares, if it is a sequence
+    of numbers; else ``value`` itself."""
+    if ("tuple" not in annotation and "Vector3" not in annotation) or value is None:
+        return value
+    if isinstance(value, str | bytes | Mapping | numbers.Number | _Block):
+        return value
+    try:
+        grid = np.asarray(value, dtype=float)
+    except OverflowError:  # an int beyond the float range
+        raise _parameter_error(name, shown(value), "finite numbers") from None
+    except (TypeError, ValueError):
+        return value  # ragged, or not numbers: the core names the field and the fault
+    if grid.ndim == 2 and "tuple[tuple" in annotation:
+        return tuple(tuple(float(v) for v in row) for row in grid)
+    return tuple(float(v) for v in np.ravel(grid))
+
+
 def _plain_scalar(value: Any, depth: int = 2) -> Any:
     """``value`` with NumPy scalars, also inside tuples and lists (``depth`` levels: no field
     nests deeper, and the core refuses deeper values), as Python ones; ``value`` itself when
@@ -223,9 +241,20 @@ class _Block:
             if plain is not value:
                 self._set(f.name, plain)
 
+    def _declared_shapes(self) -> None:
+        """A sequence (a list, a NumPy array) given for a field declared as a tuple becomes
+        that tuple of floats (rows of them for a grid), so that a field the Rust declaration
+        adds needs no conversion written here; anything else is left for the core to judge."""
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            value = getattr(self, f.name)
+            shaped = _declared_shape(f.name, str(f.type), value)
+            if shaped is not value:
+                self._set(f.name, shaped)
+
     def _validate(self) -> None:
         self._plain_scalars()
         self._reject_bools()
+        self._declared_shapes()
         try:
             _core.check_block(self._check, self._to_core())
         except ParameterError as e:
@@ -1168,11 +1197,6 @@ class Sampled(_Signal):
     values: tuple[float, ...] = (0.0,)
     """Sample values, one per time [unit of the signal: N for a force, m for z]."""
     # end of generated fields
-
-    def __post_init__(self) -> None:
-        self._set("times", tuple(float(v) for v in np.ravel(np.asarray(self.times))))
-        self._set("values", tuple(float(v) for v in np.ravel(np.asarray(self.values))))
-        super().__post_init__()
 
     def __call__(self, t: float | npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         return np.interp(np.asarray(t, dtype=float), self.times, self.values)
