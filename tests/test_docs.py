@@ -7,7 +7,9 @@ import importlib
 
 import pytest
 
-MODULES = ["admit_rs", "admit_rs.config", "admit_rs.errors", "admit_rs.export",
+BLOCKS = ["actuator", "approach", "controller", "criteria", "force_control", "robot",
+          "scenario", "sensor", "signal", "surface"]
+MODULES = ["admit_rs", *(f"admit_rs.blocks.{m}" for m in BLOCKS), "admit_rs.errors", "admit_rs.export",
            "admit_rs.simulation", "admit_rs.sweep", "admit_rs.paper", "admit_rs.reproduction",
            "admit_rs.metrics", "admit_rs.plot", "admit_rs._names", "admit_rs.analysis",
            "admit_rs._paper_scenarios"]  # fmt: skip

@@ -99,7 +99,7 @@ def test_every_block_suggests_the_closest_keyword(cls, typo, right):
 
 
 def _exported_blocks() -> list[type]:
-    """Every public block class: the frozen dataclasses of admit_rs.config that admit_rs
+    """Every public block class: the frozen dataclasses of admit_rs.blocks that admit_rs
     exports (found, not listed, so a new block cannot be left out)."""
     found = []
     for name in ar.__all__:
@@ -107,7 +107,7 @@ def _exported_blocks() -> list[type]:
         if (
             inspect.isclass(obj)
             and dataclasses.is_dataclass(obj)
-            and obj.__module__ == "admit_rs.config"
+            and obj.__module__.startswith("admit_rs.blocks.")
             and obj.__dataclass_params__.frozen
         ):
             found.append(obj)

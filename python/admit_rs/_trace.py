@@ -14,7 +14,7 @@ def trace_frame(trace: FlatTrace) -> pl.DataFrame:
     """The DataFrame of a trace the core moved out whole (one buffer, column c at
     ``data[c * len:(c + 1) * len]``): one Series over the buffer, sliced per column without
     a copy. Polars has a fixed cost per Series built from an array, paid 30 times for the
-    paper's arm; a slice costs a fraction of it (docs/performance.md §28, §29)."""
+    paper's arm; a slice costs a fraction of it (docs/performance-history.md §28, §29)."""
     n = trace["len"]
     flat = pl.Series(trace["data"])
     return pl.DataFrame([flat.slice(c * n, n).alias(name) for c, name in enumerate(trace["names"])])

@@ -90,7 +90,7 @@ LANE_BUILDS = ("auto", "portable", "avx2", "avx512")
 
 def _check_lane_env() -> None:
     """Warns (once, at import) where ``ADMIT_RS_LANES`` is set but not taken: the core
-    then falls back to the default build silently (docs/performance.md §14)."""
+    then falls back to the default build silently (docs/performance-history.md §14)."""
     value = os.environ.get("ADMIT_RS_LANES")
     if value is None or value.strip() in ("", "auto"):
         return
@@ -755,7 +755,7 @@ def sweep(
         progress: show a tqdm bar (runs/s, ETA).
         lanes: run the runs four or eight at a time in SIMD lanes (SPEC §13, about 2.4x the
             scalar path). The table is the same bits on any threads, chunking, resume, Dask
-            or CPU (AVX2 or AVX-512 build, docs/performance.md §14).
+            or CPU (AVX2 or AVX-512 build, docs/performance-history.md §14).
             ``False``: the scalar path, each run ``ar.simulate``'s bits. A lane run's
             arithmetic is the scalar run's except ``exp`` (and sin/cos on URDF chains),
             within 2 ulp; how far that moves its metrics is the run's own sensitivity
