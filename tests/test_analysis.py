@@ -444,3 +444,20 @@ def test_tune_reports_the_true_worst_case_over_every_verified_point(capsys):
     assert "NOT verified" in out and not res.verified
     assert "wall.stiffness = 3.162e+04 (centre), motion held: overshoot 16.75 % > 10 %" in out
     assert "with motion: unstable: force oscillation, contact kept" in out
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "allowed"),
+    [("grid", 0, "from 2 to 100"), ("grid", 1, "from 2 to 100"), ("grid", 2.5, "from 2 to 100"),
+     ("grid", True, "from 2 to 100"), ("over_points", 0, "from 1 to 100"),
+     ("refine", -1, "from 0 to 20"), ("corrections", -1, "from 0 to 20"),
+     ("grid", 10**9, "from 2 to 100")],
+)
+def test_tune_refuses_counts_out_of_range_naming_them(name, value, allowed):
+    """Issue #53, item 15: grid=0 gave "attempt to get argmin of an empty sequence",
+    refine=-1 an empty AssertionError."""
+    sc = ar.paper.scenario("fig14").replace(duration=2.0)
+    with pytest.raises(ar.ParameterError) as info:
+        ar.analysis.tune(sc, {"admittance.b": (100, 1000)}, {"wall.stiffness": (1e4, 1e5)},
+                         verify=False, **{name: value})  # fmt: skip
+    assert info.value.field == name and allowed in info.value.allowed

@@ -492,3 +492,22 @@ def test_hostile_heights_are_an_error_or_a_finite_run(value):
             continue
         r = ar.simulate(base.replace(wall=wall))
         assert all(np.isfinite(r.trace[c].to_numpy()).all() for c in ("f", "q1", "f_t"))
+
+
+@pytest.mark.parametrize(
+    "change", [{"wall.stiffness": 10**400}, {"sensor.noise_std": -(10**400)},
+               {"admittance.b": 10**400}],
+)  # fmt: skip
+def test_an_int_beyond_the_float_range_is_a_parameter_error_naming_its_path(change):
+    """Issue #53, item 13: replace() raised AttributeError ('ParameterError' object has no
+    attribute 'field')."""
+    (path,) = change
+    with pytest.raises(ar.ParameterError) as info:
+        ar.paper.scenario("fig14").replace(**change)
+    assert info.value.field == path and info.value.allowed == "a finite number"
+
+
+def test_height_field_heights_beyond_the_float_range_are_a_parameter_error():
+    with pytest.raises(ar.ParameterError) as info:
+        ar.HeightField(heights=[[0, 10**400], [0, 0]])
+    assert info.value.field == "heights"

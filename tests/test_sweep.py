@@ -422,3 +422,16 @@ def test_run_configs_copy_only_the_tables_they_change():
     nested = _core_dict_with(base, {"controller.model.mass_scale": 1.2})
     assert nested["controller"]["model"]["mass_scale"] == 1.2 and base == before
     assert nested["controller"]["model"] is not base["controller"]["model"]
+
+
+@pytest.mark.parametrize("seed", [-1, 2**63, 2**70, True, 1.5])
+def test_a_sweep_seed_outside_the_tables_int64_is_refused_up_front(seed):
+    """Issue #53, item 15: a seed >= 2**63 ran a batch, then failed in polars."""
+    with pytest.raises(ar.ParameterError) as info:
+        run(grid={"admittance.b": [400.0]}, seed=seed)
+    assert info.value.field == "seed" and info.value.allowed == "an integer from 0 to 2**63 - 1"
+
+
+def test_the_largest_seed_runs():
+    table = run(grid={"admittance.b": [400.0]}, seed=2**63 - 1)
+    assert table["seed"].to_list() == [2**63 - 1]

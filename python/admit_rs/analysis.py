@@ -25,6 +25,7 @@ import numpy as np
 import polars as pl
 
 from admit_rs import _core
+from admit_rs.blocks._base import _parameter_error
 from admit_rs.config import Scenario, Step, _check_path, _core_dict_with, _core_value
 from admit_rs.errors import AnalysisError, ParameterError
 
@@ -578,6 +579,12 @@ def _predict_both(
     return _predict_points(scenario, points, threads, "step")
 
 
+def _check_count(name: str, value: Any, low: int, high: int) -> None:
+    """A whole-number argument from ``low`` to ``high``, else a ParameterError naming it."""
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise _parameter_error(name, repr(value), f"an integer from {low} to {high}")
+
+
 def tune(
     scenario: Scenario,
     vary: Mapping[str, tuple[float, float]],
@@ -626,6 +633,9 @@ def tune(
     if not (isinstance(max_overshoot_pct, int | float) and math.isfinite(max_overshoot_pct)):
         raise ParameterError(f"max_overshoot_pct = {max_overshoot_pct!r} is invalid: must be "
                              "a finite number")  # fmt: skip
+    for name, value, low, high in (("grid", grid, 2, 100), ("over_points", over_points, 1, 100),
+                                   ("refine", refine, 0, 20), ("corrections", corrections, 0, 20)):
+        _check_count(name, value, low, high)
     for name, bound in (("max_impact_peak", max_impact_peak), ("max_bounces", max_bounces)):
         if bound is not None and not (
             isinstance(bound, int | float) and not isinstance(bound, bool)

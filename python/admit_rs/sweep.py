@@ -38,6 +38,7 @@ from polars.exceptions import PanicException
 
 from admit_rs import _core
 from admit_rs._trace import trace_frame
+from admit_rs.blocks._base import _parameter_error
 from admit_rs.config import (
     Scenario,
     _Block,
@@ -326,8 +327,9 @@ def _plan(
         raise TypeError(f"sweep() takes an admit_rs.Scenario, got {type(scenario).__name__}")
     vary = dict(vary or {})
     grid = {k: list(v) for k, v in (grid or {}).items()}
-    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
-        raise ValueError(f"seed = {seed!r} is invalid: must be an integer >= 0")
+    if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < 2**63:
+        # The table's seed column is a 64-bit integer.
+        raise _parameter_error("seed", repr(seed), "an integer from 0 to 2**63 - 1")
     # Paths in current field names (a deprecated name warns once, here).
     vary = {_check_path(scenario, p): d for p, d in vary.items()}
     grid = {_check_path(scenario, p): v for p, v in grid.items()}

@@ -216,9 +216,7 @@ class _Block:
             if isinstance(value, int) and not isinstance(value, bool) and "int" not in kind:
                 if abs(value) > sys.float_info.max:
                     # float() would raise OverflowError deep in the conversion.
-                    raise ParameterError(
-                        f"{f.name} = {shown(value)} is invalid: must be a finite number"
-                    )
+                    raise _parameter_error(f.name, shown(value), "a finite number")
 
     def _plain_scalars(self) -> None:
         """NumPy scalars (alone or in sequences) become the Python numbers they hold, so a

@@ -171,6 +171,8 @@ def _heights(value: Any) -> Heights:
         raise TypeError(f"heights must be a 2-D grid of numbers, got {shown(value)}")
     try:
         grid = np.asarray(value, dtype=float)
+    except OverflowError:  # an int beyond the float range
+        raise _parameter_error("heights", shown(value), "finite numbers") from None
     except (TypeError, ValueError) as e:
         raise TypeError(f"heights must be a 2-D grid of numbers: {e}") from None
     if grid.ndim != 2:
