@@ -277,3 +277,21 @@ def test_orientation_surface_needs_a_pose_task():
     assert info.value.field == "orientation"
     with pytest.raises(ar.ParameterError, match="orientation"):
         ar.UrdfArm(DATA / "panda.urdf", "panda_hand_tcp", orientation="normal")  # type: ignore[arg-type]
+
+
+def test_the_true_surfaces_position_error_beside_an_estimate_is_refused():
+    """Issue #53, item 6: with wall_estimate set the controller never reads
+    wall.position_error, so a sweep over it returned equal rows without a word."""
+    sc = ar.paper.scenario("fig14").replace(duration=0.1, wall_estimate=ar.Wall())
+    with pytest.raises(ar.ParameterError) as info:
+        sc.replace(**{"wall.position_error": 0.01})
+    assert info.value.field == "wall.position_error"
+    assert "wall_estimate.position_error" in info.value.allowed
+    for kw in ({"vary": {"wall.position_error": ar.Uniform(0.0, 0.01)}, "samples": 2},
+               {"grid": {"wall.position_error": [0.0, 0.01]}}):
+        with pytest.raises(ar.ParameterError, match="wall_estimate is set"):
+            ar.sweep(sc, progress=False, **kw)
+    # The estimate's own error is read: moving it moves the force.
+    moved = sc.replace(**{"wall_estimate.position_error": 0.005})
+    assert ar.simulate(moved).metrics["force_rms_error"] != ar.simulate(sc).metrics[
+        "force_rms_error"]

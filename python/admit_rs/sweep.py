@@ -39,6 +39,7 @@ from polars.exceptions import PanicException
 from admit_rs import _core
 from admit_rs._trace import trace_frame
 from admit_rs.blocks._base import _parameter_error
+from admit_rs.blocks.scenario import position_error_unread
 from admit_rs.config import (
     Scenario,
     _Block,
@@ -336,6 +337,8 @@ def _plan(
     both = set(vary) & set(grid)
     if both:
         raise ValueError(f"{sorted(both)} given in both vary and grid")
+    if scenario.wall_estimate is not None and "wall.position_error" in {*vary, *grid}:
+        raise position_error_unread("varied")
     for path, dist in vary.items():
         if not isinstance(dist, Uniform | LogUniform | Normal | Choice):
             raise TypeError(f"vary[{path!r}] must be a Uniform, LogUniform, Normal or Choice")

@@ -13,6 +13,7 @@ from admit_rs import _core, _registry
 from admit_rs.blocks._base import (
     _Block,
     _check_integer,
+    _parameter_error,
     _python_error,
 )
 from admit_rs.blocks.actuator import Actuator
@@ -26,7 +27,18 @@ from admit_rs.blocks.sensor import ForceSensor
 from admit_rs.blocks.signal import Signal, Sine, Step
 from admit_rs.blocks.surface import Cylinder, HeightField, Sphere, Surface, Wall
 from admit_rs.blocks.tables import _from_dict, _slot_types
-from admit_rs.errors import ParameterError
+from admit_rs.errors import ParameterError, shown
+
+
+def position_error_unread(value: str) -> ParameterError:
+    """The error for a true surface's ``position_error`` beside a ``wall_estimate``: the
+    controller's belief is then the estimate, and the true surface's error is not read (a
+    sweep over it would return equal rows)."""
+    return _parameter_error(
+        "wall.position_error", value,
+        "0 when wall_estimate is set (the controller believes wall_estimate; move it, or set "
+        "wall_estimate.position_error)",
+    )  # fmt: skip
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -99,6 +111,9 @@ class Scenario(_Block):
         self._plain_scalars()
         _check_integer("seed", self.seed, 2**53)
         self._reject_bools()
+        if self.wall_estimate is not None and self.wall is not None:
+            if self.wall.position_error != 0.0:
+                raise position_error_unread(shown(self.wall.position_error))
         try:
             _core.validate(self._to_core())
         except ParameterError as e:
