@@ -308,7 +308,7 @@ FLOPS = ("add/sub", "mul", "div")
 
 # Hand count of one RK4 substep of the core, part by part (flops = add/sub + mul + div), for a
 # state in contact with the wall with the yaw joint at rest (as all of fig. 14). The line-by-
-# line reasoning is in docs/performance.md §3; `cost_model` checks it against the count.
+# line reasoning is in docs/performance-history.md §3; `cost_model` checks it against the count.
 HAND_SUBSTEP = {
     # 4 stages × (contact 16 + D, C, G 51 + rest 14 + D⁻¹ 8 + Coulomb 5 + 5 + 0 + q̈ 17)
     "per stage (×4)": 4 * (16 + 51 + 14 + 8 + 10 + 17),

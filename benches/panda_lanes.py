@@ -2,7 +2,7 @@
 
 16 four-second runs of fig. 14's task on the Panda (TDC for the arm + Scheme 2, wall
 stiffness drawn from 1e4–1e5 N/m), one thread, metrics only; each path twice, best of two.
-The target is lanes ≥ 2.5× scalar (docs/performance.md §10).
+The target is lanes ≥ 2.5× scalar (docs/performance-history.md §10).
 
     python benches/panda_lanes.py
     ADMIT_RS_LANES=avx512 python benches/panda_lanes.py   # a lane build forced (issue #25)

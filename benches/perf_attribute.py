@@ -19,7 +19,7 @@ frames, then counted:
 
 Needs ``perf`` and ``llvm-symbolizer`` (Debian ``linux-perf``, ``llvm``). This guest has no
 hardware counters, so ``cpu-clock`` sampling it is; sample skid puts a slow instruction's
-time on the one after it. It is not a test; docs/performance.md §19 quotes its output.
+time on the one after it. It is not a test; docs/performance-history.md §19 quotes its output.
 """
 
 from __future__ import annotations

@@ -9,8 +9,8 @@
  * ports need 16 operations in flight, twelve chains give 24). Each chain is its own named
  * variable so that it stays in a register: the earlier version kept them in an array, which
  * GCC loaded and stored every iteration, so it timed store-to-load forwarding, not the
- * arithmetic (docs/performance.md §31 corrects the §22 result it gave). Twelve chains and two
- * constants fit AVX2's 16 ymm registers.
+ * arithmetic (docs/performance-history.md §31 corrects the §22 result it gave). Twelve chains and
+ * two constants fit AVX2's 16 ymm registers.
  *
  * Equal times mean 512-bit ops deliver twice the flops; a zmm/ymm time of 2 means they deliver
  * none extra (a core that splits 512-bit ops into two halves). Check the loops with

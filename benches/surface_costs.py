@@ -9,7 +9,7 @@ and in lanes.
 Not a test: prints each variant's median time and its ratio to the plane, timed in
 alternation. ``benches/surfaces.py`` states issue #22's targets; this script splits its
 "sphere, μ = 0.3" ratio into friction, the sphere's contact geometry (the shared RK4 loop of
-every non-plane surface) and the curved belief (docs/performance.md §16).
+every non-plane surface) and the curved belief (docs/performance-history.md §16).
 """
 
 from __future__ import annotations

@@ -67,8 +67,8 @@ pub trait Real:
 
     /// (sin(a + d), cos(a + d)) from s = sin a, c = cos a and a small d, by [`rotate_small`]
     /// in every lane. Lanes evaluate it over their arrays, as [`exp_lanes`] does: written on
-    /// the lane type, LLVM split the 8-wide series into narrower pieces (docs/performance.md
-    /// §22). Element-wise, so the bits are the same either way.
+    /// the lane type, LLVM split the 8-wide series into narrower pieces
+    /// (docs/performance-history.md §22). Element-wise, so the bits are the same either way.
     fn rotate_small(s: Self, c: Self, d: Self) -> (Self, Self);
 
     /// a v for a 3×3 matrix, each row's sum taken left to right (the same bits either way).
@@ -222,7 +222,7 @@ pub fn zeros<T: Real, const R: usize, const C: usize>() -> SMatrix<T, R, C> {
 /// a × b, the same products and differences as nalgebra's `cross` (so the same bits),
 /// written out so that it inlines: the release build left nalgebra's `cross` out of line in
 /// the lanes' AVX2 loop (47 call sites, the URDF chain's spatial algebra among them), each
-/// of its lane products and differences a call (docs/performance.md §25).
+/// of its lane products and differences a call (docs/performance-history.md §25).
 #[inline(always)]
 pub fn cross<T: Real>(a: &Vector3<T>, b: &Vector3<T>) -> Vector3<T> {
     Vector3::new(
@@ -256,7 +256,7 @@ pub fn mat_vec<T: Real, const R: usize, const C: usize>(
 
 /// a b, summed as nalgebra's `*` sums it (each column of the product as [`mat_vec`] sums
 /// a b_c, so the same bits), written out so that it inlines: the lanes' AVX2 loop called
-/// nalgebra's 3×3 product out of line in the URDF pose task (docs/performance.md §26).
+/// nalgebra's 3×3 product out of line in the URDF pose task (docs/performance-history.md §26).
 /// `K` ≥ 1.
 #[inline(always)]
 pub fn mat_mul<T: Real, const R: usize, const K: usize, const C: usize>(
@@ -426,7 +426,7 @@ mod exp_consts {
 /// Each a·b + c is one fused multiply-add (`f64::mul_add`: one rounding, the same bits on
 /// every CPU). In the lane builds that is one FMA instruction, and it shortens the chain
 /// an RK4 stage waits on (joint friction's tanh starts here): fig. 19 sweeps about 4 % faster
-/// on AVX-512 and 7 % on AVX2 (docs/performance.md §30). Where the CPU has no FMA (before
+/// on AVX-512 and 7 % on AVX2 (docs/performance-history.md §30). Where the CPU has no FMA (before
 /// AVX2, where the portable lane loop runs) libm computes it exactly in software: the same
 /// bits, more slowly. x is not clamped before the reduction: inside [−745.2, 709.78] a
 /// clamp changes nothing, and outside it the selects at the end replace whatever the

@@ -7,7 +7,7 @@
 //! directly through glibc's exported alias for it, `__exp_finite` (kept as a versioned
 //! symbol, `GLIBC_2.15`, since glibc 2.31; CPU dispatch by ifunc, resolved on lookup). It is
 //! the same function the wrapper calls, so every bit is `f64::exp`'s (tested below,
-//! specials included); docs/performance.md §32 has what it saves.
+//! specials included); docs/performance-history.md §32 has what it saves.
 //!
 //! Where the symbol is not found (another C library, another platform), `f64::exp` is used.
 
@@ -18,7 +18,7 @@ type ExpFn = extern "C" fn(f64) -> f64;
 /// The function `exp` calls: first `resolve`, which looks the implementation up once and
 /// puts it here. So a call is one load and one indirect call, with no branch or cold path
 /// inlined where it is used (a `OnceLock` there cost a Panda run, which never calls it,
-/// 2.5 %: docs/performance.md §32).
+/// 2.5 %: docs/performance-history.md §32).
 static IMPLEMENTATION: AtomicPtr<()> = AtomicPtr::new(resolve as ExpFn as *mut ());
 
 /// e^x with `f64::exp`'s bits.

@@ -4,7 +4,7 @@
 //! The three-link arm's scalar run takes its trig once per control period from
 //! `libm::sincos`, and its runs in lanes must give the same bits. Until session 32 each lane
 //! called `libm::sincos` on its own, three times per period: about 12 % of a fig. 19 sweep's
-//! time at one substep (docs/performance.md §34). Here the same operations run on the lane
+//! time at one substep (docs/performance-history.md §34). Here the same operations run on the lane
 //! type, so a vector of lanes costs about what one call did.
 //!
 //! libm reduces x by π/2 (`rem_pio2`) and evaluates its kernels `k_sin` and `k_cos` on the

@@ -5,7 +5,7 @@
 //! Why not simba's array-backed `AutoSimd` there: its element-wise loops are left to LLVM's
 //! SLP vectoriser, which at eight wide assembled zmm registers from xmm pieces and unpacked
 //! every lane mask bit by bit: 170k extra instructions, and the 8-wide build ran 27 % slower
-//! than the 4-wide one (docs/performance.md §22). Here each arithmetic operation is one
+//! than the 4-wide one (docs/performance-history.md §22). Here each arithmetic operation is one
 //! instruction and a condition stays in a mask register.
 //!
 //! Bits: the arithmetic (+ − × ÷ √, |x|, −x, copysign) is the same IEEE operation per lane,

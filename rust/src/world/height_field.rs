@@ -133,7 +133,7 @@ where
 ///
 /// Written as `#[inline(always)]` functions, not closures or `array::map`: the release
 /// build called those out of line, compiled without the lane build's target features, so
-/// every lane product in them became a function call (docs/performance.md §25).
+/// every lane product in them became a function call (docs/performance-history.md §25).
 #[inline(always)]
 fn patch<A, N>(
     [wu, dwu, ddwu]: [[A; 4]; 3],

@@ -156,7 +156,7 @@ impl<T: Real> Environment<T> {
     /// visit (an RK4 period) is monomorphised with the plane's contact code alone; any
     /// other environment as the `Environment`, matched where it is used. A loop holding
     /// every surface's code behind a match at each stage cost fig. 19's lanes 16 % on an
-    /// Intel core (docs/performance.md §19); a loop per surface would repeat the arms'
+    /// Intel core (docs/performance-history.md §19); a loop per surface would repeat the arms'
     /// inlined dynamics four times over for curved surfaces that cost more anyway.
     #[inline(always)]
     pub fn visit<V: SurfaceVisitor<T>>(&self, visitor: V) -> V::Output {

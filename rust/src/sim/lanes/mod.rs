@@ -235,7 +235,7 @@ impl LanePath {
     /// The default on this CPU: the 8-wide AVX-512 build where AVX-512 F, DQ and VL exist, else
     /// AVX2, else portable. With its native lane type ([`F64x8Avx512`](crate::scalar::F64x8Avx512))
     /// the 8-wide build ran fig. 19 sweeps 1.4× and Panda sweeps 1.7× faster than the 4-wide AVX2
-    /// one on an Intel Xeon (docs/performance.md §23); on Zen 4, which splits each 512-bit
+    /// one on an Intel Xeon (docs/performance-history.md §23); on Zen 4, which splits each 512-bit
     /// operation in two, it is not measured (`ADMIT_RS_LANES=avx2` picks the 4-wide build).
     pub fn fastest() -> Self {
         [LanePath::Avx512, LanePath::Avx2, LanePath::Portable]
@@ -381,7 +381,7 @@ fn lanes_loop<W: Wide<L>, const L: usize, R: RobotModel<N>, const N: usize>(
         let deferred = front.is_some();
         // Each value's lanes once, then each run's state written value by value: built
         // whole on the stack, a state was stored as scalars and copied as wide words, a
-        // stalled store-to-load forward per lane (docs/performance.md §34).
+        // stalled store-to-load forward per lane (docs/performance-history.md §34).
         let lanes = |v: &SVector<W, N>| v.map(|x| std::array::from_fn::<f64, L, _>(|l| lane(x, l)));
         let (q, qd) = (lanes(&q), lanes(&qd));
         for (l, s) in slot.iter_mut().enumerate() {
