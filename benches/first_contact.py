@@ -5,7 +5,7 @@ the wall stiffness, no traces, best of every fifth round).
 
     PYTHONPATH=python python benches/first_contact.py [--repeat 15] [--samples 64]
 
-The ratio to the plain run is what docs/performance.md states (target ≤ 1.1×).
+The ratio to the plain run is what docs/performance-history.md §13 states (target ≤ 1.1×).
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ best of every fifth round).
 
     python benches/sensor_tool.py [--repeat 15] [--samples 64]
 
-Prints each case's time and its ratio to the plain run (docs/performance.md).
+Prints each case's time and its ratio to the plain run (docs/performance-history.md §17).
 """
 
 from __future__ import annotations
