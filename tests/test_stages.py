@@ -316,3 +316,15 @@ def test_new_fields_by_dotted_path_and_toml():
     )
     assert table.height == 4 and table["stable"].all()
     assert pl.Series(table["sensor.latency"]).to_list() == [0, 0, 3, 3]
+
+
+def test_set_state_refuses_a_bool():
+    """Issue #53, item 17: set_state({"sample": True}) was sample 1."""
+    sim = ar.Simulation(ar.paper.scenario("fig14").replace(duration=0.1))
+    sim.step(10)
+    with pytest.raises(ar.ParameterError) as info:
+        sim.set_state({"sample": True})
+    assert info.value.field == "sample"
+    with pytest.raises(ar.ParameterError):
+        sim.set_state([True] + [0.0] * (len(sim.state_labels) - 1))
+    assert sim.sample == 10

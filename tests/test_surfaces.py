@@ -295,3 +295,21 @@ def test_the_true_surfaces_position_error_beside_an_estimate_is_refused():
     moved = sc.replace(**{"wall_estimate.position_error": 0.005})
     assert ar.simulate(moved).metrics["force_rms_error"] != ar.simulate(sc).metrics[
         "force_rms_error"]
+
+
+def test_height_field_files_excel_csv_latin1_and_complex(tmp_path):
+    """Issue #53, item 17: Excel's "CSV UTF-8" (a byte-order mark) was refused, latin-1
+    gave a bare UnicodeDecodeError and a complex .npy lost its imaginary part silently."""
+    import numpy as np
+
+    bom = tmp_path / "excel.csv"
+    bom.write_bytes("\ufeff0,0.001\n0,0\n".encode())
+    assert ar.HeightField.from_file(bom).heights == ((0.0, 0.001), (0.0, 0.0))
+    latin = tmp_path / "latin1.csv"
+    latin.write_bytes("# scan µm\n0,0.001\n0,0\n".encode("latin-1"))
+    with pytest.raises(ar.ParameterError, match="UTF-8") as info:
+        ar.HeightField.from_file(latin)
+    assert info.value.field == "heights"
+    np.save(tmp_path / "complex.npy", np.zeros((2, 2), complex))
+    with pytest.raises(ar.ParameterError, match="real heights"):
+        ar.HeightField.from_file(tmp_path / "complex.npy")

@@ -15,6 +15,7 @@ import polars as pl
 from admit_rs import _core
 from admit_rs._names import MetricsDict, UnknownNameError
 from admit_rs._trace import trace_frame
+from admit_rs.blocks._base import _parameter_error
 from admit_rs.config import Scenario
 from admit_rs.errors import AdmitError
 from admit_rs.plot import plot_result
@@ -241,15 +242,19 @@ class Simulation:
         vector in :attr:`state_labels` order. The trace keeps the samples before ``sample``.
 
         Unknown labels raise :class:`admit_rs.UnknownNameError` (a ``KeyError``) naming the
-        closest valid ones."""
+        closest valid ones; a bool is refused (it would be taken as 0 or 1)."""
         if isinstance(state, Mapping):
             values = self._core.state().tolist()
             index = {name: i for i, name in enumerate(self._labels)}
             for name, value in state.items():
                 if name not in index:
                     raise UnknownNameError("state entry", str(name), self._labels)
+                if isinstance(value, bool | np.bool_):  # True would be taken as 1
+                    raise _parameter_error(str(name), repr(value), "a number, not a bool")
                 values[index[name]] = float(value)
         else:
+            if any(isinstance(v, bool | np.bool_) for v in np.ravel(np.asarray(state, object))):
+                raise _parameter_error("state", "a vector holding a bool", "numbers")
             values = [float(v) for v in np.ravel(np.asarray(state, dtype=float))]
         self._core.set_state(values)
 

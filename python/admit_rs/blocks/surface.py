@@ -244,11 +244,22 @@ class HeightField(_Surface):
             raise FileNotFoundError(f"no height field file at {path}")
         if path.suffix.lower() == ".npy":
             grid = np.load(path, allow_pickle=False)
+            if np.iscomplexobj(grid):  # float() would drop the imaginary part silently
+                raise _parameter_error(
+                    "heights", f"the file {path.name} (complex {grid.dtype})", "real heights"
+                )
         else:
-            text = path.read_text(encoding="utf-8")
+            try:
+                # "utf-8-sig" also reads Excel's "CSV UTF-8", which starts with a byte-order mark.
+                text = path.read_text(encoding="utf-8-sig")
+            except UnicodeDecodeError as e:
+                raise _parameter_error(
+                    "heights", f"the file {path.name}",
+                    f"a text file in UTF-8 (byte {e.start} is not UTF-8; save it as UTF-8)",
+                ) from None  # fmt: skip
             delimiter = "," if "," in text else None
             try:
-                grid = np.loadtxt(path, delimiter=delimiter, ndmin=2, comments="#")
+                grid = np.loadtxt(text.splitlines(), delimiter=delimiter, ndmin=2, comments="#")
             except ValueError as e:
                 raise _parameter_error(
                     "heights", f"the file {path.name}", f"rows of numbers ({e})"
