@@ -348,3 +348,45 @@ def test_command_divisor_range_error_uses_the_new_name():
         ar.sweep(ar.Scenario(duration=0.01), grid={"controller.command_divisor": [1.0, math.nan]},
                  progress=False)  # fmt: skip
     assert info.value.field == "controller.command_divisor" and info.value.run_id == 1
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: ar.Wall(stiffness="stiff"),
+        lambda: ar.Robot(lengths=1.0),
+        lambda: ar.simulate("fig14"),
+        lambda: ar.sweep("fig14", grid={"admittance.b": [1.0]}),
+        lambda: ar.Scenario(robot=ar.Wall()),
+        lambda: ar.TimeDelayControl(model=3),
+        lambda: _core.validate({**ar.Scenario()._to_core(), "duration": "long"}),
+        lambda: _core.validate({**ar.Scenario()._to_core(),
+                                "sensor": {**ar.ForceSensor()._to_core(), "latency": [1]}}),
+    ],
+)
+def test_a_wrong_type_is_a_parameter_type_error_under_the_root(make):
+    """Issue #59 part 3: wrong types raised a plain TypeError outside AdmitError, from the
+    Python blocks and from the core's decoder alike."""
+    with pytest.raises(ar.ParameterTypeError) as info:
+        make()
+    assert isinstance(info.value, TypeError) and isinstance(info.value, ar.AdmitError)
+
+
+def test_bad_arguments_are_under_the_root():
+    sc = ar.paper.scenario("fig14").replace(duration=0.01)
+    for kw in ({"grid": {"admittance.b": []}},
+               {"vary": {"admittance.b": ar.Uniform(1, 2)}, "grid": {"admittance.b": [1.0]}},
+               {"grid": {"admittance.b": [400.0]}, "chunk_size": 0}):
+        with pytest.raises(ar.AdmitError) as info:
+            ar.sweep(sc, progress=False, **kw)
+        assert isinstance(info.value, ValueError)
+
+
+def test_a_batch_keeps_each_errors_class_and_attributes():
+    """A run of a batch that names no field keeps its class and suggestions (it became a
+    plain TypeError), its message led by the run's index."""
+    good = ar.Scenario(duration=0.01)._to_core()
+    bad = {**good, "wall": {**good["wall"], "stifness": 1.0}}
+    with pytest.raises(ar.UnknownParameterError) as info:
+        _core.simulate_batch([good, bad], 1, False, False)
+    assert str(info.value).startswith("scenario 1: ") and "stiffness" in info.value.suggestions

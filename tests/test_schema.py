@@ -170,9 +170,10 @@ def test_core_bad_values_are_parameter_errors_naming_the_field(change, field, al
 
 def test_core_wrong_types_are_type_errors():
     err = _core_error(lambda c: c["wall"].update(stiffness="a"))
-    assert type(err) is TypeError and str(err) == "wall.stiffness must be a number, got str"
+    assert type(err) is ar.ParameterTypeError
+    assert str(err) == "wall.stiffness must be a number, got str"
     err = _core_error(lambda c: c["controller"].update(kp=True))
-    assert type(err) is TypeError and "must be a number, got a bool" in str(err)
+    assert type(err) is ar.ParameterTypeError and "must be a number, got a bool" in str(err)
 
 
 def test_numpy_scalars_cross_as_numbers():

@@ -42,8 +42,10 @@ from admit_rs.config import (
 from admit_rs.errors import (
     AdmitError,
     AnalysisError,
+    ArgumentError,
     ExportError,
     ParameterError,
+    ParameterTypeError,
     UnknownParameterError,
 )
 from admit_rs.metrics import METRICS, Metric
@@ -90,6 +92,8 @@ __all__ = [
     "ModelError",
     "ModelFree",
     "ParameterError",
+    "ParameterTypeError",
+    "ArgumentError",
     "Result",
     "Robot",
     "UrdfArm",

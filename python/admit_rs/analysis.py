@@ -27,7 +27,7 @@ import polars as pl
 from admit_rs import _core
 from admit_rs.blocks._base import _parameter_error
 from admit_rs.config import Scenario, Step, _check_path, _core_dict_with, _core_value
-from admit_rs.errors import AnalysisError, ParameterError
+from admit_rs.errors import AnalysisError, ArgumentError, ParameterError, ParameterTypeError
 
 __all__ = [
     "PREDICTION_NAMES",
@@ -118,7 +118,9 @@ STEP_ITERATIONS = 4
 
 def _check_scenario(scenario: Any, what: str) -> Scenario:
     if not isinstance(scenario, Scenario):
-        raise TypeError(f"{what}() takes an admit_rs.Scenario, got {type(scenario).__name__}")
+        raise ParameterTypeError(
+            f"{what}() takes an admit_rs.Scenario, got {type(scenario).__name__}"
+        )
     return scenario
 
 
@@ -167,7 +169,7 @@ def linearize(scenario: Scenario, at: float | None = None, friction: Any = "rest
         friction = float(raw_step["friction_amplitude"][0])
     scenario = _with_friction(scenario, friction)
     if at is not None and not (isinstance(at, int | float) and not isinstance(at, bool)):
-        raise TypeError(f"at must be a number of seconds or None, got {type(at).__name__}")
+        raise ParameterTypeError(f"at must be a number of seconds or None, got {type(at).__name__}")
     _check_friction(scenario)
     raw = _core.linearize(scenario._to_core(), None if at is None else float(at))
     sys = control.ss(
@@ -216,10 +218,12 @@ def _with_friction(scenario: Scenario, friction: Any) -> Scenario:
     if isinstance(friction, str) and friction == "rest":
         return scenario
     if isinstance(friction, str):
-        raise ValueError(f"friction must be 'rest', 'step' or an amplitude in rad/s, got "
-                         f"{friction!r}")  # fmt: skip
+        raise ArgumentError(f"friction must be 'rest', 'step' or an amplitude in rad/s, got "
+                            f"{friction!r}")  # fmt: skip
     if isinstance(friction, bool) or not isinstance(friction, int | float):
-        raise TypeError(f"friction must be 'rest' or an amplitude in rad/s, got {friction!r}")
+        raise ParameterTypeError(
+            f"friction must be 'rest' or an amplitude in rad/s, got {friction!r}"
+        )
     if not (math.isfinite(friction) and friction >= 0):
         raise ParameterError(f"friction = {friction} is invalid: must be finite and >= 0")
     robot = scenario.robot
@@ -286,10 +290,10 @@ def predict(
 
 def _numeric_axis(scenario: Scenario, spec: Any, axis: str) -> tuple[str, list[float]]:
     if not isinstance(spec, Mapping) or len(spec) != 1:
-        raise TypeError(f"{axis} must be a dict with one dotted path: {{path: values}}")
+        raise ParameterTypeError(f"{axis} must be a dict with one dotted path: {{path: values}}")
     ((path, values),) = spec.items()
     if not isinstance(path, str):
-        raise TypeError(f"{axis}: the path must be a str, got {type(path).__name__}")
+        raise ParameterTypeError(f"{axis}: the path must be a str, got {type(path).__name__}")
     path = _check_path(scenario, path)
     current = scenario
     for part in path.split("."):
@@ -307,7 +311,7 @@ def _numeric_axis(scenario: Scenario, spec: Any, axis: str) -> tuple[str, list[f
             f"{path} values are invalid: must be a sequence of numbers, got {values!r}"
         ) from None
     if not out:
-        raise ValueError(f"{axis}: no values for {path}")
+        raise ArgumentError(f"{axis}: no values for {path}")
     if isinstance(current, int):
         if any(v != round(v) for v in out):
             raise ParameterError(f"{path} values are invalid: must be integers, got {out}")
@@ -429,7 +433,7 @@ def stability_map(
     xp, xs = _numeric_axis(scenario, x, "x")
     yp, ys = _numeric_axis(scenario, y, "y")
     if xp == yp:
-        raise ValueError(f"x and y are the same parameter {xp}")
+        raise ArgumentError(f"x and y are the same parameter {xp}")
     points = [{xp: xv, yp: yv} for yv in ys for xv in xs]
     # Validate one cell of each extreme through the Python blocks (clear messages).
     for p in (points[0], points[-1]):
@@ -539,7 +543,7 @@ def _axis_points(lo: float, hi: float, n: int) -> list[float]:
 
 def _box(scenario: Scenario, spec: Any, name: str) -> dict[str, tuple[float, float]]:
     if not isinstance(spec, Mapping) or not spec:
-        raise TypeError(f"{name} must be a non-empty dict {{path: (lo, hi)}}")
+        raise ParameterTypeError(f"{name} must be a non-empty dict {{path: (lo, hi)}}")
     out = {}
     for path, bounds in spec.items():
         p, _ = _numeric_axis(scenario, {path: [0.0]}, name)
@@ -646,7 +650,7 @@ def tune(
     vbox = _box(scenario, vary, "vary")
     obox = _box(scenario, over, "over")
     if set(vbox) & set(obox):
-        raise ValueError(f"{sorted(set(vbox) & set(obox))} given in both vary and over")
+        raise ArgumentError(f"{sorted(set(vbox) & set(obox))} given in both vary and over")
     over_grid = [
         dict(zip(obox, combo, strict=True))
         for combo in itertools.product(*(_axis_points(lo, hi, over_points)

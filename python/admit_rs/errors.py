@@ -2,14 +2,18 @@
 
 Every exception class admit_rs defines (warning categories aside) derives from
 :class:`AdmitError` but ``SweepInterrupted``, and also from the built-in exception a caller
-would expect. (A value of the wrong type and a bad ``sweep()`` argument still raise plain
-``TypeError`` / ``ValueError``.)
+would expect.
 
 - :class:`ParameterError` (also a ``ValueError``): a value outside its range, with the
   field's dotted path, its value and the allowed range (also as attributes ``field``,
   ``value`` and ``allowed``).
 - :class:`UnknownParameterError` (also a ``TypeError``): a keyword, dotted path or TOML
   key that names no field, with the closest valid names (attribute ``suggestions``).
+- :class:`ParameterTypeError` (also a ``TypeError``): a value of the wrong type (a str
+  where a number goes, a bool where a count goes, a block where another kind belongs),
+  naming the field or argument.
+- :class:`ArgumentError` (also a ``ValueError``): arguments of a call that do not fit
+  together or are empty (a path in both ``vary`` and ``grid``, an empty grid axis).
 - :class:`admit_rs.UnknownNameError` (also a ``KeyError``; in :mod:`admit_rs._names`): an
   unknown metric, table column, state entry or paper figure, with the closest valid names.
 - :class:`AnalysisError` (also a ``ValueError``): a scenario :mod:`admit_rs.analysis`
@@ -45,8 +49,10 @@ from typing import Any
 __all__ = [
     "AdmitError",
     "AnalysisError",
+    "ArgumentError",
     "ExportError",
     "ParameterError",
+    "ParameterTypeError",
     "UnknownParameterError",
 ]
 
@@ -72,6 +78,16 @@ class UnknownParameterError(AdmitError, TypeError):
         super().__init__(message)
         self.name = name
         self.suggestions = list(suggestions)
+
+
+class ParameterTypeError(AdmitError, TypeError):
+    """A value of the wrong type for a field or an argument; the message names it and what
+    it must be."""
+
+
+class ArgumentError(AdmitError, ValueError):
+    """Arguments of a call that do not fit together, or an empty one; the message says
+    which."""
 
 
 class AnalysisError(AdmitError, ValueError):

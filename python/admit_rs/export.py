@@ -40,7 +40,7 @@ from typing import Any, Literal
 import numpy as np
 
 from admit_rs.config import AdmittanceFilter, Scenario, UrdfArm, _Block, describe
-from admit_rs.errors import ExportError, ParameterError
+from admit_rs.errors import ExportError, ParameterError, ParameterTypeError
 
 __all__ = ["ExportWarning", "ros2_admittance", "sensor_filter_coefficient", "toml"]
 
@@ -180,7 +180,7 @@ def ros2_admittance(
     """
     if not isinstance(scenario, Scenario):
         kind = type(scenario).__name__
-        raise TypeError(f"ros2_admittance takes an admit_rs.Scenario, got {kind}")
+        raise ParameterTypeError(f"ros2_admittance takes an admit_rs.Scenario, got {kind}")
     if not isinstance(controller_name, str) or not _NAME.fullmatch(controller_name):
         raise _bad("controller_name", repr(controller_name),
                    "a ROS 2 node name: letters, digits and underscores, not starting with a"
@@ -427,7 +427,9 @@ def toml(scenario: Scenario, path: str | os.PathLike[str] | None = None) -> str:
         wall = false  # None (TOML has no null)
     """
     if not isinstance(scenario, Scenario):
-        raise TypeError(f"toml() takes an admit_rs.Scenario, got {type(scenario).__name__}")
+        raise ParameterTypeError(
+            f"toml() takes an admit_rs.Scenario, got {type(scenario).__name__}"
+        )
     out: list[str] = []
     _toml_table(scenario, "", out)
     text = "\n".join(out) + "\n"

@@ -18,6 +18,7 @@ from matplotlib.patches import Rectangle
 from matplotlib.ticker import NullLocator
 
 from admit_rs.config import Scenario
+from admit_rs.errors import ArgumentError
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -461,7 +462,7 @@ def sweep_heatmap(
         check_column(table.columns, name, "column")
     agg = agg if agg is not None else WORST_CASE.get(metric, "mean")
     if agg not in _REDUCERS:
-        raise ValueError(f"agg = {agg!r} is invalid: must be one of {', '.join(_REDUCERS)}")
+        raise ArgumentError(f"agg = {agg!r} is invalid: must be one of {', '.join(_REDUCERS)}")
     xs, ys = table[x].to_numpy().astype(float), table[y].to_numpy().astype(float)
     # A grid is drawn as categories: one equal cell per listed value, labelled with it
     # (k_a = 0.1, 1, 2 are three cells, not a linear axis from -0.4); random draws are
@@ -642,7 +643,7 @@ def _axis(
         return 10.0**edges, index
     distinct = np.unique(values[np.isfinite(values)])
     if distinct.size == 0:
-        raise ValueError("no finite values to place on the axis")
+        raise ArgumentError("no finite values to place on the axis")
     if distinct.size <= bins:
         if distinct.size == 1:
             edges = np.array([distinct[0] - 0.5, distinct[0] + 0.5])

@@ -33,6 +33,7 @@ from admit_rs.config import (
     Sine,
     TimeDelayControl,
 )
+from admit_rs.errors import ArgumentError
 from admit_rs.metrics import METRICS
 from admit_rs.simulation import Result, simulate
 
@@ -459,7 +460,7 @@ def reproduce(
     names = [f"fig{f}" if isinstance(f, int) else f for f in (figures or FIGURES)]
     unknown = [n for n in names if n not in FIGURES]
     if unknown:
-        raise ValueError(f"unknown figures {unknown}; choose from {list(FIGURES)}")
+        raise ArgumentError(f"unknown figures {unknown}; choose from {list(FIGURES)}")
     jobs = names + [n + VARIANT_SUFFIX for n in names if variants and n in VARIANTS]
     rows: list[dict[str, object]] = []
     bar = tqdm(jobs, desc="paper figures", unit="fig", disable=not progress)

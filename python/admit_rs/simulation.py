@@ -17,7 +17,7 @@ from admit_rs._names import MetricsDict, UnknownNameError
 from admit_rs._trace import trace_frame
 from admit_rs.blocks._base import _parameter_error
 from admit_rs.config import Scenario
-from admit_rs.errors import AdmitError
+from admit_rs.errors import AdmitError, ParameterTypeError
 from admit_rs.plot import plot_result
 
 if TYPE_CHECKING:
@@ -151,7 +151,9 @@ def simulate(scenario: Scenario) -> Result:
 
     """
     if not isinstance(scenario, Scenario):
-        raise TypeError(f"simulate() takes an admit_rs.Scenario, got {type(scenario).__name__}")
+        raise ParameterTypeError(
+            f"simulate() takes an admit_rs.Scenario, got {type(scenario).__name__}"
+        )
     raw = _core.simulate(scenario._to_core())
     return _result(scenario, raw["columns"], raw)
 
@@ -184,7 +186,7 @@ class Simulation:
 
     def __init__(self, scenario: Scenario) -> None:
         if not isinstance(scenario, Scenario):
-            raise TypeError(
+            raise ParameterTypeError(
                 f"Simulation() takes an admit_rs.Scenario, got {type(scenario).__name__}"
             )
         self.scenario = scenario
@@ -201,7 +203,7 @@ class Simulation:
         Each sample records the state at t_k, then integrates the plant to t_{k+1} (the last
         sample of the run is recorded without integrating further)."""
         if isinstance(n, bool) or not isinstance(n, int) or n < 0:
-            raise TypeError(f"step(n): n must be an int >= 0, got {n!r}")
+            raise ParameterTypeError(f"step(n): n must be an int >= 0, got {n!r}")
         return int(self._core.step(n))
 
     @property

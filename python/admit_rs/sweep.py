@@ -48,7 +48,14 @@ from admit_rs.config import (
     _core_value,
     _python_error,
 )
-from admit_rs.errors import AdmitError, ParameterError, closest, for_run
+from admit_rs.errors import (
+    AdmitError,
+    ArgumentError,
+    ParameterError,
+    ParameterTypeError,
+    closest,
+    for_run,
+)
 
 if TYPE_CHECKING:
     from dask.distributed import Client
@@ -325,7 +332,9 @@ def _plan(
     seed: int,
 ) -> _Plan:
     if not isinstance(scenario, Scenario):
-        raise TypeError(f"sweep() takes an admit_rs.Scenario, got {type(scenario).__name__}")
+        raise ParameterTypeError(
+            f"sweep() takes an admit_rs.Scenario, got {type(scenario).__name__}"
+        )
     vary = dict(vary or {})
     grid = {k: list(v) for k, v in (grid or {}).items()}
     if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < 2**63:
@@ -336,23 +345,25 @@ def _plan(
     grid = {_check_path(scenario, p): v for p, v in grid.items()}
     both = set(vary) & set(grid)
     if both:
-        raise ValueError(f"{sorted(both)} given in both vary and grid")
+        raise ArgumentError(f"{sorted(both)} given in both vary and grid")
     if scenario.wall_estimate is not None and "wall.position_error" in {*vary, *grid}:
         raise position_error_unread("varied")
     for path, dist in vary.items():
         if not isinstance(dist, Uniform | LogUniform | Normal | Choice):
-            raise TypeError(f"vary[{path!r}] must be a Uniform, LogUniform, Normal or Choice")
+            raise ParameterTypeError(
+                f"vary[{path!r}] must be a Uniform, LogUniform, Normal or Choice"
+            )
     for path, values in grid.items():
         if not values:
-            raise ValueError(f"grid[{path!r}] is empty")
+            raise ArgumentError(f"grid[{path!r}] is empty")
     declared = {path: _field_types(scenario, path) for path in [*grid, *vary]}
     grid = {path: [_normalise(declared[path], v) for v in values] for path, values in grid.items()}
     if samples is None:
         if vary:
-            raise ValueError("samples is required with vary (how many draws per grid point)")
+            raise ArgumentError("samples is required with vary (how many draws per grid point)")
         samples = 1
     if not isinstance(samples, int) or isinstance(samples, bool) or samples < 1:
-        raise ValueError(f"samples = {samples!r} is invalid: must be an integer >= 1")
+        raise ArgumentError(f"samples = {samples!r} is invalid: must be an integer >= 1")
 
     rows = []
     points = list(itertools.product(*grid.values())) if grid else [()]
@@ -508,7 +519,7 @@ class _Checkpoint:
         try:
             old = json.loads(path.read_bytes().decode("utf-8"))
             if not isinstance(old, dict):
-                raise ValueError(f"a JSON {type(old).__name__}, not an object")
+                raise ArgumentError(f"a JSON {type(old).__name__}, not an object")
             return old
         except (OSError, ValueError) as e:  # JSONDecodeError, UnicodeDecodeError are ValueErrors
             reason = str(e).strip().splitlines()[0] if str(e).strip() else ""
@@ -801,9 +812,9 @@ def sweep(
         SweepInterrupted: Ctrl-C; ``.table`` holds the finished runs.
     """
     if not isinstance(chunk_size, int) or chunk_size < 1:
-        raise ValueError(f"chunk_size = {chunk_size!r} is invalid: must be an integer >= 1")
+        raise ArgumentError(f"chunk_size = {chunk_size!r} is invalid: must be an integer >= 1")
     if threads is not None and (not isinstance(threads, int) or threads < 1):
-        raise ValueError(f"threads = {threads!r} is invalid: must be an integer >= 1")
+        raise ArgumentError(f"threads = {threads!r} is invalid: must be an integer >= 1")
     if checkpoint is not None and Path(checkpoint).exists() and not Path(checkpoint).is_dir():
         err = ParameterError(
             f"checkpoint = {str(checkpoint)!r} is invalid: must be a folder or a path that does "

@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from admit_rs import _core, _registry
-from admit_rs.errors import ParameterError, _copy, shown, unknown
+from admit_rs.errors import ParameterError, ParameterTypeError, _copy, shown, unknown
 
 Vector3: TypeAlias = tuple[float, float, float]
 ArrayLike3: TypeAlias = "Iterable[float] | npt.NDArray[np.float64]"
@@ -30,13 +30,15 @@ ArrayLike3: TypeAlias = "Iterable[float] | npt.NDArray[np.float64]"
 
 def _vec3(name: str, value: Any) -> Vector3:
     if _holds_bool(value):
-        raise TypeError(f"{name} must be a sequence of 3 numbers, got a bool")
+        raise ParameterTypeError(f"{name} must be a sequence of 3 numbers, got a bool")
     try:
         items = tuple(float(v) for v in value)
     except TypeError as e:
-        raise TypeError(f"{name} must be a sequence of 3 numbers, got {shown(value)}") from e
+        raise ParameterTypeError(
+            f"{name} must be a sequence of 3 numbers, got {shown(value)}"
+        ) from e
     if len(items) != 3:
-        raise TypeError(f"{name} must have 3 elements, got {len(items)}")
+        raise ParameterTypeError(f"{name} must have 3 elements, got {len(items)}")
     return items  # type: ignore[return-value]
 
 
@@ -44,7 +46,7 @@ def _check_integer(name: str, value: Any, high: int) -> None:
     """Integers are ints (or integral floats) from 0 to ``high``; anything else is a
     ParameterError naming the field."""
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise TypeError(f"{name} must be an int, got {type(value).__name__}")
+        raise ParameterTypeError(f"{name} must be an int, got {type(value).__name__}")
     if not (isinstance(value, int) or math.isfinite(value)) or not (
         value == int(value) and 0 <= value <= high
     ):
@@ -207,12 +209,12 @@ class _Block:
         for f in dataclasses.fields(self):  # type: ignore[arg-type]
             value, kind = getattr(self, f.name), str(f.type)
             if "bool" not in kind and _holds_bool(value):
-                raise TypeError(f"{f.name} must be a number, got a bool")
+                raise ParameterTypeError(f"{f.name} must be a number, got a bool")
             if kind in ("float", "float | None") and not (
                 isinstance(value, numbers.Real) or (value is None and kind != "float")
             ):
                 got = "None" if value is None else type(value).__name__
-                raise TypeError(f"{f.name} must be a number, got {got}")
+                raise ParameterTypeError(f"{f.name} must be a number, got {got}")
             if isinstance(value, int) and not isinstance(value, bool) and "int" not in kind:
                 if abs(value) > sys.float_info.max:
                     # float() would raise OverflowError deep in the conversion.
@@ -274,11 +276,11 @@ def _numbers(name: str, value: Any) -> float | tuple[float, ...]:
     if isinstance(value, int | float) and not isinstance(value, bool):
         return float(value)
     if _holds_bool(value):
-        raise TypeError(f"{name} must be a number or a sequence of numbers, got a bool")
+        raise ParameterTypeError(f"{name} must be a number or a sequence of numbers, got a bool")
     try:
         return tuple(float(v) for v in np.ravel(np.asarray(value, dtype=float)))
     except (TypeError, ValueError) as e:
-        raise TypeError(
+        raise ParameterTypeError(
             f"{name} must be a number or a sequence of numbers, got {shown(value)}"
         ) from e
 
@@ -319,7 +321,7 @@ def _guard_init(cls: type[_Block]) -> None:
             if new is None or new not in names:
                 raise unknown(f"{cls.__name__}: unknown keyword {key!r}", key, names)
             if new in kwargs:
-                raise TypeError(f"{cls.__name__}: both {key} and {new} given")
+                raise ParameterTypeError(f"{cls.__name__}: both {key} and {new} given")
             _warn_renamed(f"{cls.__name__}({key}=...)", f"{cls.__name__}({new}=...)")
             kwargs[new] = kwargs.pop(key)
         init(self, *args, **kwargs)

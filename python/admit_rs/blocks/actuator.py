@@ -10,6 +10,7 @@ from admit_rs.blocks._base import (
     _Block,
 )
 from admit_rs.blocks.robot import UrdfArm
+from admit_rs.errors import ParameterTypeError
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -39,7 +40,7 @@ class Actuator(_Block):
             try:
                 self._set("torque_limit", tuple(float(v) for v in limit))
             except TypeError as e:
-                raise TypeError(
+                raise ParameterTypeError(
                     f"torque_limit must be a number, a sequence of numbers or None, got {limit!r}"
                 ) from e
         self._validate()
@@ -51,7 +52,9 @@ class Actuator(_Block):
         """Torque limits from the URDF's effort limits (joints without one: unlimited,
         written as 1e300)."""
         if not isinstance(arm, UrdfArm):
-            raise TypeError(f"from_urdf() takes an admit_rs.UrdfArm, got {type(arm).__name__}")
+            raise ParameterTypeError(
+                f"from_urdf() takes an admit_rs.UrdfArm, got {type(arm).__name__}"
+            )
         effort = arm.effort_limits
         limit = None if np.all(np.isinf(effort)) else tuple(
             float(e) if np.isfinite(e) else 1e300 for e in effort

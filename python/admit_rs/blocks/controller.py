@@ -14,6 +14,7 @@ from admit_rs.blocks._base import (
     _warn_renamed,
 )
 from admit_rs.blocks.robot import UrdfArm
+from admit_rs.errors import ParameterTypeError
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -40,7 +41,9 @@ class _Controller(_Block):
     def __post_init__(self) -> None:
         model = getattr(self, "model", None)
         if model is not None and not isinstance(model, ModelError):
-            raise TypeError(f"model must be an admit_rs.ModelError, got {type(model).__name__}")
+            raise ParameterTypeError(
+                f"model must be an admit_rs.ModelError, got {type(model).__name__}"
+            )
         self._validate()
 
 

@@ -8,7 +8,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from admit_rs.blocks._base import _Block, _warn_renamed
-from admit_rs.errors import ParameterError, unknown, within
+from admit_rs.errors import ParameterError, ParameterTypeError, unknown, within
 
 
 def parameter_paths(obj: Any, prefix: str = "") -> list[str]:
@@ -40,7 +40,7 @@ def _check_path(obj: Any, path: str) -> str:
     for part in path.split("."):
         if not isinstance(node, _Block):
             where = ".".join(walked)
-            raise TypeError(f"cannot set {path}: {where} is {type(node).__name__}")
+            raise ParameterTypeError(f"cannot set {path}: {where} is {type(node).__name__}")
         names = {f.name for f in dataclasses.fields(node)}  # type: ignore[arg-type]
         if part not in names and part in node._RENAMED and node._RENAMED[part] in names:
             new = node._RENAMED[part]
@@ -65,7 +65,7 @@ def _apply(obj: Any, changes: Mapping[str, Any]) -> Any:
             direct[head] = value
     for head, sub in nested.items():
         if head in direct:
-            raise TypeError(f"both {head} and {head}.{next(iter(sub))} given")
+            raise ParameterTypeError(f"both {head} and {head}.{next(iter(sub))} given")
         try:
             direct[head] = _apply(getattr(obj, head), sub)
         except ParameterError as e:

@@ -20,7 +20,7 @@ from admit_rs.blocks._base import (
     _numbers,
     _vec3,
 )
-from admit_rs.errors import ParameterError, shown
+from admit_rs.errors import ParameterError, ParameterTypeError, shown
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -58,7 +58,7 @@ class Robot(_Block):
             try:
                 self._set(name, _vec3(name, getattr(self, name)))
             except TypeError as e:
-                raise TypeError(
+                raise ParameterTypeError(
                     f"{e} (ar.Robot is the paper's three-link arm; load any other serial arm "
                     "from its URDF with ar.UrdfArm(path, tip_link), see docs/arms.md)"
                 ) from None
@@ -156,10 +156,10 @@ class UrdfArm(_Block):
                 if name == "path" and isinstance(value, Path):
                     self._set(name, str(value))
                     continue
-                raise TypeError(f"{name} must be a str, got {type(value).__name__}")
+                raise ParameterTypeError(f"{name} must be a str, got {type(value).__name__}")
         if not self.urdf:
             if not self.path:
-                raise TypeError("UrdfArm needs a path (or the document as urdf=...)")
+                raise ParameterTypeError("UrdfArm needs a path (or the document as urdf=...)")
             try:
                 text = Path(self.path).read_text(encoding="utf-8")
             except UnicodeDecodeError as e:
@@ -177,7 +177,7 @@ class UrdfArm(_Block):
                 raise err from None
             self._set("urdf", text)
         if not self.tip_link:
-            raise TypeError("UrdfArm needs tip_link, the link whose origin is the tip")
+            raise ParameterTypeError("UrdfArm needs tip_link, the link whose origin is the tip")
         if self.q0 is not None:
             self._set("q0", _numbers("q0", self.q0))
             if isinstance(self.q0, float):

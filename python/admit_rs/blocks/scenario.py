@@ -27,7 +27,7 @@ from admit_rs.blocks.sensor import ForceSensor
 from admit_rs.blocks.signal import Signal, Sine, Step
 from admit_rs.blocks.surface import Cylinder, HeightField, Sphere, Surface, Wall
 from admit_rs.blocks.tables import _from_dict, _slot_types
-from admit_rs.errors import ParameterError, shown
+from admit_rs.errors import ParameterError, ParameterTypeError, shown
 
 
 def position_error_unread(value: str) -> ParameterError:
@@ -105,9 +105,9 @@ class Scenario(_Block):
             value = getattr(self, name)
             if not isinstance(value, allowed):
                 names = " | ".join("None" if a is type(None) else a.__name__ for a in allowed)
-                raise TypeError(f"{name} must be {names}, got {type(value).__name__}")
+                raise ParameterTypeError(f"{name} must be {names}, got {type(value).__name__}")
         if not isinstance(self.label, str):
-            raise TypeError(f"label must be a str, got {type(self.label).__name__}")
+            raise ParameterTypeError(f"label must be a str, got {type(self.label).__name__}")
         self._plain_scalars()
         _check_integer("seed", self.seed, 2**53)
         self._reject_bools()
@@ -186,7 +186,9 @@ def describe(scenario: Scenario) -> str:
         'three-link arm, CT, position only, k_e=30 000, normal (0.7071, 0, -0.7071)'
     """
     if not isinstance(scenario, Scenario):
-        raise TypeError(f"describe() takes an admit_rs.Scenario, got {type(scenario).__name__}")
+        raise ParameterTypeError(
+            f"describe() takes an admit_rs.Scenario, got {type(scenario).__name__}"
+        )
     robot = scenario.robot
     if isinstance(robot, UrdfArm):
         name = Path(robot.path).stem if robot.path else "URDF"

@@ -12,7 +12,7 @@ from admit_rs.blocks._base import (
     _Block,
     _vec3,
 )
-from admit_rs.errors import shown
+from admit_rs.errors import ParameterTypeError, shown
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -71,7 +71,7 @@ frame='normal', tool_mass=0.0, tool_mass_estimate=None)
         bias = self.bias
         if not isinstance(bias, numbers.Real) or isinstance(bias, bool):
             if isinstance(bias, str | bytes) or not isinstance(bias, Iterable):
-                raise TypeError(
+                raise ParameterTypeError(
                     f"bias must be a number or a sequence of 3 numbers, got {shown(bias)}"
                 )
             self._set("bias", _vec3("bias", bias))

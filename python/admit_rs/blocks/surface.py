@@ -17,7 +17,7 @@ from admit_rs.blocks._base import (
     _parameter_error,
     _vec3,
 )
-from admit_rs.errors import shown
+from admit_rs.errors import ParameterTypeError, shown
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -168,13 +168,13 @@ Heights: TypeAlias = tuple[tuple[float, ...], ...]
 def _heights(value: Any) -> Heights:
     """A grid of heights as a tuple of rows (from a NumPy array or nested sequences)."""
     if isinstance(value, str | bytes) or _holds_bool(value):
-        raise TypeError(f"heights must be a 2-D grid of numbers, got {shown(value)}")
+        raise ParameterTypeError(f"heights must be a 2-D grid of numbers, got {shown(value)}")
     try:
         grid = np.asarray(value, dtype=float)
     except OverflowError:  # an int beyond the float range
         raise _parameter_error("heights", shown(value), "finite numbers") from None
     except (TypeError, ValueError) as e:
-        raise TypeError(f"heights must be a 2-D grid of numbers: {e}") from None
+        raise ParameterTypeError(f"heights must be a 2-D grid of numbers: {e}") from None
     if grid.ndim != 2:
         raise _parameter_error(
             "heights", f"an array of shape {grid.shape}", "a 2-D grid of at least 2×2 heights"
@@ -215,13 +215,13 @@ class HeightField(_Surface):
     def __post_init__(self) -> None:
         self._set("heights", _heights(self.heights))
         if _holds_bool(self.spacing):
-            raise TypeError("spacing must be 2 numbers, got a bool")
+            raise ParameterTypeError("spacing must be 2 numbers, got a bool")
         try:
             spacing = tuple(float(d) for d in self.spacing)
         except TypeError as e:
-            raise TypeError(f"spacing must be 2 numbers, got {shown(self.spacing)}") from e
+            raise ParameterTypeError(f"spacing must be 2 numbers, got {shown(self.spacing)}") from e
         if len(spacing) != 2:
-            raise TypeError(f"spacing must have 2 elements, got {len(spacing)}")
+            raise ParameterTypeError(f"spacing must have 2 elements, got {len(spacing)}")
         self._set("spacing", spacing)
         super().__post_init__()
 

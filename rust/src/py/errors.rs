@@ -4,12 +4,15 @@
 
 use pyo3::import_exception;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 use crate::error::Error;
 
 import_exception!(admit_rs.errors, AdmitError);
 import_exception!(admit_rs.errors, ParameterError);
 import_exception!(admit_rs.errors, AnalysisError);
+// A value of the wrong type: an `AdmitError` that is also a `TypeError`.
+import_exception!(admit_rs.errors, ParameterTypeError);
 
 pub(crate) fn parameter_error(py: Python<'_>, field: &str, value: &str, allowed: &str) -> PyErr {
     let err = ParameterError::new_err(format!("{field} = {value} is invalid: must be {allowed}"));
@@ -19,6 +22,23 @@ pub(crate) fn parameter_error(py: Python<'_>, field: &str, value: &str, allowed:
     let _ = obj.setattr("value", value);
     let _ = obj.setattr("allowed", allowed);
     err
+}
+
+/// `e` again, of its own class, with `message` and the attributes it carries (its
+/// `__dict__`: `field`, `suggestions`, ...).
+pub(crate) fn with_message(py: Python<'_>, e: &PyErr, message: String) -> PyErr {
+    let new = PyErr::from_type(e.get_type(py), message);
+    if let Ok(attrs) = e.value(py).getattr("__dict__") {
+        if let Ok(dict) = attrs.cast::<PyDict>() {
+            for (key, value) in dict.iter() {
+                // Failing to copy an attribute must not hide the error itself.
+                if let Ok(key) = key.extract::<String>() {
+                    let _ = new.value(py).setattr(key.as_str(), value);
+                }
+            }
+        }
+    }
+    new
 }
 
 pub(crate) fn to_py_err(py: Python<'_>, e: Error) -> PyErr {

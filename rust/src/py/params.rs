@@ -6,11 +6,11 @@
 //! through `admit_rs.errors.unknown`) or a `TypeError` naming the field and what it must be.
 //! Ranges are checked by the structs' own `validate()`, after decoding.
 
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use serde::de::DeserializeOwned;
 
-use super::errors::{parameter_error, to_py_err};
+use super::errors::{parameter_error, to_py_err, ParameterTypeError};
 use crate::control::filter::{AdmittanceParams, ForceControlParams};
 use crate::control::params::ControllerParams;
 use crate::control::reference::Signal;
@@ -134,7 +134,7 @@ fn decode_error(
     let shown = if field.is_empty() { "scenario" } else { &field };
     // pyo3's own extraction message, passed on by pythonize ("must be real number, not str").
     if let Some((_, got)) = msg.split_once("must be real number, not ") {
-        return PyTypeError::new_err(format!("{shown} must be a number, got {got}"));
+        return ParameterTypeError::new_err(format!("{shown} must be a number, got {got}"));
     }
     if let Some(rest) = msg.strip_prefix("invalid type: ") {
         if let Some((got, want)) = rest.rsplit_once(", expected ") {
@@ -143,19 +143,22 @@ fn decode_error(
                 g if g.starts_with("boolean") => "a bool".to_owned(),
                 g => short_floats(g),
             };
-            return PyTypeError::new_err(format!("{shown} must be {}, got {got}", expected(want)));
+            return ParameterTypeError::new_err(format!(
+                "{shown} must be {}, got {got}",
+                expected(want)
+            ));
         }
     }
     if let Some(rest) = msg.strip_prefix("invalid length ") {
-        return PyTypeError::new_err(format!("{shown}: wrong number of elements ({rest})"));
+        return ParameterTypeError::new_err(format!("{shown}: wrong number of elements ({rest})"));
     }
     if let Some(rest) = msg.strip_prefix("missing field ") {
-        return PyTypeError::new_err(format!(
+        return ParameterTypeError::new_err(format!(
             "missing field {}",
             join(&field, rest.trim_matches('`'))
         ));
     }
-    PyTypeError::new_err(format!("{shown}: {}", expected(&msg)))
+    ParameterTypeError::new_err(format!("{shown}: {}", expected(&msg)))
 }
 
 /// Every field name of every block (the schema's properties), sorted.
@@ -323,7 +326,7 @@ pub(super) fn validate(scenario: &Bound<'_, PyAny>) -> PyResult<()> {
 pub(super) fn robot_params(robot: &Bound<'_, PyAny>) -> PyResult<RobotParams> {
     match decode::<RobotConfig>(robot, "robot")? {
         RobotConfig::ThreeLink(p) => Ok(p),
-        RobotConfig::Urdf(_) => Err(PyTypeError::new_err(
+        RobotConfig::Urdf(_) => Err(ParameterTypeError::new_err(
             "robot: expected the three-link arm (kind 'three_link'), got kind 'urdf'",
         )),
     }
@@ -333,7 +336,7 @@ pub(super) fn robot_params(robot: &Bound<'_, PyAny>) -> PyResult<RobotParams> {
 pub(super) fn urdf_params(robot: &Bound<'_, PyAny>) -> PyResult<UrdfArmParams> {
     match decode::<RobotConfig>(robot, "robot")? {
         RobotConfig::Urdf(p) => Ok(p),
-        RobotConfig::ThreeLink(_) => Err(PyTypeError::new_err(
+        RobotConfig::ThreeLink(_) => Err(ParameterTypeError::new_err(
             "robot: expected a URDF arm (kind 'urdf'), got kind 'three_link'",
         )),
     }
@@ -343,7 +346,7 @@ pub(super) fn urdf_params(robot: &Bound<'_, PyAny>) -> PyResult<UrdfArmParams> {
 pub(super) fn admittance_params(params: &Bound<'_, PyAny>) -> PyResult<AdmittanceParams> {
     match decode::<ForceControlParams>(params, "admittance")? {
         ForceControlParams::Admittance(p) => Ok(p),
-        ForceControlParams::Impedance(_) => Err(PyTypeError::new_err(
+        ForceControlParams::Impedance(_) => Err(ParameterTypeError::new_err(
             "admittance: expected an admittance filter (kind 'admittance'), got 'impedance'",
         )),
     }

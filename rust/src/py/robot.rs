@@ -2,11 +2,11 @@
 //! and forward dynamics at a given state.
 
 use numpy::{PyArray1, PyArray2};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use super::errors::to_py_err;
+use super::errors::{to_py_err, ParameterTypeError};
 use super::params::{robot_params, urdf_params};
 use crate::robot::chain::arm::{chain_info, chain_terms};
 use crate::robot::chain::TaskKind;
@@ -33,9 +33,9 @@ fn checked_robot(robot: &Bound<'_, PyAny>) -> PyResult<ThreeLinkArm> {
 }
 
 fn state3(v: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec3> {
-    let a: [f64; 3] = v
-        .extract()
-        .map_err(|_| PyTypeError::new_err(format!("{name} must be a sequence of 3 numbers")))?;
+    let a: [f64; 3] = v.extract().map_err(|_| {
+        ParameterTypeError::new_err(format!("{name} must be a sequence of 3 numbers"))
+    })?;
     Ok(Vec3::from(a))
 }
 

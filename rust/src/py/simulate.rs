@@ -4,11 +4,11 @@
 use std::sync::{Mutex, MutexGuard, TryLockError};
 
 use numpy::PyArray1;
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use super::errors::{to_py_err, AdmitError, ParameterError};
+use super::errors::{to_py_err, with_message, AdmitError, ParameterError};
 use super::params::scenario_from;
 use crate::sim::dispatch::AnySimulation;
 use crate::sim::metrics::{Metrics, METRIC_NAMES};
@@ -216,7 +216,9 @@ pub(super) fn simulate_batch<'py>(
                     let _ = new.value(py).setattr("index", i);
                     new
                 } else {
-                    PyTypeError::new_err(msg)
+                    // The same class (UnknownParameterError, ParameterTypeError, ...) with its
+                    // attributes (suggestions, ...), the run's index in front of the message.
+                    with_message(py, &e, msg)
                 }
             })
         })
