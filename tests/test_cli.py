@@ -94,3 +94,32 @@ def test_run_a_urdf_arm_with_a_path_relative_to_the_toml(tmp_path, capsys):
     assert cli.main(["run", str(toml)]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["stable"] and out["metrics"]["joint_limit_violation"] == 0.0
+
+
+def test_run_and_tune_take_a_figure_or_a_toml_with_a_relative_urdf(tmp_path, monkeypatch):
+    """Issue #53, item 14: `admit-rs run fig14` answered "No such file or directory", and
+    `tune` read a URDF path relative to the current folder, not to the TOML file."""
+    from pathlib import Path
+
+    import admit_rs as ar
+
+    assert cli._scenario_argument("fig14") == ar.paper.scenario("fig14")
+    assert cli._scenario_argument("9:2") == ar.paper.scenarios("fig9")[1]
+    with pytest.raises(ar.ArgumentError, match="curves 1 to"):
+        cli._scenario_argument("fig9:7")
+    with pytest.raises(KeyError, match="fig14"):
+        cli._scenario_argument("fig41")
+    data = Path(__file__).resolve().parent.parent / "examples" / "data"
+    (tmp_path / "arms").mkdir()
+    (tmp_path / "arms" / "three_link.urdf").write_text((data / "three_link.urdf").read_text())
+    (tmp_path / "sc.toml").write_text(
+        '[robot]\nkind = "urdf"\npath = "arms/three_link.urdf"\ntip_link = "tip"\n'
+    )
+    monkeypatch.chdir(Path(__file__).resolve().parent)  # elsewhere than the TOML's folder
+    arm = cli._scenario_argument(str(tmp_path / "sc.toml")).robot
+    assert isinstance(arm, ar.UrdfArm) and Path(arm.path) == tmp_path / "arms/three_link.urdf"
+
+
+def test_run_a_paper_figure_by_name(capsys):
+    assert cli.main(["run", "fig14", "--format", "json"]) == 0
+    assert json.loads(capsys.readouterr().out)["stable"] is True

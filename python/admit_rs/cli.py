@@ -19,14 +19,17 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # Python 3.10: the same parser, from PyPI
     import tomli as tomllib
 
-from admit_rs.errors import AnalysisError, ParameterError
+from admit_rs.errors import AnalysisError, ArgumentError, ParameterError, ParameterTypeError
+
+if TYPE_CHECKING:
+    from admit_rs.config import Scenario
 
 EXIT_CODES = """exit codes:
   0    success (run: the scenario is stable)
@@ -85,12 +88,29 @@ def _resolve_urdf(table: dict[str, Any], toml_path: Path) -> dict[str, Any]:
     return table
 
 
-def _run(args: argparse.Namespace) -> int:
+def _scenario_argument(name: str) -> Scenario:
+    """A command's scenario: a TOML file (a URDF path in it relative to the file), else a
+    paper figure (``fig14``, ``14``, ``fig9:2`` for its second curve), as ``ui`` takes."""
+    from admit_rs import paper
     from admit_rs.config import Scenario
+
+    path = Path(name)
+    if path.suffix == ".toml" or path.exists():
+        data = _read_toml(path)
+        return Scenario.from_dict(_resolve_urdf(data.get("scenario", data), path))
+    fig, _, curve = name.partition(":")
+    curves = paper.scenarios(f"fig{fig}" if fig.isdigit() else fig)
+    if not curve:
+        return curves[0]
+    if not curve.isdigit() or not 1 <= int(curve) <= len(curves):
+        raise ArgumentError(f"{name}: {fig} has curves 1 to {len(curves)}")
+    return curves[int(curve) - 1]
+
+
+def _run(args: argparse.Namespace) -> int:
     from admit_rs.simulation import simulate
 
-    data = _read_toml(args.scenario)
-    scenario = Scenario.from_dict(_resolve_urdf(data.get("scenario", data), Path(args.scenario)))
+    scenario = _scenario_argument(str(args.scenario))
     result = simulate(scenario)
     if args.output:
         result.trace.write_parquet(args.output)
@@ -164,7 +184,9 @@ def load_sweep(path: Path) -> dict[str, Any]:
     known = {"base", "scenario", "overrides", "vary", "grid", "samples", "seed", "chunk_size"}
     unknown = set(data) - known
     if unknown:
-        raise TypeError(f"{path}: unknown keys {sorted(unknown)}; allowed: {sorted(known)}")
+        raise ParameterTypeError(
+            f"{path}: unknown keys {sorted(unknown)}; allowed: {sorted(known)}"
+        )
     if "scenario" in data:
         scenario = Scenario.from_dict(_resolve_urdf(data["scenario"], Path(path)))
     else:
@@ -176,7 +198,7 @@ def load_sweep(path: Path) -> dict[str, Any]:
         spec = dict(spec)
         kind = str(spec.pop("dist", "")).lower()
         if kind not in dists:
-            raise TypeError(f"vary.{name}.dist = {kind!r}: one of {sorted(dists)}")
+            raise ParameterTypeError(f"vary.{name}.dist = {kind!r}: one of {sorted(dists)}")
         vary[name] = dists[kind](**spec)
     return {
         "scenario": scenario,
@@ -228,15 +250,9 @@ def _range(text: str) -> tuple[str, tuple[float, float]]:
 
 
 def _tune(args: argparse.Namespace) -> int:
-    from admit_rs import paper
     from admit_rs.analysis import tune
-    from admit_rs.config import Scenario
 
-    if Path(args.scenario).suffix == ".toml" or Path(args.scenario).exists():
-        data = _read_toml(args.scenario)
-        scenario = Scenario.from_dict(data.get("scenario", data))
-    else:
-        scenario = paper.scenario(args.scenario)
+    scenario = _scenario_argument(str(args.scenario))
     start = time.perf_counter()
     result = tune(scenario, vary=dict(args.vary), over=dict(args.over),
                   max_overshoot_pct=args.max_overshoot, stability_margin=args.margin,
@@ -299,7 +315,8 @@ def _parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="run one scenario from a TOML file, print its metrics",
                          epilog=EXIT_CODES,
                          formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    run.add_argument("scenario", type=Path, help="TOML file (Scenario.to_dict layout)")
+    run.add_argument("scenario", help="TOML file (Scenario.to_dict layout) or a paper figure "
+                     "(fig14, fig9:2 for its 2nd curve)")  # fmt: skip
     run.add_argument("-o", "--output", type=Path, help="write the trace as Parquet")
     run.add_argument("--plot", type=Path, help="write the standard plot as PNG")
     run.add_argument("--format", choices=("json", "table"), default="json",
