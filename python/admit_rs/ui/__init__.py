@@ -5,7 +5,7 @@
 metadata (:mod:`admit_rs.ui.controls`), the state lives in the URL by dotted path
 (``?admittance.b=200&wall.stiffness=1e6``), and everything the page loads comes from the
 local server (no CDN: it works offline). Needs the ``ui`` extra (Bokeh):
-``pip install 'admit_rs[ui]'``. docs/ui.md shows it.
+``pip install '.[ui]'`` from a clone. docs/ui.md shows it.
 
 Example:
     >>> import admit_rs as ar
@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from admit_rs.config import Scenario
+from admit_rs.errors import ParameterTypeError
 from admit_rs.ui.controls import QueryError, load_base, parse_query, query_string
 
 __all__ = ["QueryError", "Tuner", "load_base", "parse_query", "query_string", "serve", "tuner"]
@@ -31,7 +32,7 @@ def _require_bokeh() -> None:
         import bokeh  # noqa: F401
     except ImportError:
         raise ImportError(
-            "the tuning page needs Bokeh: pip install 'admit_rs[ui]' (or pip install bokeh)"
+            "the tuning page needs Bokeh: from the clone pip install '.[ui]', or pip install bokeh"
         ) from None
 
 
@@ -44,8 +45,8 @@ def _start(scenario: Scenario | str | None) -> tuple[str | None, Scenario]:
     if isinstance(scenario, str):
         return scenario, load_base(scenario)
     if not isinstance(scenario, Scenario):
-        raise TypeError(f"tuner() takes an admit_rs.Scenario, a figure name or a TOML path, "
-                        f"got {type(scenario).__name__}")  # fmt: skip
+        raise ParameterTypeError(f"tuner() takes an admit_rs.Scenario, a figure name or a TOML "
+                                 f"path, got {type(scenario).__name__}")  # fmt: skip
     for name, _ in _figure_names():
         if load_base(name) == scenario:
             return name, scenario

@@ -73,7 +73,7 @@ def available() -> str | None:
     try:
         import selenium  # noqa: F401
     except ImportError:
-        return "selenium not installed (pip install 'admit_rs[ui]')"
+        return "selenium not installed (from the clone: pip install '.[ui]')"
     return None
 
 
