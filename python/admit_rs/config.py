@@ -10,38 +10,9 @@ package and its users import.
 
 from __future__ import annotations
 
-from admit_rs.blocks import (
-    _BLOCKS,
-    _DOCS,
-    Actuator,
-    AdmittanceFilter,
-    ArrayLike3,
-    ComputedTorque,
-    Controller,
-    Criteria,
-    Cylinder,
-    ForceControl,
-    ForceSensor,
-    GuardedApproach,
-    HeightField,
-    ImpedanceReference,
-    ModelError,
-    ModelFree,
-    Robot,
-    Sampled,
-    Scenario,
-    Signal,
-    Sine,
-    Sphere,
-    Step,
-    Surface,
-    TimeDelayControl,
-    UrdfArm,
-    Vector3,
-    Wall,
-    describe,
-    parameter_paths,
-)
+from admit_rs import blocks as _blocks
+from admit_rs.blocks import *  # noqa: F403 (the blocks' public names, by their __all__)
+from admit_rs.blocks import _BLOCKS, _DOCS
 from admit_rs.blocks._base import (
     _CLASSES,
     _Block,
@@ -53,35 +24,8 @@ from admit_rs.blocks.paths import _check_path
 from admit_rs.blocks.scenario import _UNIONS, _short
 from admit_rs.blocks.tables import _slot_types
 
-__all__ = [
-    "Actuator",
-    "AdmittanceFilter",
-    "ArrayLike3",
-    "ComputedTorque",
-    "Controller",
-    "Criteria",
-    "Cylinder",
-    "ForceControl",
-    "ForceSensor",
-    "GuardedApproach",
-    "HeightField",
-    "ImpedanceReference",
-    "ModelError",
-    "ModelFree",
-    "Robot",
-    "Sampled",
-    "Scenario",
-    "Signal",
-    "Sine",
-    "Sphere",
-    "Step",
-    "Surface",
-    "TimeDelayControl",
-    "UrdfArm",
-    "Vector3",
-    "Wall",
-    "describe",
-    "parameter_paths",
+__all__ = [  # noqa: F405
+    *_blocks.__all__,
     "_BLOCKS",
     "_CLASSES",
     "_DOCS",
