@@ -359,11 +359,6 @@ pub fn registry() -> Value {
     Value::Array(families)
 }
 
-/// The kind whose key is `key`.
-pub fn kind(key: &str) -> Option<&'static Kind> {
-    kinds().map(|(_, k)| k).find(|k| k.key == key)
-}
-
 /// `f(kind)` for every kind, keyed by its key.
 pub fn by_key(f: impl Fn(&Kind) -> Value) -> Value {
     let mut out = Map::new();
