@@ -187,3 +187,20 @@ def test_numpy_agrees_with_bounces_on_a_bouncing_run():
     touching = f > 0
     first = int(np.argmax(touching))
     assert res.metrics["bounces"] == np.sum(touching[first:-1] & ~touching[first + 1:])
+
+
+def test_a_value_just_over_its_limit_reads_apart_from_it():
+    """Issue #53, item 18: "12.58 N above force_limit 12.58 N", "4 % of f_d
+    (max_force_oscillation 4 %)" and "1 bounces"."""
+    sc = ar.paper.scenario("fig14")
+    m = ar.simulate(sc).metrics
+    peak = m["force_peak"]  # 12.5799 N, after the impact peak 12.5749 N
+    verdict = ar.simulate(sc.replace(**{"criteria.force_limit": peak - 1e-6})).verdict
+    value, limit = verdict.split("force peak ")[1].split(" N above force_limit ")
+    assert value != limit.rstrip(" N") and float(value) > float(limit.rstrip(" N"))
+    osc = m["force_oscillation"]  # 0.0704
+    verdict = ar.simulate(sc.replace(**{"criteria.max_force_oscillation": osc - 1e-5})).verdict
+    shown = verdict.split("over the last 2 s is ")[1]
+    value, limit = shown.split(" of f_d (max_force_oscillation ")
+    assert value != limit.rstrip(")") and value.endswith(" %")
+    assert "1 bounce (max_contact_loss" in ar.simulate(ar.paper.scenario("fig12")).verdict

@@ -95,6 +95,12 @@ pub struct Judgement {
 /// A short number: 4 significant digits, trailing zeros dropped (1e-4 ≤ |x| < 1e6), else
 /// scientific.
 pub fn short(x: f64) -> String {
+    significant(x, 4)
+}
+
+/// `x` to `digits` significant digits, trailing zeros dropped (1e-4 ≤ |x| < 1e6), else
+/// scientific.
+fn significant(x: f64, digits: usize) -> String {
     if !x.is_finite() {
         return format!("{x}");
     }
@@ -103,15 +109,15 @@ pub fn short(x: f64) -> String {
     }
     let a = x.abs();
     if (1e-4..1e6).contains(&a) {
-        let digits = (3 - a.log10().floor() as i32).clamp(0, 12) as usize;
-        let s = format!("{x:.digits$}");
+        let decimals = (digits as i32 - 1 - a.log10().floor() as i32).clamp(0, 16) as usize;
+        let s = format!("{x:.decimals$}");
         if s.contains('.') {
             s.trim_end_matches('0').trim_end_matches('.').to_owned()
         } else {
             s
         }
     } else {
-        format!("{x:.3e}")
+        format!("{x:.prec$e}", prec = digits.saturating_sub(1))
     }
 }
 
@@ -121,6 +127,44 @@ fn pct(v: f64) -> String {
         format!("{:.0} %", 100.0 * v)
     } else {
         format!("{} %", short(float_2g(100.0 * v)))
+    }
+}
+
+/// A value and the limit it failed, written so that they read apart: a value just over its
+/// limit gets the digits that show it ("4.04 % (max 4 %)", not "4 % (max 4 %)").
+fn apart(value: f64, limit: f64, percent: bool) -> (String, String) {
+    let first = if percent {
+        (pct(value), pct(limit))
+    } else {
+        (short(value), short(limit))
+    };
+    if first.0 != first.1 || value == limit || !(value.is_finite() && limit.is_finite()) {
+        return first;
+    }
+    // More significant digits than `pct` and `short` give, until the two differ.
+    let (scale, unit, from) = if percent {
+        (100.0, " %", 2)
+    } else {
+        (1.0, "", 5)
+    };
+    for digits in from..=17 {
+        let (v, l) = (
+            significant(scale * value, digits),
+            significant(scale * limit, digits),
+        );
+        if v != l {
+            return (format!("{v}{unit}"), format!("{l}{unit}"));
+        }
+    }
+    first
+}
+
+/// "1 bounce", "198 bounces".
+fn bounces(n: f64) -> String {
+    if n == 1.0 {
+        "1 bounce".into()
+    } else {
+        format!("{} bounces", short(n))
     }
 }
 
@@ -171,12 +215,11 @@ pub fn judge(
                     pct(criteria.max_contact_loss)
                 ));
             } else {
+                let (value, limit) = apart(loss, criteria.max_contact_loss, true);
                 failed.push(format!(
-                    "loss of contact: f = 0 in {} of samples {after}, {} bounces \
-                     (max_contact_loss {})",
-                    pct(loss),
-                    short(m.bounces),
-                    pct(criteria.max_contact_loss)
+                    "loss of contact: f = 0 in {value} of samples {after}, {} \
+                     (max_contact_loss {limit})",
+                    bounces(m.bounces),
                 ));
             }
         }
@@ -187,31 +230,29 @@ pub fn judge(
             } else {
                 "force oscillation with loss of contact"
             };
+            let (value, limit) = apart(osc, criteria.max_force_oscillation, true);
             failed.push(format!(
-                "{kind}: std(f − f_d) over the last 2 s is {} of f_d (max_force_oscillation {})",
-                pct(osc),
-                pct(criteria.max_force_oscillation)
+                "{kind}: std(f − f_d) over the last 2 s is {value} of f_d \
+                 (max_force_oscillation {limit})"
             ));
         }
         if let Some(limit) = criteria.force_limit {
             // The impact (0.5 s from first contact) is named: it is what a guarded
             // approach or a slower one changes, unlike a later peak.
+            let (impact_peak, impact_limit) = apart(m.impact_peak, limit, false);
+            let (force_peak, force_limit) = apart(m.force_peak, limit, false);
             let impact = format!(
-                "impact peak {} N (within 0.5 s of first contact at t = {} s)",
-                short(m.impact_peak),
+                "impact peak {impact_peak} N (within 0.5 s of first contact at t = {} s)",
                 short(m.first_contact_time)
             );
             match (exceeds(m.impact_peak, limit), exceeds(m.force_peak, limit)) {
                 (true, _) if m.force_peak > m.impact_peak => failed.push(format!(
-                    "{impact} above force_limit {} N (force peak {} N later)",
-                    short(limit),
-                    short(m.force_peak)
+                    "{impact} above force_limit {impact_limit} N (force peak {force_peak} N \
+                     later)"
                 )),
-                (true, _) => failed.push(format!("{impact} above force_limit {} N", short(limit))),
+                (true, _) => failed.push(format!("{impact} above force_limit {impact_limit} N")),
                 (false, true) => failed.push(format!(
-                    "force peak {} N above force_limit {} N",
-                    short(m.force_peak),
-                    short(limit)
+                    "force peak {force_peak} N above force_limit {force_limit} N"
                 )),
                 (false, false) => {}
             }
@@ -219,8 +260,8 @@ pub fn judge(
         if let Some(limit) = criteria.max_bounces {
             if exceeds(m.bounces, limit) {
                 failed.push(format!(
-                    "{} bounces above max_bounces {}",
-                    short(m.bounces),
+                    "{} above max_bounces {}",
+                    bounces(m.bounces),
                     short(limit)
                 ));
             }
@@ -237,19 +278,17 @@ pub fn judge(
     }
     if let Some(limit) = criteria.max_path_error {
         if exceeds(m.path_rms_error, limit) {
+            let (value, limit) = apart(m.path_rms_error, limit, false);
             failed.push(format!(
-                "path error {} m RMS above max_path_error {} m",
-                short(m.path_rms_error),
-                short(limit)
+                "path error {value} m RMS above max_path_error {limit} m"
             ));
         }
     }
     if let Some(limit) = criteria.max_torque_saturation {
         if exceeds(m.torque_saturation, limit) {
+            let (value, limit) = apart(m.torque_saturation, limit, true);
             failed.push(format!(
-                "torque saturated in {} of samples (max_torque_saturation {})",
-                pct(m.torque_saturation),
-                pct(limit)
+                "torque saturated in {value} of samples (max_torque_saturation {limit})"
             ));
         }
     }
@@ -301,6 +340,23 @@ mod tests {
         assert_eq!(short(-2.5e-7), "-2.500e-7");
         assert_eq!(pct(0.78), "78 %");
         assert_eq!(pct(0.00123), "0.12 %");
+    }
+
+    /// Issue #53, item 18: a value just over its limit read as equal to it.
+    #[test]
+    fn a_value_and_its_limit_read_apart() {
+        assert_eq!(apart(0.0404, 0.04, true), ("4.04 %".into(), "4 %".into()));
+        assert_eq!(apart(0.12, 0.04, true), ("12 %".into(), "4 %".into()));
+        assert_eq!(
+            apart(12.5812, 12.58, false),
+            ("12.581".into(), "12.58".into())
+        );
+        assert_eq!(apart(12.58 + 1e-12, 12.58, false).0, "12.580000000001");
+        assert_eq!(apart(3.0, 3.0, false), ("3".into(), "3".into()));
+        assert_eq!(
+            (bounces(1.0), bounces(198.0)),
+            ("1 bounce".into(), "198 bounces".into())
+        );
     }
 
     #[test]
