@@ -32,7 +32,7 @@ PANDA = ar.UrdfArm(
 FRICTIONS = (0.0, 0.1, 0.3, 0.5, 1.0)
 RADIUS = 0.3
 METRICS = ["force_rms_error", "force_ss_error", "force_peak", "tangential_force_mean",
-           "path_rms_error", "stable"]  # fmt: skip
+           "path_rms_error", "stable", "passed"]  # fmt: skip
 
 
 def scanned_part(spacing: float = 0.005, nodes: int = 41, seed: int = 3) -> ar.HeightField:

@@ -56,7 +56,8 @@ def run() -> tuple[dict[str, ar.Result], pl.DataFrame]:
     results = {name: ar.simulate(sc) for name, sc in cases().items()}
     table = pl.DataFrame(
         [
-            {"case": name, **{m: r.metrics[m] for m in METRICS}, "stable": r.stable}
+            {"case": name, **{m: r.metrics[m] for m in METRICS}, "stable": r.stable,
+             "passed": r.passed}
             for name, r in results.items()
         ]
     )
@@ -125,12 +126,13 @@ def torque_figure(results: dict[str, ar.Result]) -> Figure:
 
 def markdown(table: pl.DataFrame) -> str:
     units = {m: ar.METRICS[m].label for m in METRICS}
-    head = "| case | " + " | ".join(units[m] for m in METRICS) + " | stable |"
-    rule = "|---" * (len(METRICS) + 2) + "|"
+    head = "| case | " + " | ".join(units[m] for m in METRICS) + " | stable | passed |"
+    rule = "|---" * (len(METRICS) + 3) + "|"
     rows = []
     for r in table.iter_rows(named=True):
         cells = [f"{r[m]:.4g}" for m in METRICS]
-        rows.append(f"| {r['case']} | " + " | ".join(cells) + f" | {r['stable']} |")
+        rows.append(f"| {r['case']} | " + " | ".join(cells)
+                    + f" | {r['stable']} | {r['passed']} |")
     return "\n".join([head, rule, *rows]) + "\n"
 
 

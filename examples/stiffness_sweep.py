@@ -33,7 +33,8 @@ table = ar.sweep(
 )
 elapsed = time.perf_counter() - start
 print(f"{table.height} runs in {elapsed:.1f} s = {table.height / elapsed:.0f} runs/s")
-print(f"unstable: {(~table['stable']).sum()}")
+print(f"unstable: {(~table['stable']).sum()}, out of tolerance (stable, a criterion failed): "
+      f"{(table['stable'] & ~table['passed']).sum()}")
 print(table.select("force_peak", "force_ss_error", "z_rms_error").describe())
 
 table.write_parquet(args.out / "table.parquet")

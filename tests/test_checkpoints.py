@@ -224,3 +224,25 @@ def test_checkpoint_files_get_the_usual_permissions(tmp_path):
     os.umask(mask)
     for p in ck.iterdir():
         assert p.stat().st_mode & 0o777 == 0o666 & ~mask, p
+
+
+def test_a_checkpoint_of_the_lanes_is_not_resumed_by_the_scalar_path(tmp_path):
+    """Issue #53 item 2: a ``lanes=False`` sweep resumed from a ``lanes=True`` checkpoint
+    returned the lane rows without a word (they differ in the last bits)."""
+    ck = tmp_path / "ck"
+    run(checkpoint=ck)
+    with pytest.raises(ar.CheckpointMismatchError, match=r"holds a different sweep \(differs in"
+                       r" lanes\)"):  # fmt: skip
+        run(checkpoint=ck, lanes=False)
+    scalar = tmp_path / "scalar"
+    first = run(checkpoint=scalar, lanes=False)
+    again, warned = resume_scalar(scalar)
+    assert again.equals(first) and warned == []
+    assert first.equals(run(lanes=False))
+
+
+def resume_scalar(ck):
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        table = run(checkpoint=ck, lanes=False)
+    return table, [str(w.message) for w in record]

@@ -58,11 +58,13 @@ def test_readme_showcases_say_what_they_print(tmp_path, monkeypatch):
     assert ar.simulate(mine).verdict == "stable"
     assert sim.result().verdict.startswith("stable (torque saturated in 9 % of samples")
     eq17 = ar.simulate(mine.replace(**{"controller.law": "inverse_jacobian"}))
-    assert eq17.verdict.startswith("unstable: force oscillation, contact kept")
-    assert "11 % of f_d" in eq17.verdict
+    assert eq17.verdict.startswith("out of tolerance: force oscillation, contact kept")
+    assert "11 % of f_d" in eq17.verdict and "— driven: " in eq17.verdict
+    assert eq17.stable is True and eq17.passed is False
     fast = ar.simulate(real.replace(z_reference=ar.Sine(amplitude=0.05, omega=1.0)))
-    assert fast.verdict.startswith("unstable: force oscillation, contact kept")
+    assert fast.verdict.startswith("out of tolerance: force oscillation, contact kept")
     assert "22 % of f_d" in fast.verdict
+    assert fast.stable is True and fast.passed is False
     assert round(100 * fast.metrics["torque_saturation"]) == 14
 
 

@@ -15,10 +15,12 @@ def test_realism_example(tmp_path):
     rows = {r["case"]: r for r in table.iter_rows(named=True)}
     # A 40 N·m joint 2 cannot hold the arm: saturated almost always, not stable.
     assert rows["torque limits"]["torque_saturation"] > 0.99
-    assert not rows["torque limits"]["stable"]
-    # 60/60/20 N·m clips only the transient; everything else stays stable and close.
+    # Out of tolerance, not unstable (SPEC §23): held at its start the sagging arm keeps
+    # the force; the loss of contact comes with the motion.
+    assert rows["torque limits"]["stable"] and not rows["torque limits"]["passed"]
+    # 60/60/20 N·m clips only the transient; everything else passes and stays close.
     for case in ("ideal (paper)", "sensor", "damped wall", "limits 60/60/20", "all, 60/60/20"):
-        assert rows[case]["stable"], case
+        assert rows[case]["stable"] and rows[case]["passed"], case
         assert abs(rows[case]["force_peak"] - rows["ideal (paper)"]["force_peak"]) < 0.3
     assert rows["sensor"]["overshoot_pct"] > rows["ideal (paper)"]["overshoot_pct"]
     assert (tmp_path / "realism.png").stat().st_size > 10_000
@@ -88,7 +90,9 @@ def test_polishing_example(tmp_path):
     beliefs = {r["belief"]: r for r in tables["beliefs"].iter_rows(named=True)}
     true, flat = beliefs["true shape"], beliefs["flat (tangent plane)"]
     assert flat["force_rms_error"] > 2.5 * true["force_rms_error"]
-    assert true["stable"] and not flat["stable"]
+    # The flat belief's force error is the surface's, driven by the motion along it: out of
+    # tolerance, not unstable (SPEC §23).
+    assert true["passed"] and not flat["passed"] and flat["stable"]
     assert (tmp_path / "polishing.png").stat().st_size > 10_000
     assert (tmp_path / "polishing.md").read_text() == (
         ROOT / "docs/surfaces/polishing.md"

@@ -33,8 +33,10 @@ def test_an_approach_then_held_contact_is_not_contact_loss():
     assert m["contact_loss"] == 0.0
     assert "loss of contact" not in res.verdict
     # (It is judged on its force ripple instead: 2 cm further out, TDC's ripple at the
-    # friction reversals is 12 % of f_d, above max_force_oscillation.)
-    assert res.verdict.startswith("unstable: force oscillation, contact kept")
+    # friction reversals is 12 % of f_d, above max_force_oscillation: driven by the motion,
+    # so out of tolerance, not unstable.)
+    assert res.verdict.startswith("out of tolerance: force oscillation, contact kept")
+    assert res.stable is True and res.passed is False
     # From the trace: no sample with f = 0 from first contact + 1 s on.
     t, f = res.trace["t"].to_numpy(), res.trace["f"].to_numpy()
     assert np.all(f[t >= m["first_contact_time"] + 1.0 - 1e-9] > 0)
@@ -45,7 +47,7 @@ def test_an_impact_above_the_force_limit_fails_and_says_so():
     res = ar.simulate(sc)
     m = res.metrics
     assert m["impact_peak"] > 20.0 and m["impact_peak"] == m["force_peak"]
-    assert res.stable is False
+    assert res.passed is False and res.stable is True
     tc = ar.config._short(m["first_contact_time"])
     assert (f"impact peak {ar.config._short(m['impact_peak'])} N (within 0.5 s of first "
             f"contact at t = {tc} s) above force_limit 20 N") in res.verdict

@@ -78,9 +78,11 @@ def test_lane_runs_agree_with_simulate(figure, duration, vary):
         alone = ar.simulate(base.replace(seed=row["noise_seed"], **{p: row[p] for p in vary}))
         assert _same_sample(row["diverged_at"], alone.diverged_at), (figure, row["run_id"])
         assert row["stable"] == alone.stable, (figure, row["run_id"])
-        if not alone.stable:
-            # Diverged at the same sample, or bouncing (contact lost, SPEC §7): a bounce
-            # amplifies the last bits of exp, so only stable runs must agree to 1e-9.
+        assert row["passed"] == alone.passed, (figure, row["run_id"])
+        if not alone.passed:
+            # Diverged at the same sample, or bouncing (contact lost, SPEC §7, driven by the
+            # motion or not): a bounce amplifies the last bits of exp, so only runs that
+            # pass their criteria must agree to 1e-9.
             continue
         compared += 1
         for name in ar.METRICS:
@@ -187,10 +189,10 @@ def test_urdf_arm_runs_in_lanes_agree_with_simulate():
     for row, arm in zip(mixed.iter_rows(named=True), arms, strict=True):
         alone = ar.simulate(paper.replace(robot=arm))
         assert _same_sample(row["diverged_at"], alone.diverged_at)
-        assert row["stable"] == alone.stable
-        if alone.stable:
+        assert (row["stable"], row["passed"]) == (alone.stable, alone.passed)
+        if alone.passed:
             assert all(_agree(row[n], alone.metrics[n]) for n in ar.METRICS)
-    assert mixed.height == 5 and mixed["stable"].all()
+    assert mixed.height == 5 and mixed["stable"].all() and mixed["passed"].all()
 
 
 def _urdf_arms() -> dict[str, ar.UrdfArm]:
@@ -252,7 +254,8 @@ def test_urdf_stages_in_lanes_agree_with_simulate(arm_name):
             alone = ar.simulate(base.replace(seed=row["noise_seed"], **changes))
             assert _same_sample(row["diverged_at"], alone.diverged_at), (name, row["run_id"])
             assert row["stable"] == alone.stable, (name, row["run_id"])
-            if alone.stable is False:
+            assert row["passed"] == alone.passed, (name, row["run_id"])
+            if alone.passed is False:
                 continue
             compared += 1
             for m in ar.METRICS:

@@ -21,7 +21,7 @@ def run() -> ar.Result:
 
 def test_every_metric_is_defined_with_a_unit(run):
     assert set(run.metrics) == set(ar.METRICS)
-    assert [n for n in ar.METRICS if n not in ("stable", "diverged")] == ar.METRIC_NAMES
+    assert [n for n in ar.METRICS if n not in ("stable", "passed", "diverged")] == ar.METRIC_NAMES
     for m in ar.METRICS.values():
         assert m.unit and m.description and m.window and m.step_info
     assert ar.METRICS["z_rms_error"].unit == "m"
@@ -53,7 +53,7 @@ def test_generated_metrics_table_has_units_in_headers(run):
               "overshoot_pct [%]", "settling_time [s]", "force_oscillation [fraction]"]  # fmt: skip
     for label in labels:
         assert f" {label} " in header
-    assert re.search(r"\| stable \| diverged \|$", header)
+    assert re.search(r"\| stable \| passed \| diverged \|$", header)
 
 
 def test_unknown_metric_suggests_the_closest_name(run):

@@ -86,16 +86,20 @@ def test_scenarios_follow_spec_section_9():
     assert fig5.wall is None and fig5.admittance is None
 
 
-def test_only_model_free_force_control_is_unstable(table):
+def test_only_model_free_force_control_fails_and_none_is_unstable(table):
     """No curve diverges. Model-free force control (figs. 12, 13, 18) loses contact in
-    35-38 % of the samples after 1 s: the paper's "poor tracking", judged not stable.
-    Every other curve is stable."""
+    35-38 % of the samples after 1 s: the paper's "poor tracking", which fails its criteria.
+    It leaves the wall once with the motion and keeps it with the motion held, so it is
+    out of tolerance, not unstable (SPEC §23). Every other curve passes."""
     assert table.height == 29
     assert not table["diverged"].any()
-    unstable = table.filter(~pl.col("stable"))
-    assert unstable["figure"].to_list() == ["fig12", "fig13", "fig18"]
-    assert (unstable["contact_loss"] > 0.3).all()
-    assert (table.filter(pl.col("stable"))["force_oscillation"].fill_nan(0.0) <= 0.1).all()
+    assert table["stable"].all()
+    failed = table.filter(~pl.col("passed"))
+    assert failed["figure"].to_list() == ["fig12", "fig13", "fig18"]
+    assert (failed["contact_loss"] > 0.3).all()
+    assert failed["verdict"].str.starts_with("out of tolerance: loss of contact").all()
+    assert failed["verdict"].str.contains("— driven: with the motion held").all()
+    assert (table.filter(pl.col("passed"))["force_oscillation"].fill_nan(0.0) <= 0.1).all()
 
 
 def test_scheme1_offset_and_scheme2_none(table):

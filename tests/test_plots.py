@@ -122,10 +122,22 @@ def test_stability_map_plot_with_overlay():
     fig = ar.plot.stability_map(t, overlay=sw)
     ax = fig.axes[0]
     assert ax.get_xscale() == "log"
-    assert "agrees in" in ax.get_title()
+    assert "agrees with predicted `stable` in" in ax.get_title()
     labels = [h.get_label() for h in ax.get_legend().legend_handles]
     assert any("boundary" in s for s in labels) and any("simulated" in s for s in labels)
     assert np.isfinite(t["spectral_radius"].to_numpy()).all()
+    # Coloured and compared by either simulated answer (SPEC §23).
+    both = t.select("wall.stiffness", "admittance.b", "stable").join(
+        sw.select("wall.stiffness", "admittance.b", "stable", "passed"),
+        on=["wall.stiffness", "admittance.b"], suffix="_sim")  # fmt: skip
+    for by, column in (("stable", "stable_sim"), ("passed", "passed")):
+        ax = ar.plot.stability_map(t, overlay=sw, by=by).axes[0]
+        agree = float((both["stable"] == both[column]).mean())  # type: ignore[arg-type]
+        assert (f"simulated `{by}` agrees with predicted `stable` in {agree:.0%} of 6 cells"
+                in ax.get_title())
+        ok = int(sw[by].fill_null(False).sum())
+        labels = [h.get_label() for h in ax.get_legend().legend_handles]
+        assert f"simulated {by} ({ok})" in labels, labels
 
 
 # Issue 21 items 9 and 10: labels derived from the scenario, axes a reader can trust.
@@ -159,7 +171,8 @@ def ka_grid() -> pl.DataFrame:
 
 
 def test_a_grid_is_drawn_as_categories(ka_grid):
-    fig = ar.plot.sweep_heatmap(ka_grid, "admittance.b", "admittance.ka", "force_peak")
+    fig = ar.plot.sweep_heatmap(ka_grid, "admittance.b", "admittance.ka", "force_peak",
+                                by="passed")  # fmt: skip
     ax = fig.axes[0]
     assert ax.get_yscale() == "linear" and ax.get_ylim() == (-0.5, 2.5)  # not from -0.4
     assert [t.get_text() for t in ax.get_yticklabels()] == ["0.1", "1", "2"]
@@ -170,15 +183,29 @@ def test_a_grid_is_drawn_as_categories(ka_grid):
     for row in ka_grid.iter_rows(named=True):
         r = [0.1, 1.0, 2.0].index(row["admittance.ka"])
         c = [200.0, 400.0, 800.0].index(row["admittance.b"])
-        if row["stable"]:
+        if row["passed"]:
             assert grid[r, c] == row["force_peak"]
         else:
-            assert np.isnan(grid[r, c])  # drawn as the "unstable" category
-    # Both kinds of cell were drawn and checked: k_a = 1 is stable at every b (fig. 14's
-    # gains), k_a = 0.1 unstable at every b.
-    assert 0 < ka_grid["stable"].sum() < ka_grid.height
-    assert ka_grid.filter(pl.col("admittance.ka") == 1.0)["stable"].all()
-    assert not ka_grid.filter(pl.col("admittance.ka") == 0.1)["stable"].any()
+            assert np.isnan(grid[r, c])  # drawn as the "failed" category
+    # Both kinds of cell were drawn and checked: k_a = 1 passes at every b (fig. 14's
+    # gains), k_a = 0.1 fails at every b.
+    assert 0 < ka_grid["passed"].sum() < ka_grid.height
+    assert ka_grid.filter(pl.col("admittance.ka") == 1.0)["passed"].all()
+    assert not ka_grid.filter(pl.col("admittance.ka") == 0.1)["passed"].any()
+    assert "failed: every run in the cell" in [t.get_text() for t in ax.get_legend().texts]
+    # k_a = 0.1 is slow, not unstable: its ripple is the motion's (SPEC §23), so split by
+    # `stable` (the default) its cells hold their runs' values.
+    assert ka_grid.filter(pl.col("admittance.ka") == 0.1)["stable"].all()
+    by_stable = cell_values(ar.plot.sweep_heatmap(ka_grid, "admittance.b", "admittance.ka",
+                                                  "force_peak")).reshape(3, 3)  # fmt: skip
+    for row in ka_grid.iter_rows(named=True):
+        r = [0.1, 1.0, 2.0].index(row["admittance.ka"])
+        c = [200.0, 400.0, 800.0].index(row["admittance.b"])
+        assert np.isfinite(by_stable[r, c]) == bool(row["stable"])
+    with pytest.raises(ar.ArgumentError, match="by = 'stabel' is invalid: must be one of "
+                                               "stable, passed"):
+        ar.plot.sweep_heatmap(ka_grid, "admittance.b", "admittance.ka", "force_peak",
+                              by="stabel")  # fmt: skip
     # The predicted map of the same grid: a log axis from above 0, a tick at each value.
     t = ar.analysis.stability_map(ar.paper.scenario("fig14"), x={"admittance.b": [200.0, 800.0]},
                                   y={"admittance.ka": [0.1, 1.0, 2.0]})  # fmt: skip

@@ -54,7 +54,7 @@ def test_no_documented_difference_is_printed_as_agreeing(table):
     assert row[("fig14", "z RMS 0.0044")][2:] == ["z RMS 0.000261 m (paper 0.0044)", CANNOT]
     assert row[("fig10", "k_a = 2 gives 0.45 % overshoot")][3] == DIFFERS
     assert "## Fig. 12: Nonmodel-based control (Scheme 2), step — agrees in part" in report
-    assert ("- Stability: **MF, Scheme 2, k_a=1: unstable: loss of contact: f = 0 in 36 %"
+    assert ("- Verdict: **MF, Scheme 2, k_a=1: out of tolerance: loss of contact: f = 0 in 36 %"
             in report)
 
 

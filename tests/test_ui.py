@@ -159,6 +159,44 @@ def test_the_dominant_pole_is_described_truthfully():
         ("dominant pole damping ζ", f"{v['dominant_damping']:.3g}", "")]
 
 
+def test_the_page_says_why_prediction_and_simulation_differ():
+    """Issue #54 part 3: one line when predicted and simulated `stable` differ, none when
+    they agree."""
+    from admit_rs.ui import runs
+
+    def both(sc):
+        res = ar.simulate(sc)
+        return runs._view(res, runs.joint_count(res.trace.columns)), runs.predict(sc)
+
+    # fig. 14 as given: both stable, no line.
+    view, pred = both(ar.paper.scenario("fig14"))
+    assert view.stable is True and pred.values["stable"] is True
+    assert runs.disagreement(view, pred) is None
+    # k_e = 1e5, b = 400: the model is (barely) unstable at rest; the 10-s run is stable.
+    view, pred = both(ar.paper.scenario("fig14").replace(
+        **{"wall.stiffness": 1e5, "admittance.b": 400.0}))  # fmt: skip
+    rho = pred.values["spectral_radius"]
+    assert view.stable is True and pred.values["stable"] is False and rho >= 1
+    assert runs.disagreement(view, pred) == (
+        f"the linear model is unstable about the equilibrium (ρ = {rho:.5g} ≥ 1); in the run "
+        "the oscillation is held by what the model leaves out (Coulomb friction beyond its "
+        "describing-function gain, the contact clamp), or grows too slowly to fail within "
+        "10 s")
+    # A model stable by ρ that misses a margin.
+    margin = runs.Prediction({"stable": False, "spectral_radius": 0.998,
+                              "verdict": "unstable: gain margin 1.5 < 2"}, None)  # fmt: skip
+    assert runs.disagreement(view, margin) == (
+        "the linear model is stable (ρ = 0.998) but misses a margin of ar.analysis.Margins "
+        "(gain margin 1.5 < 2); the run has no margin to miss")
+    # A run that diverged where the model is stable: the transient's line.
+    diverged = runs.RunView({}, 3, {"diverged": True}, "unstable: diverged at t = 0.3 s (…)",
+                            False, False, None, 10.0, True)  # fmt: skip
+    stable = runs.Prediction({"stable": True, "spectral_radius": 0.99, "verdict": "stable"}, None)
+    assert runs.disagreement(diverged, stable).startswith("the run diverged: a large-signal")
+    # Nothing to compare: no line.
+    assert runs.disagreement(diverged, runs.Prediction(None, None, "no model")) is None
+
+
 def test_an_uploaded_toml_is_a_base_while_the_server_runs():
     sc = ar.paper.scenario("fig19").replace(**{"admittance.b": 500.0})
     raw = ar.export.toml(sc).encode()
@@ -322,6 +360,9 @@ def test_default_page_is_stable_and_plots_the_run(server, chrome):
     assert "Simulated:" in verdict and ">stable<" in verdict
     page = browser.text(chrome)
     assert "Simulated: stable" in page and "Predicted: stable" in page
+    # Both answers of SPEC §23, and no "why" line where prediction and run agree.
+    assert "class='stable'>yes<" in verdict and "class='passed'>yes<" in verdict
+    assert "Why they differ" not in page
     assert "force_ss_error" in page
     # fig. 14's dominant pole is real: its time constant, not "0 Hz, ζ = 1".
     sc = ar.paper.scenario("fig14")

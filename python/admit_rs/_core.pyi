@@ -68,10 +68,12 @@ def simulate(scenario: dict[str, Any]) -> dict[str, Any]:
     """Run one scenario with the GIL released.
 
     Returns ``{"columns": FlatTrace,
-    "metrics": {name: float, "stable": bool | None, "diverged": bool},
+    "metrics": {name: float, "stable": bool | None, "passed": bool | None, "diverged": bool},
     "verdict": str, "diverged_at": float | None, "divergence_cause": str | None}``;
-    ``stable`` and ``verdict`` are judged by the scenario's ``criteria`` (None: not
-    assessed). With ``substeps="auto"`` also ``"substeps"`` (the count chosen),
+    ``stable`` (the loop's dynamics, SPEC §23), ``passed`` and ``verdict`` are judged by
+    the scenario's ``criteria`` (None: not assessed); a run that fails a criterion the loop
+    may sustain is judged by its held run too (run here). With ``substeps="auto"`` also
+    ``"substeps"`` (the count chosen),
     ``"substep_error"`` (its estimated largest force error [N]), ``"substep_standing"``
     ("met", "diverged", "not converging", "limit") and ``"substep_note"`` (a sentence).
     """
@@ -136,7 +138,8 @@ def simulate_batch(
     """Run a batch on ``threads`` threads (None: all cores), GIL released; ``lanes``: runs
     four or eight at a time in SIMD lanes (within 1e-9 of the scalar path).
 
-    Returns ``{"metrics": {name: ndarray}, "stable": list[bool | None], "verdict": list[str],
+    Returns ``{"metrics": {name: ndarray}, "stable": list[bool | None],
+    "passed": list[bool | None], "verdict": list[str],
     "diverged": ndarray[bool],
     "diverged_at": ndarray (NaN when the run completed), "divergence_cause": list[str | None],
     "substeps": ndarray[int64] (the count each run was integrated with: its own, or what

@@ -265,7 +265,10 @@ def predict(
     [samples] (:class:`Margins` says where the loop is cut); ``peak_joint_speed`` and
     ``friction_amplitude`` [rad/s] (the describing-function amplitude used); ``stable``:
     ρ < 1 and every margin of ``margins`` (default :class:`Margins()`) met; ``verdict``
-    says which one failed.
+    says which one failed. A loop without a contact equilibrium (it cannot hold the tool on
+    the surface: it bounces or leaves it) is predicted unstable: ``stable`` False, the
+    numbers NaN and ``verdict`` ``"unstable: no contact equilibrium: ..."`` with the
+    reason (SPEC §23); a scenario the model does not cover raises :class:`AnalysisError`.
 
     ``friction``: as in :func:`linearize`; the default ``"step"`` (Coulomb friction at its
     describing-function gain for the step's own joint speeds) is the linearisation
@@ -281,11 +284,23 @@ def predict(
     scenario = _check_scenario(scenario, "predict")
     _check_friction(scenario)
     row = _predict_points(scenario, [{}], None, friction, margins).row(0, named=True)
-    _raise_if(row.pop("error"))
+    error = row.pop("error")
+    if error is not None and not error.startswith(NO_EQUILIBRIUM):
+        raise AnalysisError(error)
     out: dict[str, float | bool | str] = {}
     for k, v in row.items():
         out[k] = bool(v) if k == "stable" else str(v) if k == "verdict" else float(v)
+    if error is not None:
+        # No steady contact to hold: the loop cannot keep contact (SPEC §23), a prediction
+        # of its own, not an exception.
+        out["stable"] = False
+        out["verdict"] = f"unstable: {error}"
     return out
+
+
+NO_EQUILIBRIUM = "no contact equilibrium"
+"""How the core's error for a loop without a steady contact begins (:func:`predict` reads
+it as a predicted loss of contact)."""
 
 
 def _numeric_axis(scenario: Scenario, spec: Any, axis: str) -> tuple[str, list[float]]:
@@ -454,15 +469,17 @@ class TuneResult:
     verification: pl.DataFrame
     """The box's corners and centre simulated with the chosen gains and the motion held
     (the linearised setup): the ``over`` parameters, predicted and simulated ``stable``
-    (the simulated one by the scenario's ``criteria``, null if not assessed) with its
-    ``verdict``, ``overshoot_pct``, ``settling_time``; and the scenario as given, its motion
-    reference included: ``stable_with_motion``, ``verdict_with_motion``,
+    (the simulated one: the loop's dynamics, SPEC §23, null if not assessed), ``passed``
+    (the scenario's ``criteria`` met) with its ``verdict``, ``overshoot_pct``,
+    ``settling_time``; and the scenario as given, its motion reference included:
+    ``stable_with_motion``, ``passed_with_motion``, ``verdict_with_motion``,
     ``overshoot_pct_with_motion``; the first-contact figures of both, ``impact_peak``,
     ``bounces``, ``impact_peak_with_motion``, ``bounces_with_motion``."""
     worst_settling_time: float
     """Predicted worst-case settling time over the box [s] (the search's objective)."""
     verified: bool
-    """Every verification run is stable, with the motion held and with it, the runs with
+    """Every verification run passes its criteria (so is stable too), with the motion held
+    and with it, the runs with
     the motion held are within the overshoot limit, and every run within ``max_impact_peak``
     and ``max_bounces`` when they are set."""
     max_overshoot_pct: float
@@ -508,13 +525,15 @@ class TuneResult:
             f"{self.predicted_overshoot_limit:.3g} %)",
         ]
         if v.height:
-            held = int(v["stable"].fill_null(False).sum())
-            moving = int(v["stable_with_motion"].fill_null(False).sum())
+            held = int(v["passed"].fill_null(False).sum())
+            moving = int(v["passed_with_motion"].fill_null(False).sum())
+            moving_stable = int(v["stable_with_motion"].fill_null(False).sum())
             lines.append(
                 f"simulated at {v.height} points (corners and centre), motion held: {held} "
-                f"stable, worst overshoot {over_sim:.2f} % (limit {self.max_overshoot_pct:g} "
+                f"passed, worst overshoot {over_sim:.2f} % (limit {self.max_overshoot_pct:g} "
                 f"%), worst settling {settle_sim:.3f} s; with the scenario's motion: "
-                f"{moving} stable -> " + ("verified" if self.verified else "NOT verified")
+                f"{moving} passed, {moving_stable} stable -> "
+                + ("verified" if self.verified else "NOT verified")
             )
             lines += [f"  {reason}" for reason in self._failures()]
         return "\n".join(lines)
@@ -525,12 +544,12 @@ class TuneResult:
         over = list(self.verification.columns[: self.verification.columns.index("point")])
         for r in self.verification.iter_rows(named=True):
             at = ", ".join(f"{k} = {r[k]:.4g}" for k in over) + f" ({r['point']})"
-            if r["stable"] is not True:
+            if r["passed"] is not True:
                 out.append(f"{at}, motion held: {r['verdict']}")
             elif r["overshoot_pct"] > self.max_overshoot_pct:
                 out.append(f"{at}, motion held: overshoot {r['overshoot_pct']:.2f} % > "
                            f"{self.max_overshoot_pct:g} %")  # fmt: skip
-            if r["stable_with_motion"] is not True:
+            if r["passed_with_motion"] is not True:
                 out.append(f"{at}, with motion: {r['verdict_with_motion']}")
         return out
 
@@ -618,10 +637,11 @@ def tune(
     judged by its worst case there. Predictions use ``friction="step"`` (a force step from
     rest is a large signal). The force step is judged with the motion held at s(0), as
     linearised; the verification simulates that, and also the scenario as given
-    (``stable_with_motion``). If the simulated overshoot exceeds the limit (or a run is
-    unstable), the excess of the simulated over the predicted overshoot is carried to the
-    nearest grid points as a tighter limit there (the margin doubled after an unstable
-    run) and the search repeated, at most ``corrections`` times;
+    (``passed_with_motion``): the gains are chosen on ``passed`` (the scenario's criteria
+    met) and ``stable`` is reported beside it (SPEC §23). If the simulated overshoot exceeds
+    the limit (or a run fails its criteria), the excess of the simulated over the predicted
+    overshoot is carried to the nearest grid points as a tighter limit there (the margin
+    doubled after an unstable run) and the search repeated, at most ``corrections`` times;
     ``predicted_overshoot_limit`` (the tightest limit used) and ``rounds`` say what was
     needed. ``max_impact_peak`` [N] and ``max_bounces`` bound the first contact (SPEC §16):
     the linear model cannot predict an impact, so they are judged on the verification runs
@@ -684,12 +704,12 @@ def tune(
         held = bool(
             verify
             and verification.height > 0
-            and verification["stable"].fill_null(False).all()
+            and verification["passed"].fill_null(False).all()
             and (verification["overshoot_pct"] <= max_overshoot_pct).all()
             and within
         )
         verified = held and bool(
-            verification["stable_with_motion"].fill_null(False).all()
+            verification["passed_with_motion"].fill_null(False).all()
             and _within_contact_bounds(verification, max_impact_peak, max_bounces,
                                        "_with_motion")
         )  # fmt: skip
@@ -850,12 +870,14 @@ def _verify(
     columns["point"] = ["corner"] * len(corners) + ["centre"]
     columns["predicted_stable"] = pred["stable"]
     columns["stable"] = pl.Series(sim["stable"], dtype=pl.Boolean)
+    columns["passed"] = pl.Series(sim["passed"], dtype=pl.Boolean)
     columns["verdict"] = pl.Series(sim["verdict"], dtype=pl.String)
     columns["predicted_overshoot_pct"] = pred["overshoot_pct"]
     columns["overshoot_pct"] = sim["metrics"]["overshoot_pct"]
     columns["predicted_settling_time"] = pred["settling_time"]
     columns["settling_time"] = sim["metrics"]["settling_time"]
     columns["stable_with_motion"] = pl.Series(moving["stable"], dtype=pl.Boolean)
+    columns["passed_with_motion"] = pl.Series(moving["passed"], dtype=pl.Boolean)
     columns["verdict_with_motion"] = pl.Series(moving["verdict"], dtype=pl.String)
     columns["overshoot_pct_with_motion"] = moving["metrics"]["overshoot_pct"]
     for name in ("impact_peak", "bounces"):

@@ -32,10 +32,10 @@ if TYPE_CHECKING:
     from admit_rs.config import Scenario
 
 EXIT_CODES = """exit codes:
-  0    success (run: the scenario is stable)
+  0    success (run: the scenario is stable and passes its criteria)
   2    invalid input: bad parameter, unknown key, unreadable TOML, missing file, bad usage
-  3    run: the scenario completed or diverged but is not stable, or is too short to
-       assess (see "verdict");
+  3    run: the scenario is unstable, out of tolerance (stable, but a criterion
+       fails) or too short to assess (see "verdict");
        tune: the simulation did not verify the tuned gains
   130  interrupted (Ctrl-C); sweep writes the finished runs first"""
 
@@ -116,14 +116,15 @@ def _run(args: argparse.Namespace) -> int:
         result.trace.write_parquet(args.output)
     if args.plot:
         result.plot().savefig(args.plot, dpi=100)
-    report = {"stable": result.stable, "diverged": result.diverged, "verdict": result.verdict,
+    report = {"stable": result.stable, "passed": result.passed, "diverged": result.diverged,
+              "verdict": result.verdict,
               "diverged_at": result.diverged_at, "divergence_cause": result.divergence_cause,
               "metrics": dict(result.metrics)}  # fmt: skip
     if args.format == "table":
         print(_table(report))
     else:
         print(json.dumps(_json_safe(report), indent=2, allow_nan=False))
-    return 0 if result.stable is True else 3
+    return 0 if result.passed is True else 3
 
 
 def _json_safe(value: Any) -> Any:
@@ -165,9 +166,11 @@ def _table(report: dict[str, Any]) -> str:
     width = max(len(r[0]) for r in rows)
     vwidth = max(len(r[1]) for r in rows[1:])
     lines = [f"{n:<{width}}  {v:>{vwidth}}  {u}".rstrip() for n, v, u in rows]
-    if not settled:
-        what = "not assessed" if report["stable"] is None else "NOT STABLE"
+    what = {None: "not assessed", False: "NOT STABLE", True: "OUT OF TOLERANCE"}[
+        report["stable"]]
+    if report["passed"] is not True:
         lines.insert(0, f"{what}: {report['verdict']}")
+    if not settled:
         lines.append(f"* the run is {what.lower()}: these numbers describe no settled "
                      "response (steady error, rise, overshoot); do not read them as its "
                      "performance")  # fmt: skip
@@ -231,9 +234,11 @@ def _sweep(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - start
     table.write_parquet(args.output)
     unstable = int((table["stable"] == False).sum())  # noqa: E712 (a polars mask)
+    out_of_tolerance = int(((table["stable"] == True) & (table["passed"] == False)).sum())  # noqa: E712
     unassessed = table["stable"].null_count()
     print(f"{table.height} runs in {elapsed:.1f} s ({table.height / elapsed:.0f} runs/s),"
-          f" {unstable} unstable, {unassessed} not assessed -> {args.output}")  # fmt: skip
+          f" {unstable} unstable, {out_of_tolerance} out of tolerance, {unassessed} not"
+          f" assessed -> {args.output}")  # fmt: skip
     return 0
 
 

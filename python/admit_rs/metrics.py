@@ -128,13 +128,20 @@ METRICS: Mapping[str, Metric] = MappingProxyType({
                "URDF position limit (rad for revolute joints, m for prismatic ones); 0 if none, "
                "and 0 for arms without limits (the three-link arm)", _WHOLE, "–",
                "every run"),
-        Metric("stable", "bool or null", "judged by Scenario.criteria (ar.Criteria): False "
-               "when the run diverged or any criterion that is set fails (by default "
-               "force_oscillation ≤ 0.1 and contact_loss ≤ 0.05 for force-controlled runs); "
-               "None (null in tables) when a force-controlled run is not assessed "
-               "(assessed_time < min_assessed, or f_d ≡ 0 in the window); True otherwise. "
-               "Result.verdict (a sweep's verdict column) names each failed criterion with "
-               "its value and limit", _WHOLE, "–", "every run"),
+        Metric("stable", "bool or null", "the loop's dynamics (SPEC §23): False when the "
+               "run diverged, or fails max_force_oscillation, max_contact_loss or max_bounces "
+               "of Scenario.criteria (ar.Criteria) and still fails it in the same run with "
+               "its drives held (the motion held at its start, f_d held, no sensor noise): an "
+               "oscillation or a loss of contact the loop sustains by itself; None (null in "
+               "tables) when a force-controlled run is not assessed (assessed_time < "
+               "min_assessed, or f_d ≡ 0 in the window); True otherwise, a ripple the motion "
+               "drives included", _WHOLE, "–", "every run"),
+        Metric("passed", "bool or null", "every criterion of Scenario.criteria met: False "
+               "when the run diverged or any criterion that is set fails, driven or not (by "
+               "default force_oscillation ≤ 0.1 and contact_loss ≤ 0.05 for force-controlled "
+               "runs); None when not assessed; True otherwise. Result.verdict (a sweep's "
+               "verdict column) says \"unstable: …\" or \"out of tolerance: …\" and names each "
+               "failed criterion with its value and limit", _WHOLE, "–", "every run"),
         Metric("diverged", "bool", "the run stopped early: a non-finite state, a singular "
                "Jacobian or a joint speed |q̇| ≥ the velocity limit (100 rad/s); its error metrics "
                "are NaN and diverged_at / divergence_cause say when and why", _WHOLE, "–",

@@ -323,20 +323,43 @@ def _clip_torques(ax: Any, trace: pl.DataFrame) -> str:
     return f"\nclipped: spike to {extreme:.0f} N·m at t = {at:.3g} s off scale"
 
 
-def _stable_mask(table: pl.DataFrame) -> npt.NDArray[np.bool_]:
-    """Runs judged stable; a run not assessed (null: too short) is not among them."""
-    return (table["stable"] == True).fill_null(False).to_numpy().astype(bool)  # noqa: E712
+_JUDGED_BY: dict[str, tuple[str, str, str]] = {
+    "stable": ("stable", "unstable", "not stable"),
+    "passed": ("passed", "failed", "not passed"),
+}
+"""A judgement a sweep plot can split runs by (SPEC §23): the word for a run that has it,
+one that has it not, and the group when some were not assessed."""
 
 
-def _bad(table: pl.DataFrame) -> str:
-    """What the runs outside :func:`_stable_mask` are: "unstable", or "not stable" when some
-    were not assessed (null ``stable``)."""
-    return "not stable" if table["stable"].null_count() else "unstable"
+def _judged(table: pl.DataFrame, by: str) -> npt.NDArray[np.bool_]:
+    """Runs judged ``by`` (``stable``: the loop's dynamics; ``passed``: the criteria met);
+    a run not assessed (null: too short) is not among them."""
+    if by not in _JUDGED_BY:
+        raise ArgumentError(f"by = {by!r} is invalid: must be one of {', '.join(_JUDGED_BY)}")
+    from admit_rs._names import check_column
+
+    check_column(table.columns, by, "column")
+    return (table[by] == True).fill_null(False).to_numpy().astype(bool)  # noqa: E712
 
 
-def sweep_scatter(table: pl.DataFrame, x: str, metric: str, *, logx: bool | None = None) -> Figure:
+def _good(by: str) -> str:
+    return _JUDGED_BY[by][0]
+
+
+def _bad(table: pl.DataFrame, by: str = "stable") -> str:
+    """What the runs outside :func:`_judged` are: "unstable" / "failed", or "not stable" /
+    "not passed" when some were not assessed (null)."""
+    _, bad, unassessed = _JUDGED_BY[by]
+    return unassessed if table[by].null_count() else bad
+
+
+def sweep_scatter(
+    table: pl.DataFrame, x: str, metric: str, *, logx: bool | None = None, by: str = "stable"
+) -> Figure:
     """A metric against one parameter, one dot per run; unstable runs as red crosses (at
-    their value, or at the top of the axis when it is NaN because the run diverged)."""
+    their value, or at the top of the axis when it is NaN because the run diverged).
+    ``by="passed"`` splits the runs by their criteria instead (a stable run out of
+    tolerance is a cross then, SPEC §23)."""
     from matplotlib.figure import Figure
 
     from admit_rs._names import check_column
@@ -345,15 +368,15 @@ def sweep_scatter(table: pl.DataFrame, x: str, metric: str, *, logx: bool | None
         check_column(table.columns, name, "column")
     fig = Figure(figsize=(8, 5), layout="constrained")
     ax = fig.subplots()
-    stable = _stable_mask(table)
+    stable = _judged(table, by)
     xs, ys = table[x].to_numpy(), table[metric].to_numpy().astype(float)
-    ax.scatter(xs[stable], ys[stable], s=8, alpha=0.6, label=f"stable ({stable.sum()})")
+    ax.scatter(xs[stable], ys[stable], s=8, alpha=0.6, label=f"{_good(by)} ({stable.sum()})")
     if (~stable).any():
         finite = ys[np.isfinite(ys)]
         top = finite.max() if finite.size else 1.0
         bad = np.where(np.isfinite(ys[~stable]), ys[~stable], top)
         ax.scatter(xs[~stable], bad, marker="x", color="r",
-                   label=f"{_bad(table)} ({(~stable).sum()})")  # fmt: skip
+                   label=f"{_bad(table, by)} ({(~stable).sum()})")  # fmt: skip
     if logx if logx is not None else _log_axis(xs):
         ax.set_xscale("log")
     ax.set_xlabel(_with_unit(x))
@@ -364,8 +387,9 @@ def sweep_scatter(table: pl.DataFrame, x: str, metric: str, *, logx: bool | None
     return fig
 
 
-def sweep_hist(table: pl.DataFrame, metric: str, bins: int = 50) -> Figure:
-    """Histogram of a metric over the stable runs; the unstable count in the title."""
+def sweep_hist(table: pl.DataFrame, metric: str, bins: int = 50, *, by: str = "stable") -> Figure:
+    """Histogram of a metric over the stable runs (``by="passed"``: the runs that passed
+    their criteria); the count of the others in the title."""
     from matplotlib.figure import Figure
 
     from admit_rs._names import check_column
@@ -373,14 +397,15 @@ def sweep_hist(table: pl.DataFrame, metric: str, bins: int = 50) -> Figure:
     check_column(table.columns, metric, "column")
     fig = Figure(figsize=(8, 5), layout="constrained")
     ax = fig.subplots()
-    stable = _stable_mask(table)
+    stable = _judged(table, by)
     values = table[metric].to_numpy()[stable]
     values = values[np.isfinite(values)]
     ax.hist(values, bins=bins)
     ax.set_xlabel(_metric_label(metric))
     ax.set_ylabel("runs")
     ax.grid(True, alpha=0.3)
-    ax.set_title(f"{metric}: {stable.sum()} stable, {(~stable).sum()} {_bad(table)} runs")
+    ax.set_title(f"{metric}: {stable.sum()} {_good(by)}, {(~stable).sum()} {_bad(table, by)} "
+                 "runs")
     return fig
 
 
@@ -423,6 +448,7 @@ def sweep_heatmap(
     logy: bool | None = None,
     units: dict[str, str] | None = None,
     overlay_unstable: bool = False,
+    by: str = "stable",
 ) -> Figure:
     """A metric over two parameters, to answer "which gains are safe".
 
@@ -442,7 +468,10 @@ def sweep_heatmap(
     grid, whose cells then span halfway to the next value). Axes and colour bar show
     units (metrics from :data:`admit_rs.METRICS`, parameters from the blocks' docs;
     ``units={"path": "unit"}`` adds or overrides). ``overlay_unstable`` marks every unstable
-    run with a red ×. Unknown ``x``/``y``/``metric`` raise :class:`admit_rs.UnknownNameError`.
+    run with a red ×. ``by="passed"`` splits the runs by their criteria instead of their
+    stability (SPEC §23: a ripple the motion drives is stable and fails its criteria): cells
+    then aggregate the runs that passed and mark the ones that failed. Unknown
+    ``x``/``y``/``metric`` raise :class:`admit_rs.UnknownNameError`.
 
     Example:
         >>> import admit_rs as ar
@@ -474,7 +503,7 @@ def sweep_heatmap(
     xe, xi, xp = _cell_axis(xs, bins, logx, xcat)
     ye, yi, yp = _cell_axis(ys, bins, logy, ycat)
     values = table[metric].to_numpy().astype(float)
-    stable = _stable_mask(table)
+    stable = _judged(table, by)
     grid = np.full((len(ye) - 1, len(xe) - 1), np.nan)
     unstable = np.zeros_like(grid, dtype=int)
     runs = np.zeros_like(grid, dtype=int)
@@ -493,7 +522,7 @@ def sweep_heatmap(
     ax.set_facecolor("0.85")  # cells without a value show the background
     mesh = ax.pcolormesh(xe, ye, grid, shading="flat")
     label = _metric_label(metric, units)
-    fig.colorbar(mesh, ax=ax, label=f"{agg} {label} (stable runs)")
+    fig.colorbar(mesh, ax=ax, label=f"{agg} {label} ({_good(by)} runs)")
     handles: list[Any] = []
     if (runs == 0).any():
         handles.append(Patch(facecolor="0.85", edgecolor="0.5", label="no runs in cell"))
@@ -512,12 +541,13 @@ def sweep_heatmap(
         ax.text(cx, cy, f"{unstable[r, c]} ✗", color="w" if all_bad[r, c] else "k",
                 ha="center", va="center", fontsize=8, bbox=box)  # fmt: skip
     if all_bad.any():
-        handles.append(Patch(facecolor="#8b0000", label=f"{_bad(table)}: every run in the cell"))
+        handles.append(Patch(facecolor="#8b0000",
+                             label=f"{_bad(table, by)}: every run in the cell"))  # fmt: skip
     if some_bad.any():
         handles.append(Patch(fill=False, hatch="xx", edgecolor="r",
-                             label=f"some runs {_bad(table)} (count ✗)"))  # fmt: skip
+                             label=f"some runs {_bad(table, by)} (count ✗)"))  # fmt: skip
     if overlay_unstable and (~stable).any():
-        bad = f"{_bad(table)} run ({(~stable).sum()})"
+        bad = f"{_bad(table, by)} run ({(~stable).sum()})"
         handles.append(ax.scatter(xp[~stable], yp[~stable], marker="x", color="r", s=12,
                                   lw=0.8, label=bad))  # fmt: skip
     _finish_grid_axes(ax, xe, ye, logx, logy, _with_unit(x, units), _with_unit(y, units), handles)
@@ -527,7 +557,7 @@ def sweep_heatmap(
             axis.set_minor_locator(NullLocator())
     _declutter(fig, ax)
     ax.set_title(textwrap.fill(f"{agg} {metric} over {x} × {y} ({table.height} runs,"
-                               f" {int((~stable).sum())} {_bad(table)})", 70))  # fmt: skip
+                               f" {int((~stable).sum())} {_bad(table, by)})", 70))  # fmt: skip
     return fig
 
 
@@ -758,12 +788,15 @@ def stability_map(
     logx: bool | None = None,
     logy: bool | None = None,
     title: str | None = None,
+    by: str = "stable",
 ) -> Figure:
     """A predicted stability map (:func:`admit_rs.analysis.stability_map`): the spectral
     radius ρ per cell (blue below 1, red above), the predicted boundary ρ = 1 as a black
     line, cells without an equilibrium in grey; with ``overlay`` (a sweep table with the
-    same two parameter columns) each simulated run as a green ○ (stable per SPEC §7) or a
-    red × (not), and the share of cells where prediction and simulation agree. An axis
+    same two parameter columns) each simulated run as a green ○ (``stable``, SPEC §23) or a
+    red × (not), and the share of cells where prediction and simulation agree.
+    ``by="passed"`` marks and compares the runs by their criteria instead (a ripple the
+    motion drives fails them while the loop stays stable). An axis
     is logarithmic when its values are log-spaced, or positive with linear cells that
     would start below zero; tick labels that would collide are thinned.
 
@@ -810,25 +843,25 @@ def stability_map(
     if overlay is not None:
         from admit_rs._names import check_column
 
-        for name in (x, y, "stable"):
+        for name in (x, y):
             check_column(overlay.columns, name, "column")
         ox = overlay[x].to_numpy().astype(float)
         oy = overlay[y].to_numpy().astype(float)
-        ok = _stable_mask(overlay)
+        ok = _judged(overlay, by)
         handles.append(ax.scatter(ox[ok], oy[ok], marker="o", facecolors="none",
                                   edgecolors="g", s=28, lw=1.2,
-                                  label=f"simulated stable ({ok.sum()})"))  # fmt: skip
-        bad = f"simulated {_bad(overlay)} ({(~ok).sum()})"
+                                  label=f"simulated {_good(by)} ({ok.sum()})"))  # fmt: skip
+        bad = f"simulated {_bad(overlay, by)} ({(~ok).sum()})"
         handles.append(ax.scatter(ox[~ok], oy[~ok], marker="x", color="darkred", s=28,
                                   lw=1.2, label=bad))  # fmt: skip
         joined = table.select(x, y, pl.col("stable").alias("_predicted")).join(
             overlay.select(pl.col(x).cast(table[x].dtype), pl.col(y).cast(table[y].dtype),
-                           pl.col("stable").alias("_simulated")),
+                           pl.col(by).alias("_simulated")),
             on=[x, y],
         )  # fmt: skip
         if joined.height:
             agree = float((joined["_predicted"] == joined["_simulated"]).mean())  # type: ignore[arg-type]
-            subtitle = (f"\nsimulated `stable` agrees in {agree:.0%} of "
+            subtitle = (f"\nsimulated `{by}` agrees with predicted `stable` in {agree:.0%} of "
                         f"{joined.height} cells")  # fmt: skip
     xlabel, ylabel = _with_unit(x, {x: parameter_unit(x)}), _with_unit(y, {y: parameter_unit(y)})
     _finish_grid_axes(ax, xe, ye, logx, logy, xlabel, ylabel, handles)

@@ -364,7 +364,7 @@ def _figure_verdict(printed: Sequence[str]) -> str:
 _TABLE_COLUMNS = [
     "force_ss_error", "force_rms_error", "force_peak", "overshoot_pct", "settling_time",
     "rise_time_63", "z_rms_error", "x_rms_error", "contact_loss", "force_oscillation",
-    "stable", "diverged",
+    "stable", "passed", "diverged",
 ]  # fmt: skip
 
 
@@ -388,10 +388,12 @@ def _stability_lines(table: pl.DataFrame, name: str) -> list[str]:
     rows = _curves(table, name)
     if "verdict" not in rows.columns:
         return []
-    bad = rows.filter(~pl.col("stable").fill_null(False))  # not assessed is not stable
+    # Not assessed is not passed; the verdict says unstable or out of tolerance (SPEC §23).
+    column = "passed" if "passed" in rows.columns else "stable"
+    bad = rows.filter(~pl.col(column).fill_null(False))
     if bad.is_empty():
-        return [f"- Stability: every curve stable ({rows.height})"]
-    return [f"- Stability: **{r['label']}: {r['verdict']}**" for r in bad.iter_rows(named=True)]
+        return [f"- Verdict: every curve stable and within its criteria ({rows.height})"]
+    return [f"- Verdict: **{r['label']}: {r['verdict']}**" for r in bad.iter_rows(named=True)]
 
 
 def _report(table: pl.DataFrame, names: Sequence[str], variant_names: Sequence[str]) -> str:

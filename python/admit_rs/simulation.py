@@ -49,8 +49,14 @@ class Result:
     divergence_cause: str | None
     """Why it stopped (velocity limit, non-finite state, singular Jacobian)."""
     verdict: str = ""
-    """``"stable"``, ``"unstable: ..."`` naming each failed criterion of
-    ``scenario.criteria`` with its value and limit, or ``"not assessed: ..."`` (SPEC §17).
+    """``"stable"`` (every criterion met), ``"unstable: ..."`` (the loop's dynamics: it
+    diverged, or sustains a force oscillation or a loss of contact by itself),
+    ``"out of tolerance: ..."`` (a stable run that fails a criterion: a ripple the motion
+    drives, an impact peak, a path error), naming each failed criterion of
+    ``scenario.criteria`` with its value and limit, or ``"not assessed: ..."``
+    (SPEC §17, §23). A failed force oscillation or loss of contact says whether it is
+    driven or self-sustained, by the same run with its drives held
+    (docs/analysis.md, "Unstable or out of tolerance").
 
     Example:
         >>> import admit_rs as ar
@@ -88,10 +94,21 @@ class Result:
 
     @property
     def stable(self) -> bool | None:
-        """Judged by ``scenario.criteria`` (:class:`admit_rs.Criteria`): ``False`` if the
-        run diverged or a criterion fails, ``None`` if it is too short to assess, else
-        ``True``. :attr:`verdict` says why."""
+        """The loop's dynamics (SPEC §23): ``False`` if the run diverged, or fails
+        ``max_force_oscillation``, ``max_contact_loss`` or ``max_bounces`` of
+        ``scenario.criteria`` and still fails it with its drives held (the motion held at
+        its start, f_d held, no sensor noise); ``None`` if it is too short to assess, else
+        ``True``. A ripple the motion drives is stable and fails :attr:`passed`.
+        :attr:`verdict` says why."""
         value = self.metrics["stable"]
+        return None if value is None else bool(value)
+
+    @property
+    def passed(self) -> bool | None:
+        """Every criterion of ``scenario.criteria`` (:class:`admit_rs.Criteria`) met:
+        ``False`` if the run diverged or any criterion fails, driven or not; ``None`` if it
+        is too short to assess, else ``True``. :attr:`verdict` says why."""
+        value = self.metrics["passed"]
         return None if value is None else bool(value)
 
     def step_info(self) -> dict[str, float]:

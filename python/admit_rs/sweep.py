@@ -444,6 +444,7 @@ def _run_chunk(
     columns.update(raw["metrics"])
     # True, False or None (not assessed: null), typed so that every chunk agrees.
     columns["stable"] = pl.Series("stable", raw["stable"], dtype=pl.Boolean)
+    columns["passed"] = pl.Series("passed", raw["passed"], dtype=pl.Boolean)
     columns["verdict"] = pl.Series("verdict", raw["verdict"], dtype=pl.String)
     columns["diverged"] = raw["diverged"]
     columns["diverged_at"] = raw["diverged_at"]
@@ -486,7 +487,7 @@ class _Checkpoint:
 
     Every file carries, in its Parquet key-value metadata, the sweep's fingerprint (a
     SHA-256 of the manifest: base scenario, vary, grid, samples, seed, traces,
-    chunk_size), its runs and a SHA-256 of its content (:func:`_checksum`). On resume a
+    chunk_size, and lanes when off), its runs and a SHA-256 of its content (:func:`_checksum`). On resume a
     file is used only if all three match, so neither a damaged file, nor one copied from
     another sweep, nor a folder whose manifest was lost can put a wrong row in the table:
     such a file is named in a :class:`CheckpointWarning` and its runs are computed again.
@@ -680,7 +681,7 @@ def _foreign(table: pl.DataFrame, long: pl.DataFrame | None, plan: _Plan, ids: r
     name = f"chunk of runs {ids.start}..{ids.stop - 1}"
     if "run_id" not in table.columns or table["run_id"].to_list() != list(ids):
         return f"not the {name} of this sweep (other run_ids)"
-    missing = [c for c in ("seed", *plan.paths, "stable") if c not in table.columns]
+    missing = [c for c in ("seed", *plan.paths, "stable", "passed") if c not in table.columns]
     if missing:
         return f"not the {name} of this sweep (no column {', '.join(missing)})"
     if table["seed"].to_list() != [plan.seed] * len(ids):
@@ -786,15 +787,20 @@ def sweep(
 
     Returns:
         One row per run: ``run_id``, ``seed``, a column per varied path, the metrics of
-        :data:`admit_rs.METRICS`, ``stable``, ``verdict``, ``diverged``, ``diverged_at``,
+        :data:`admit_rs.METRICS`, ``stable``, ``passed``, ``verdict``, ``diverged``,
+        ``diverged_at``,
         ``divergence_cause``, ``substeps_used`` (the RK4 substeps the run was integrated
         with: its own count or what ``substeps="auto"`` chose for it), ``substep_error``
         and ``substep_standing`` (``"auto"``: the estimated largest force error [N] and
         ``"met"``, ``"diverged"``, ``"not converging"`` or ``"limit"``; null for a fixed
         count); with ``traces``, the tuple ``(table, traces)``. Each run
         is judged by its scenario's ``criteria`` (``criteria.*`` paths can be varied too):
-        ``stable`` is False for an unstable run (``verdict`` names the failed criteria),
-        null for a run too short to assess; ``diverged`` says whether it stopped early.
+        ``passed`` is False for a run that fails one, ``stable`` False only for an
+        unstable one (diverged, or an oscillation or loss of contact the loop sustains by
+        itself: SPEC §23; a ripple the motion drives is stable and fails ``passed``),
+        ``verdict`` names the failed criteria; both are null for a run too short to
+        assess; ``diverged`` says whether it stopped early. A run that fails a criterion the
+        loop may sustain is run a second time with its drives held to tell which.
 
     Raises:
         TypeError: unknown path (with the closest valid ones) or wrong type.
@@ -830,6 +836,11 @@ def sweep(
         trace_dir.mkdir(parents=True, exist_ok=True)
     plan.manifest["traces"] = keep_traces
     plan.manifest["chunk_size"] = chunk_size
+    if not lanes:
+        # The scalar path differs from the lanes in the last bits (issue #53 item 2): a
+        # checkpoint of one is not the other's. (Only off is written, so checkpoints made
+        # before this key still resume with lanes on.)
+        plan.manifest["lanes"] = False
     store = _Checkpoint(checkpoint, plan.manifest) if checkpoint is not None else None
     n = len(plan.rows)
     done: dict[int, tuple[pl.DataFrame, pl.DataFrame | None]] = {}
@@ -918,8 +929,10 @@ def _with_lane_gap(
                 rel = np.where(both_nan, 0.0, np.abs(a - b) / scale)
             gap = np.maximum(gap, np.where(np.isnan(rel), np.inf, rel))
         # Another verdict, or a divergence at another time (or only on one path).
-        differs = np.asarray(mine["stable"].to_list(), dtype=object) != np.asarray(
-            other["stable"], dtype=object)
+        differs = np.zeros(len(sub), dtype=bool)
+        for verdict in ("stable", "passed"):
+            differs |= np.asarray(mine[verdict].to_list(), dtype=object) != np.asarray(
+                other[verdict], dtype=object)
         at_a = mine["diverged_at"].to_numpy().astype(float)
         at_b = np.asarray(other["diverged_at"], dtype=float)
         differs |= ~((at_a == at_b) | (np.isnan(at_a) & np.isnan(at_b)))

@@ -546,7 +546,8 @@ class TuningPage:
         if xs or self.limits.data["xs"]:
             self.limits.data = {"xs": xs, "ys": ys, "color": color}
         self._sim_html = self._simulated_html(view)
-        self.verdict.text = self._sim_html + self._predicted_html
+        self._last_view = (generation, view)
+        self.verdict.text = self._sim_html + self._predicted_html + self._why_html()
         self.metrics.text = self._metrics_html(view)
 
     def _set_torque_lines(self, joints: int) -> None:
@@ -563,6 +564,21 @@ class TuningPage:
 
     _sim_html = ""
     _predicted_html = ""
+    _last_view: tuple[int, runs.RunView] | None = None
+    _last_prediction: tuple[int, runs.Prediction] | None = None
+
+    def _why_html(self) -> str:
+        """When the simulated and predicted ``stable`` of one scenario (one generation)
+        differ, why, in one line."""
+        if self._last_view is None or self._last_prediction is None:
+            return ""
+        (ran, view), (predicted, pred) = self._last_view, self._last_prediction
+        if ran != predicted:
+            return ""
+        why = runs.disagreement(view, pred)
+        if why is None:
+            return ""
+        return f"<br><b>Why they differ:</b> <span class='why'>{html.escape(why)}</span>"
     _exports = 0
 
     @staticmethod
@@ -570,16 +586,28 @@ class TuningPage:
         if not view.complete:
             return ("<b>Simulated:</b> <span style='color:#8a6d00'>cancelled</span> "
                     "(the plots show the run up to then; move a slider to run again)")  # fmt: skip
-        color = {True: "#137333", False: "#c5221f", None: "#8a6d00"}[view.stable]
+        # Green: passed; orange: stable but out of tolerance; red: unstable; amber: not
+        # assessed (SPEC §23).
+        if view.passed is True:
+            color = "#137333"
+        elif view.stable is True:
+            color = "#b45309"
+        else:
+            color = {False: "#c5221f", None: "#8a6d00"}[view.stable]
+        words = {True: "yes", False: "no", None: "not assessed"}
+        both = (f"stable: <span class='stable'>{words[view.stable]}</span>, passed: "
+                f"<span class='passed'>{words[view.passed]}</span>")
         return (f"<b>Simulated:</b> <span style='color:{color};font-weight:bold' "
-                f"class='verdict'>{html.escape(view.verdict)}</span>")  # fmt: skip
+                f"class='verdict'>{html.escape(view.verdict)}</span> ({both})")  # fmt: skip
 
     def _show_prediction(self, generation: int, pred: runs.Prediction) -> None:
         if generation < self.applied_prediction:
             return
         self.applied_prediction = generation
         self._predicted_html = self._prediction_html(pred)
-        self.verdict.text = (self._sim_html or "<b>Simulated:</b> running…") + self._predicted_html
+        self._last_prediction = (generation, pred)
+        self.verdict.text = ((self._sim_html or "<b>Simulated:</b> running…")
+                             + self._predicted_html + self._why_html())  # fmt: skip
         dom = pred.dominant()
         if pred.poles is not None and dom is not None:
             p = pred.poles
@@ -640,7 +668,7 @@ class TuningPage:
             return ""
         rows = []
         for name, value in view.metrics.items():
-            if name in ("stable", "diverged"):
+            if name in ("stable", "passed", "diverged"):
                 continue
             m = METRICS.get(name)
             unit = m.unit if m is not None and not m.unit.startswith("bool") else ""

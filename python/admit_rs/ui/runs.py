@@ -131,6 +131,7 @@ class RunView:
     metrics: dict[str, Any]
     verdict: str
     stable: bool | None
+    passed: bool | None
     torque_limits: tuple[float, ...] | None
     duration: float
     complete: bool
@@ -230,7 +231,7 @@ def run(job: Job, progress: Callable[[float, float], None]) -> RunView | None:
                 return None
             trace = sim.trace
             joints = joint_count(trace.columns)
-            return RunView(view_of(sc, trace, joints), joints, {}, "cancelled", None,
+            return RunView(view_of(sc, trace, joints), joints, {}, "cancelled", None, None,
                            _limits(sc, joints), sc.duration, complete=False)  # fmt: skip
         shown = True
         progress(sim.time, sc.duration)
@@ -252,8 +253,8 @@ def _view(res: Result, joints: int) -> RunView:
     sc = res.scenario
     return RunView(
         columns=view_of(sc, res.trace, joints), joints=joints, metrics=dict(res.metrics),
-        verdict=res.verdict, stable=res.stable, torque_limits=_limits(sc, joints),
-        duration=sc.duration, complete=True,
+        verdict=res.verdict, stable=res.stable, passed=res.passed,
+        torque_limits=_limits(sc, joints), duration=sc.duration, complete=True,
     )  # fmt: skip
 
 
@@ -330,6 +331,39 @@ def predict(scenario: Scenario) -> Prediction:
     except (AdmitError, ValueError, np.linalg.LinAlgError) as e:
         return Prediction(values, None, str(e), scenario.period)
     return Prediction(values, poles.astype(np.complex128), None, scenario.period)
+
+
+def disagreement(view: RunView, pred: Prediction) -> str | None:
+    """One line on why the predicted and the simulated ``stable`` differ (SPEC §23), or
+    ``None`` when they agree or one of them is missing."""
+    if not view.complete or view.stable is None or pred.values is None:
+        return None
+    predicted = bool(pred.values.get("stable"))
+    if predicted == view.stable:
+        return None
+    rho = float(pred.values.get("spectral_radius", math.nan))
+    verdict = str(pred.values.get("verdict", ""))
+    if predicted:
+        if view.metrics.get("diverged"):
+            return ("the run diverged: a large-signal transient (the first contact, a "
+                    "saturation) that the linear model about the contact equilibrium does not "
+                    "see")  # fmt: skip
+        if "loss of contact" in view.verdict or "bounce" in view.verdict:
+            return ("the linear model assumes contact is kept; the run leaves the surface and "
+                    "bounces (the clamp of the force at zero is not in the model)")  # fmt: skip
+        return ("the run oscillates by itself at an amplitude the linear model, exact only "
+                "for small signals about the equilibrium, does not reach")  # fmt: skip
+    if verdict.startswith("unstable: no contact equilibrium"):
+        return (f"the linearisation found no contact equilibrium ({verdict.split(': ', 2)[-1]}) "
+                "where the run settles in contact")  # fmt: skip
+    if math.isfinite(rho) and rho < 1.0:
+        return (f"the linear model is stable (ρ = {rho:.5g}) but misses a margin of "
+                f"ar.analysis.Margins ({verdict.removeprefix('unstable: ')}); the run has no "
+                "margin to miss")  # fmt: skip
+    return (f"the linear model is unstable about the equilibrium (ρ = {rho:.5g} ≥ 1); in the "
+            "run the oscillation is held by what the model leaves out (Coulomb friction "
+            "beyond its describing-function gain, the contact clamp), or grows too slowly to "
+            f"fail within {view.duration:g} s")  # fmt: skip
 
 
 def finite(x: Any) -> bool:

@@ -177,6 +177,79 @@ impl Signal {
         }
     }
 
+    /// The signal's value if it is constant from `t` on (`None` if it changes after `t`).
+    pub fn constant_from(&self, t: f64) -> Option<f64> {
+        let now = self.at(t).value;
+        let constant = match self {
+            Signal::Step {
+                value,
+                time,
+                initial,
+            } => *time <= t || value == initial,
+            Signal::Sine {
+                amplitude, omega, ..
+            } => *amplitude == 0.0 || *omega == 0.0,
+            Signal::Sampled { times, values } => times
+                .iter()
+                .zip(values)
+                .filter(|(ti, _)| **ti > t)
+                .all(|(_, v)| *v == now),
+        };
+        constant.then_some(now)
+    }
+
+    /// How many times the signal turns back or jumps in (t0, t1]: a step's jump, a sine's
+    /// extrema, a sampled signal's changes of direction. For the motion these are the
+    /// friction reversals the references drive (`sim::held`).
+    pub fn reversals(&self, t0: f64, t1: f64) -> usize {
+        match self {
+            Signal::Step {
+                value,
+                time,
+                initial,
+            } => usize::from(value != initial && *time > t0 && *time <= t1),
+            Signal::Sine {
+                amplitude,
+                omega,
+                phase,
+                ..
+            } => {
+                if *amplitude == 0.0
+                    || *omega == 0.0
+                    || t1.partial_cmp(&t0) != Some(std::cmp::Ordering::Greater)
+                {
+                    return 0;
+                }
+                // Extrema at ω t + φ = π/2 + k π.
+                let k = |t: f64| {
+                    ((omega * t + phase - std::f64::consts::FRAC_PI_2) / std::f64::consts::PI)
+                        .floor()
+                };
+                let n = k(t1) - k(t0);
+                if n.is_finite() && n > 0.0 {
+                    n.min(usize::MAX as f64) as usize
+                } else {
+                    0
+                }
+            }
+            Signal::Sampled { times, values } => {
+                let mut last = 0.0f64;
+                let mut turns = 0;
+                for (w, v) in times.windows(2).zip(values.windows(2)) {
+                    if w[1] <= t0 || w[0] >= t1 {
+                        continue;
+                    }
+                    let slope = (v[1] - v[0]).signum() * f64::from(u8::from(v[1] != v[0]));
+                    if slope != 0.0 {
+                        turns += usize::from(last != 0.0 && slope != last);
+                        last = slope;
+                    }
+                }
+                turns
+            }
+        }
+    }
+
     /// True for a step: the step-response metrics (rise, settling, overshoot) apply.
     pub fn is_step(&self) -> bool {
         matches!(self, Signal::Step { .. })
@@ -346,6 +419,36 @@ fn sampled_at(times: &[f64], values: &[f64], t: f64) -> Sample {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Turns and jumps counted in (t0, t1]: a step once, a sine at each extremum, a sampled
+    /// path at each change of direction (a pause is none).
+    #[test]
+    fn reversals_count_turns_and_jumps() {
+        let step = Signal::Step {
+            value: 1.0,
+            time: 2.0,
+            initial: 0.0,
+        };
+        assert_eq!(
+            (step.reversals(0.0, 10.0), step.reversals(2.0, 10.0)),
+            (1, 0)
+        );
+        let sine = Signal::Sine {
+            offset: 0.0,
+            amplitude: 0.05,
+            omega: 1.0,
+            phase: 0.0,
+        };
+        // Extrema at π/2, 3π/2, 5π/2 = 7.85 s.
+        assert_eq!(sine.reversals(0.0, 10.0), 3);
+        assert_eq!(sine.reversals(0.0, 1.0), 0);
+        let path = Signal::Sampled {
+            times: vec![0.0, 1.0, 2.0, 3.0, 4.0],
+            values: vec![0.0, 1.0, 1.0, 0.0, 0.5],
+        };
+        assert_eq!(path.reversals(0.0, 10.0), 2);
+        assert_eq!(path.reversals(0.0, 2.5), 1);
+    }
 
     #[test]
     fn step_and_sine() {

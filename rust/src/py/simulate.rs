@@ -10,7 +10,7 @@ use pyo3::types::{PyDict, PyList};
 
 use super::errors::{to_py_err, with_message, AdmitError, ParameterError};
 use super::params::scenario_from;
-use crate::sim::dispatch::AnySimulation;
+use crate::sim::dispatch::{run_held, AnySimulation};
 use crate::sim::metrics::{Metrics, METRIC_NAMES};
 use crate::sim::outcome::SubstepChoice;
 use crate::sim::simulation::{Outcome, RunResult};
@@ -48,6 +48,7 @@ fn outcome_into(
         metrics.set_item(name, v)?;
     }
     metrics.set_item("stable", run_metrics.stable)?;
+    metrics.set_item("passed", run_metrics.passed)?;
     metrics.set_item("diverged", run_metrics.diverged)?;
     out.set_item("metrics", metrics)?;
     out.set_item("verdict", run_metrics.judgement(&outcome).verdict)?;
@@ -158,7 +159,13 @@ impl Stepper {
         let Some(outcome) = sim.outcome() else {
             return Ok(None);
         };
-        let metrics = sim.metrics(&outcome);
+        let mut metrics = sim.metrics(&outcome);
+        // A run that failed a criterion the loop may sustain is judged by its held run
+        // (SPEC §23), run here once with the GIL released.
+        let config = sim.config().clone();
+        let count = config.substeps.count();
+        py.detach(|| crate::sim::held::settle(&config, &mut metrics, &outcome, count, run_held))
+            .map_err(|e| to_py_err(py, e))?;
         let out = PyDict::new(py);
         outcome_into(py, &out, metrics, outcome)?;
         Ok(Some(out))
@@ -186,8 +193,8 @@ fn trace_dict<'py>(py: Python<'py>, trace: Trace) -> PyResult<Bound<'py, PyDict>
 }
 
 /// Runs a batch of scenario dicts on `threads` threads (None: all cores) with the GIL
-/// released. Returns metric columns (one entry per run, in order), `stable` (a list of
-/// True, False or None: not assessed), `verdict` (words), `diverged`,
+/// released. Returns metric columns (one entry per run, in order), `stable` and `passed`
+/// (lists of True, False or None: not assessed), `verdict` (words), `diverged`,
 /// `diverged_at` (NaN when stable), `divergence_cause` and, with `traces`, one flat trace
 /// per run (as `simulate` gives it). An invalid scenario raises before anything runs, naming its index.
 /// `lanes`: runs advance four or eight at a time in SIMD lanes (within 1e-9 of off).
@@ -231,6 +238,7 @@ pub(super) fn simulate_batch<'py>(
     let n = runs.len();
     let mut columns: Vec<Vec<f64>> = vec![Vec::with_capacity(n); METRIC_NAMES.len()];
     let stable = PyList::empty(py);
+    let passed = PyList::empty(py);
     let verdicts = PyList::empty(py);
     let mut diverged = Vec::with_capacity(n);
     let mut diverged_at = Vec::with_capacity(n);
@@ -258,6 +266,7 @@ pub(super) fn simulate_batch<'py>(
             c.push(v);
         }
         stable.append(run.metrics.stable)?;
+        passed.append(run.metrics.passed)?;
         verdicts.append(run.metrics.judgement(&run.outcome).verdict)?;
         diverged.push(run.metrics.diverged);
         match run.outcome {
@@ -280,6 +289,7 @@ pub(super) fn simulate_batch<'py>(
     }
     out.set_item("metrics", metrics)?;
     out.set_item("stable", stable)?;
+    out.set_item("passed", passed)?;
     out.set_item("verdict", verdicts)?;
     out.set_item("diverged", PyArray1::from_vec(py, diverged))?;
     out.set_item("diverged_at", PyArray1::from_vec(py, diverged_at))?;

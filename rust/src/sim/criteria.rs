@@ -1,19 +1,20 @@
-//! Verdicts a user can set (SPEC §17): the criteria a run is judged by, and the judgement
-//! in words. One place decides `stable` and writes the verdict, so `Result.metrics`,
-//! `Result.verdict`, sweep tables and the command line cannot disagree.
+//! Verdicts a user can set (SPEC §17, §23): the criteria a run is judged by, and the
+//! judgement in words. One place decides `stable` (the loop's dynamics) and `passed` (the
+//! criteria) and writes the verdict, so `Result.metrics`, `Result.verdict`, sweep tables and
+//! the command line cannot disagree.
 
 use crate::error::{check, Error, Result};
 use crate::sim::outcome::Outcome;
 
-/// What a run must meet to be called stable. Limits left at ``None`` are not judged.
+/// What a run must meet to pass. Limits left at ``None`` are not judged.
 #[derive(
     Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
 )]
 #[serde(default, deny_unknown_fields)]
 pub struct CriteriaParams {
-    /// Largest force_oscillation (std(f − f_d) over the last 2 s of the contact phase / mean |f_d|) of a stable force-controlled run [fraction of f_d].
+    /// Largest force_oscillation (std(f − f_d) over the last 2 s of the contact phase / mean |f_d|) of a force-controlled run that passes [fraction of f_d].
     pub max_force_oscillation: f64,
-    /// Largest contact_loss (fraction of samples with f = 0 from first contact + 1 s; t ≥ 1 s for a run that starts touching) of a stable force-controlled run [fraction].
+    /// Largest contact_loss (fraction of samples with f = 0 from first contact + 1 s; t ≥ 1 s for a run that starts touching) of a force-controlled run that passes [fraction].
     pub max_contact_loss: f64,
     /// Largest contact force anywhere in the run (force_peak, the impact peak included) [N]; ``None``: not judged.
     pub force_limit: Option<f64>,
@@ -85,11 +86,91 @@ pub struct Figures {
     pub torque_saturation: f64,
 }
 
-/// The judgement of one run: `stable` (``None``: not assessed) and why, in words.
+/// What drives a run besides its own loop, and what the run showed with those drives held
+/// (SPEC §23): how an oscillation the references drive is told from one the loop sustains.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Drive {
+    /// Nothing drives the assessed window (no motion, f_d constant in it, no sensor
+    /// noise): an oscillation there is the loop's own.
+    Absent,
+    /// Something drives the run and the held run has not been run.
+    Untested,
+    /// The same run with its drives held (`sim/held.rs`): what it showed.
+    Held(Held),
+}
+
+/// Which drives a held run held.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Holds {
+    /// The motion s(t), held at s(0).
+    pub motion: bool,
+    /// f_d, held at its value where the last 2 s start.
+    pub force: bool,
+    /// The sensor's noise, off.
+    pub noise: bool,
+    /// Times the references turn back or jump in the run (`Signal::reversals`): the
+    /// events a driven loss of contact can follow.
+    pub events: usize,
+}
+
+impl Holds {
+    pub fn any(&self) -> bool {
+        self.motion || self.force || self.noise
+    }
+
+    /// "the motion held and the sensor noise off".
+    fn words(&self) -> String {
+        let mut parts = Vec::new();
+        if self.motion {
+            parts.push("the motion held");
+        }
+        if self.force {
+            parts.push("f_d held");
+        }
+        if self.noise {
+            parts.push("the sensor noise off");
+        }
+        match parts.as_slice() {
+            [] => "nothing held".into(),
+            [one] => (*one).into(),
+            [init @ .., last] => format!("{} and {last}", init.join(", ")),
+        }
+    }
+}
+
+/// A loss of contact the references drive leaves the surface a few times per event (a
+/// friction reversal, a step of f_d); more bounces than this per event (plus one) is the
+/// loop bouncing at its own frequency, whatever the held run shows.
+pub const BOUNCES_PER_EVENT: f64 = 3.0;
+
+/// The figures of the held run that tell driven from self-sustained.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Held {
+    pub holds: Holds,
+    pub force_oscillation: f64,
+    pub contact_loss: f64,
+    pub bounces: f64,
+    /// When the held run touched the surface first (NaN: never).
+    pub first_contact_time: f64,
+    /// When the held run diverged (NaN: it completed).
+    pub diverged_at: f64,
+}
+
+/// The judgement of one run (SPEC §23): `stable` is the loop's dynamics (diverged, or an
+/// oscillation or loss of contact the loop sustains by itself), `passed` the criteria;
+/// ``None``: not assessed. The verdict says which, in words.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Judgement {
     pub stable: Option<bool>,
+    pub passed: Option<bool>,
     pub verdict: String,
+}
+
+/// A criterion a run failed, in words; `dynamic` when the loop may sustain it by itself
+/// (force oscillation, loss of contact after touching, bounces), which the held run tells.
+struct Failure {
+    words: String,
+    dynamic: bool,
 }
 
 /// A short number: 4 significant digits, trailing zeros dropped (1e-4 ≤ |x| < 1e6), else
@@ -121,12 +202,16 @@ fn significant(x: f64, digits: usize) -> String {
     }
 }
 
-/// A fraction as a percentage: whole per cent from 1 %, two significant digits below.
+/// A fraction as a percentage: whole per cent from 1 %, two significant digits below
+/// ("0.12 %", "5.5e-5 %").
 fn pct(v: f64) -> String {
+    let p = 100.0 * v;
     if v >= 0.01 {
-        format!("{:.0} %", 100.0 * v)
+        format!("{p:.0} %")
+    } else if p != 0.0 && p.abs() < 1e-4 {
+        format!("{p:.1e} %")
     } else {
-        format!("{} %", short(float_2g(100.0 * v)))
+        format!("{} %", short(float_2g(p)))
     }
 }
 
@@ -176,24 +261,15 @@ fn float_2g(x: f64) -> f64 {
     (x * scale).round() / scale
 }
 
-/// Judges a run (SPEC §17). Diverged: unstable. Any criterion that fails: unstable, each
-/// named with its value and limit. Otherwise a force-controlled run whose assessed window
-/// is shorter than `min_assessed` (or empty) is not assessed (`stable` = None); position-only
-/// runs are judged on divergence and, if set, the path error and torque saturation.
-pub fn judge(
+/// The criteria a run failed, and why the rest could not be judged (a short window).
+fn failures(
     m: &Figures,
     criteria: &CriteriaParams,
     force_control: bool,
-    outcome: &Outcome,
-) -> Judgement {
-    if let Outcome::Diverged { time, cause } = outcome {
-        return Judgement {
-            stable: Some(false),
-            verdict: format!("unstable: diverged at t = {} s ({cause})", short(*time)),
-        };
-    }
-    let mut failed: Vec<String> = Vec::new();
+) -> (Vec<Failure>, Vec<String>) {
+    let mut failed: Vec<Failure> = Vec::new();
     let mut unjudged: Vec<String> = Vec::new();
+    let mut fail = |words: String, dynamic: bool| failed.push(Failure { words, dynamic });
     let exceeds = |v: f64, limit: f64| v.is_finite() && v > limit;
     if force_control {
         let (loss, osc) = (m.contact_loss, m.force_oscillation);
@@ -209,18 +285,25 @@ pub fn judge(
         };
         if exceeds(loss, criteria.max_contact_loss) {
             if m.first_contact_time.is_nan() {
-                failed.push(format!(
-                    "no contact: f = 0 throughout, the tool never touched the surface \
-                     (max_contact_loss {})",
-                    pct(criteria.max_contact_loss)
-                ));
+                // Not the loop's dynamics: the tool never reached the surface.
+                fail(
+                    format!(
+                        "no contact: f = 0 throughout, the tool never touched the surface \
+                         (max_contact_loss {})",
+                        pct(criteria.max_contact_loss)
+                    ),
+                    false,
+                );
             } else {
                 let (value, limit) = apart(loss, criteria.max_contact_loss, true);
-                failed.push(format!(
-                    "loss of contact: f = 0 in {value} of samples {after}, {} \
-                     (max_contact_loss {limit})",
-                    bounces(m.bounces),
-                ));
+                fail(
+                    format!(
+                        "loss of contact: f = 0 in {value} of samples {after}, {} \
+                         (max_contact_loss {limit})",
+                        bounces(m.bounces),
+                    ),
+                    true,
+                );
             }
         }
         if exceeds(osc, criteria.max_force_oscillation) {
@@ -231,10 +314,13 @@ pub fn judge(
                 "force oscillation with loss of contact"
             };
             let (value, limit) = apart(osc, criteria.max_force_oscillation, true);
-            failed.push(format!(
-                "{kind}: std(f − f_d) over the last 2 s is {value} of f_d \
-                 (max_force_oscillation {limit})"
-            ));
+            fail(
+                format!(
+                    "{kind}: std(f − f_d) over the last 2 s is {value} of f_d \
+                     (max_force_oscillation {limit})"
+                ),
+                true,
+            );
         }
         if let Some(limit) = criteria.force_limit {
             // The impact (0.5 s from first contact) is named: it is what a guarded
@@ -246,24 +332,30 @@ pub fn judge(
                 short(m.first_contact_time)
             );
             match (exceeds(m.impact_peak, limit), exceeds(m.force_peak, limit)) {
-                (true, _) if m.force_peak > m.impact_peak => failed.push(format!(
-                    "{impact} above force_limit {impact_limit} N (force peak {force_peak} N \
-                     later)"
-                )),
-                (true, _) => failed.push(format!("{impact} above force_limit {impact_limit} N")),
-                (false, true) => failed.push(format!(
-                    "force peak {force_peak} N above force_limit {force_limit} N"
-                )),
+                (true, _) if m.force_peak > m.impact_peak => fail(
+                    format!(
+                        "{impact} above force_limit {impact_limit} N (force peak \
+                         {force_peak} N later)"
+                    ),
+                    false,
+                ),
+                (true, _) => fail(
+                    format!("{impact} above force_limit {impact_limit} N"),
+                    false,
+                ),
+                (false, true) => fail(
+                    format!("force peak {force_peak} N above force_limit {force_limit} N"),
+                    false,
+                ),
                 (false, false) => {}
             }
         }
         if let Some(limit) = criteria.max_bounces {
             if exceeds(m.bounces, limit) {
-                failed.push(format!(
-                    "{} above max_bounces {}",
-                    bounces(m.bounces),
-                    short(limit)
-                ));
+                fail(
+                    format!("{} above max_bounces {}", bounces(m.bounces), short(limit)),
+                    true,
+                );
             }
         }
         if !(m.assessed_time >= criteria.min_assessed && m.assessed_time > 0.0) {
@@ -279,29 +371,198 @@ pub fn judge(
     if let Some(limit) = criteria.max_path_error {
         if exceeds(m.path_rms_error, limit) {
             let (value, limit) = apart(m.path_rms_error, limit, false);
-            failed.push(format!(
-                "path error {value} m RMS above max_path_error {limit} m"
-            ));
+            fail(
+                format!("path error {value} m RMS above max_path_error {limit} m"),
+                false,
+            );
         }
     }
     if let Some(limit) = criteria.max_torque_saturation {
         if exceeds(m.torque_saturation, limit) {
             let (value, limit) = apart(m.torque_saturation, limit, true);
-            failed.push(format!(
-                "torque saturated in {value} of samples (max_torque_saturation {limit})"
-            ));
+            fail(
+                format!("torque saturated in {value} of samples (max_torque_saturation {limit})"),
+                false,
+            );
         }
     }
-    if !failed.is_empty() {
+    (failed, unjudged)
+}
+
+/// Whether a run needs its held run to be judged: it completed and failed a criterion the
+/// loop may sustain by itself (force oscillation, loss of contact after touching, bounces).
+pub fn needs_held(
+    m: &Figures,
+    criteria: &CriteriaParams,
+    force_control: bool,
+    outcome: &Outcome,
+) -> bool {
+    !outcome.is_diverged()
+        && failures(m, criteria, force_control)
+            .0
+            .iter()
+            .any(|f| f.dynamic)
+}
+
+/// What the held run says of the dynamic failures: `Some(true)` self-sustained (the held
+/// run fails a dynamic criterion too, or diverged), `Some(false)` driven, `None` untold.
+fn sustained(held: &Held, criteria: &CriteriaParams) -> Option<bool> {
+    if held.diverged_at.is_finite() {
+        return Some(true);
+    }
+    if held.first_contact_time.is_nan() {
+        // Held, the tool never reached the surface: the test says nothing.
+        return None;
+    }
+    let exceeds = |v: f64, limit: f64| v.is_finite() && v > limit;
+    Some(
+        exceeds(held.contact_loss, criteria.max_contact_loss)
+            || exceeds(held.force_oscillation, criteria.max_force_oscillation)
+            || criteria
+                .max_bounces
+                .is_some_and(|limit| exceeds(held.bounces, limit)),
+    )
+}
+
+/// "std(f − f_d) 0.52 % of f_d, contact lost in 0 % of samples": the held run's figures.
+/// With `max_bounces` set, the held run's bounces too.
+fn held_figures(held: &Held, criteria: &CriteriaParams) -> String {
+    if held.diverged_at.is_finite() {
+        return format!("it diverged at t = {} s", short(held.diverged_at));
+    }
+    let (osc, loss) = (pct(held.force_oscillation), pct(held.contact_loss));
+    match criteria.max_bounces {
+        None => format!("std(f − f_d) is {osc} of f_d and f = 0 in {loss} of samples"),
+        Some(_) => format!(
+            "std(f − f_d) is {osc} of f_d, f = 0 in {loss} of samples and {}",
+            bounces(held.bounces)
+        ),
+    }
+}
+
+/// Judges a run (SPEC §17, §23). Diverged: unstable. A failed criterion the loop may sustain
+/// by itself (force oscillation, loss of contact, bounces) makes it unstable when the same
+/// run with its drives held ([`Drive`]) fails it too, or nothing drives the run; else the
+/// run is stable and out of tolerance, like any other failed criterion, each named with its
+/// value and limit. A force-controlled run whose assessed window is shorter than
+/// `min_assessed` (or empty) and failed nothing is not assessed (`None`); position-only runs
+/// are judged on divergence and, if set, the path error and torque saturation.
+pub fn judge(
+    m: &Figures,
+    criteria: &CriteriaParams,
+    force_control: bool,
+    outcome: &Outcome,
+    drive: &Drive,
+) -> Judgement {
+    if let Outcome::Diverged { time, cause } = outcome {
         return Judgement {
             stable: Some(false),
-            verdict: format!("unstable: {}", failed.join("; ")),
+            passed: Some(false),
+            verdict: format!("unstable: diverged at t = {} s ({cause})", short(*time)),
+        };
+    }
+    let (failed, unjudged) = failures(m, criteria, force_control);
+    let words = |dynamic: bool| -> Vec<String> {
+        failed
+            .iter()
+            .filter(|f| f.dynamic == dynamic)
+            .map(|f| f.words.clone())
+            .collect()
+    };
+    let (dynamic, tolerance) = (words(true), words(false));
+    let not_assessed = format!("not assessed: {}", unjudged.join("; "));
+    if !dynamic.is_empty() {
+        let (sustained, why) = match drive {
+            Drive::Absent => (
+                Some(true),
+                "self-sustained: nothing drives the run (no motion, f_d constant in the \
+                 last 2 s, no sensor noise)"
+                    .to_owned(),
+            ),
+            Drive::Untested => (
+                None,
+                "driven or self-sustained: the run with its references held was not run".to_owned(),
+            ),
+            Drive::Held(held) => {
+                let with = held.holds.words();
+                match sustained(held, criteria) {
+                    Some(true) => (
+                        Some(true),
+                        format!(
+                            "self-sustained: with {with}, {}",
+                            held_figures(held, criteria)
+                        ),
+                    ),
+                    // Quiet when held, yet bouncing far more often than the references
+                    // turn: the loop's own frequency (not with noise, whose events are
+                    // not counted).
+                    Some(false)
+                        if !held.holds.noise
+                            && m.bounces > BOUNCES_PER_EVENT * (held.holds.events as f64 + 1.0) =>
+                    {
+                        (
+                            Some(true),
+                            format!(
+                                "self-sustained: {}, more than {} per reversal of the \
+                                 references ({} in the run): the loop bouncing at its own \
+                                 frequency",
+                                bounces(m.bounces),
+                                short(BOUNCES_PER_EVENT),
+                                held.holds.events
+                            ),
+                        )
+                    }
+                    Some(false) => (
+                        Some(false),
+                        format!("driven: with {with}, {}", held_figures(held, criteria)),
+                    ),
+                    None => (
+                        None,
+                        format!(
+                            "driven or self-sustained: with {with} the tool never touched \
+                             the surface"
+                        ),
+                    ),
+                }
+            }
+        };
+        let dynamic = format!("{} — {why}", dynamic.join("; "));
+        let also = if tolerance.is_empty() {
+            String::new()
+        } else {
+            format!("; out of tolerance: {}", tolerance.join("; "))
+        };
+        let verdict = match sustained {
+            Some(true) => format!("unstable: {dynamic}{also}"),
+            Some(false) => {
+                let all: Vec<String> = std::iter::once(dynamic).chain(tolerance).collect();
+                format!("out of tolerance: {}", all.join("; "))
+            }
+            None => format!("out of tolerance: {dynamic}{also}; stability not assessed"),
+        };
+        return Judgement {
+            stable: sustained.map(|s| !s),
+            passed: Some(false),
+            verdict,
+        };
+    }
+    if !tolerance.is_empty() {
+        let (stable, short_window) = if unjudged.is_empty() {
+            (Some(true), String::new())
+        } else {
+            (None, format!("; stability {not_assessed}"))
+        };
+        return Judgement {
+            stable,
+            passed: Some(false),
+            verdict: format!("out of tolerance: {}{short_window}", tolerance.join("; ")),
         };
     }
     if !unjudged.is_empty() {
         return Judgement {
             stable: None,
-            verdict: format!("not assessed: {}", unjudged.join("; ")),
+            passed: None,
+            verdict: not_assessed,
         };
     }
     let mut notes: Vec<String> = Vec::new();
@@ -319,6 +580,7 @@ pub fn judge(
     }
     Judgement {
         stable: Some(true),
+        passed: Some(true),
         verdict: if notes.is_empty() {
             "stable".into()
         } else {
@@ -340,6 +602,8 @@ mod tests {
         assert_eq!(short(-2.5e-7), "-2.500e-7");
         assert_eq!(pct(0.78), "78 %");
         assert_eq!(pct(0.00123), "0.12 %");
+        assert_eq!(pct(5.5e-7), "5.5e-5 %");
+        assert_eq!(pct(0.0), "0 %");
     }
 
     /// Issue #53, item 18: a value just over its limit read as equal to it.
@@ -356,6 +620,166 @@ mod tests {
         assert_eq!(
             (bounces(1.0), bounces(198.0)),
             ("1 bounce".into(), "198 bounces".into())
+        );
+    }
+
+    /// A run in contact throughout whose force ripples at 14 % of f_d (the issue #54 cell).
+    fn rippling() -> Figures {
+        Figures {
+            force_peak: 12.0,
+            contact_loss: 0.0,
+            force_oscillation: 0.14,
+            bounces: 0.0,
+            first_contact_time: 0.001,
+            impact_peak: 11.0,
+            contact_start: 0.0,
+            assessed_time: 9.0,
+            path_rms_error: 1e-4,
+            torque_saturation: 0.0,
+        }
+    }
+
+    fn held(force_oscillation: f64, contact_loss: f64) -> Drive {
+        Drive::Held(Held {
+            holds: Holds {
+                motion: true,
+                force: false,
+                noise: true,
+                events: 3,
+            },
+            force_oscillation,
+            contact_loss,
+            bounces: 0.0,
+            first_contact_time: 0.001,
+            diverged_at: f64::NAN,
+        })
+    }
+
+    /// SPEC §23: the ripple is the motion's when the held run is quiet, the loop's when the
+    /// held run ripples too, or when nothing drives the run; untold before the held run.
+    #[test]
+    fn driven_ripple_is_out_of_tolerance_and_sustained_ripple_unstable() {
+        let c = CriteriaParams::default();
+        let done = Outcome::Completed;
+        let ripple = "force oscillation, contact kept: std(f − f_d) over the last 2 s is 14 % \
+                      of f_d (max_force_oscillation 10 %)";
+        let j = judge(&rippling(), &c, true, &done, &held(0.004, 0.0));
+        assert_eq!((j.stable, j.passed), (Some(true), Some(false)));
+        assert_eq!(
+            j.verdict,
+            format!(
+                "out of tolerance: {ripple} — driven: with the motion held and the sensor \
+                 noise off, std(f − f_d) is 0.4 % of f_d and f = 0 in 0 % of samples"
+            )
+        );
+        let j = judge(&rippling(), &c, true, &done, &held(0.13, 0.0));
+        assert_eq!((j.stable, j.passed), (Some(false), Some(false)));
+        assert_eq!(
+            j.verdict,
+            format!(
+                "unstable: {ripple} — self-sustained: with the motion held and the sensor \
+                 noise off, std(f − f_d) is 13 % of f_d and f = 0 in 0 % of samples"
+            )
+        );
+        // Held, the tool leaves the surface: bouncing is the loop's.
+        let j = judge(&rippling(), &c, true, &done, &held(0.05, 0.2));
+        assert_eq!(j.stable, Some(false));
+        let j = judge(&rippling(), &c, true, &done, &Drive::Absent);
+        assert_eq!(j.stable, Some(false));
+        assert!(j.verdict.ends_with(
+            "self-sustained: nothing drives the run (no motion, f_d \
+             constant in the last 2 s, no sensor noise)"
+        ));
+        let j = judge(&rippling(), &c, true, &done, &Drive::Untested);
+        assert_eq!((j.stable, j.passed), (None, Some(false)));
+        // A path error beside a sustained ripple: unstable, and the tolerance named after.
+        let strict = CriteriaParams {
+            max_path_error: Some(1e-5),
+            ..c
+        };
+        let j = judge(&rippling(), &strict, true, &done, &Drive::Absent);
+        assert!(
+            j.verdict.starts_with("unstable: force oscillation")
+                && j.verdict.ends_with(
+                    "no sensor noise); out of tolerance: path error 0.0001 m RMS above \
+                     max_path_error 1.000e-5 m"
+                ),
+            "{}",
+            j.verdict
+        );
+        // Bouncing with the motion only, 154 times against 3 reversals: the loop's own
+        // frequency, whatever the held run shows (SPEC §23 names bouncing self-sustained).
+        let chatter = Figures {
+            contact_loss: 0.33,
+            bounces: 154.0,
+            ..rippling()
+        };
+        let quiet = |d: Drive| match d {
+            Drive::Held(h) => Drive::Held(Held {
+                holds: Holds {
+                    noise: false,
+                    ..h.holds
+                },
+                ..h
+            }),
+            other => other,
+        };
+        let j = judge(&chatter, &c, true, &done, &quiet(held(0.004, 0.0)));
+        assert_eq!((j.stable, j.passed), (Some(false), Some(false)));
+        assert!(
+            j.verdict.ends_with(
+                "— self-sustained: 154 bounces, more than 3 per reversal of the references \
+                 (3 in the run): the loop bouncing at its own frequency"
+            ),
+            "{}",
+            j.verdict
+        );
+        // One lift-off per reversal is what a driven loss of contact looks like.
+        let lifted = Figures {
+            bounces: 12.0,
+            ..chatter
+        };
+        assert_eq!(
+            judge(&lifted, &c, true, &done, &quiet(held(0.004, 0.0))).stable,
+            Some(true)
+        );
+        // With noise the bounces are not counted against the references' events: the held
+        // run (noise off) decides.
+        assert_eq!(
+            judge(&chatter, &c, true, &done, &held(0.004, 0.0)).stable,
+            Some(true)
+        );
+        // A held run that diverged: unstable.
+        let mut d = held(0.0, 0.0);
+        if let Drive::Held(h) = &mut d {
+            h.diverged_at = 3.25;
+        }
+        let j = judge(&rippling(), &c, true, &done, &d);
+        assert_eq!(j.stable, Some(false));
+        assert!(
+            j.verdict.contains("it diverged at t = 3.25 s"),
+            "{}",
+            j.verdict
+        );
+        // Diverged itself: unstable, and failed.
+        let diverged = Outcome::Diverged {
+            time: 1.5,
+            cause: crate::sim::outcome::Divergence::NonFiniteState,
+        };
+        let j = judge(&rippling(), &c, true, &diverged, &Drive::Untested);
+        assert_eq!((j.stable, j.passed), (Some(false), Some(false)));
+        assert!(!needs_held(&rippling(), &c, true, &diverged));
+        assert!(needs_held(&rippling(), &c, true, &done));
+        // Within tolerance: no held run needed, stable and passed.
+        let calm = Figures {
+            force_oscillation: 0.05,
+            ..rippling()
+        };
+        assert!(!needs_held(&calm, &c, true, &done));
+        let j = judge(&calm, &c, true, &done, &Drive::Untested);
+        assert_eq!(
+            (j.stable, j.passed, j.verdict.as_str()),
+            (Some(true), Some(true), "stable")
         );
     }
 

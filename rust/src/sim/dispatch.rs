@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use crate::error::{Error, Result};
 use crate::robot::chain::{unsupported_joints, with_joints, JointCount, UrdfArm};
 use crate::robot::RobotModel;
+use crate::sim::held;
 use crate::sim::lanes::{run_lanes, ArmKey, LaneKey};
 use crate::sim::metrics::Metrics;
 use crate::sim::outcome::Outcome;
@@ -31,13 +32,29 @@ const RUN_AHEAD: usize = SubstepSearch::CLIMB_START[2];
 /// ends without it, it is stopped. Each run is the same function of the config on either
 /// thread, so the choice and the result are the same bits as one after another
 /// (docs/substeps.md, "Time").
+///
+/// A run that fails a criterion the loop may sustain is judged by its held run too
+/// (`sim::held`, SPEC §23).
 pub fn simulate(config: &ScenarioConfig) -> Result<RunResult> {
-    if config.substeps.count().is_some() {
-        return Ok(AnySimulation::new(config)?.run());
-    }
-    config.validate()?;
-    let ahead = rayon::current_num_threads() > 1 && rayon::current_thread_index().is_none();
-    search_substeps(config, ahead)
+    let mut run = if config.substeps.count().is_some() {
+        AnySimulation::new(config)?.run()
+    } else {
+        config.validate()?;
+        let ahead = rayon::current_num_threads() > 1 && rayon::current_thread_index().is_none();
+        search_substeps(config, ahead)?
+    };
+    let count = run.choice.as_ref().map(|c| c.substeps);
+    held::settle(config, &mut run.metrics, &run.outcome, count, run_held)?;
+    Ok(run)
+}
+
+/// A held run (`sim::held`): its metrics and outcome, no trace.
+pub fn run_held(config: &ScenarioConfig) -> Result<(Metrics, Outcome)> {
+    let run = match config.substeps.count() {
+        Some(_) => AnySimulation::new(config)?.without_trace().run(),
+        None => search_substeps(config, false)?,
+    };
+    Ok((run.metrics, run.outcome))
 }
 
 /// `"auto"`'s search for a validated `config`, with the 4-substep run started ahead on a

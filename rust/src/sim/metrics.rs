@@ -4,7 +4,7 @@
 use crate::control::reference::Signal;
 use crate::control::task::TaskFrame;
 use crate::robot::TaskVector;
-use crate::sim::criteria::{judge, CriteriaParams, Figures, Judgement};
+use crate::sim::criteria::{judge, needs_held, CriteriaParams, Drive, Figures, Held, Judgement};
 use crate::sim::outcome::Outcome;
 use crate::sim::scenario::ScenarioConfig;
 use crate::sim::trace::{Row, Trace};
@@ -83,8 +83,14 @@ pub struct Metrics {
     pub contact_start: f64,
     /// The run stopped early (non-finite state or the velocity limit).
     pub diverged: bool,
-    /// Judged by `criteria` (SPEC §17, [`judge`]); `None`: not assessed.
+    /// The loop's dynamics (SPEC §23, [`judge`]): False when the run diverged or sustains
+    /// an oscillation or loss of contact by itself; `None`: not assessed.
     pub stable: Option<bool>,
+    /// Every criterion met (SPEC §17); `None`: not assessed.
+    pub passed: Option<bool>,
+    /// What drives the run, and what the run showed with those drives held
+    /// (`sim::held` sets it after the run).
+    pub drive: Drive,
     /// The criteria the run was judged by.
     pub criteria: CriteriaParams,
     /// Whether the run has a force loop (what [`judge`] applies).
@@ -145,9 +151,44 @@ impl Metrics {
         ]
     }
 
-    /// `stable` and the verdict in words, for a run that ended with `outcome`.
+    /// `stable`, `passed` and the verdict in words, for a run that ended with `outcome`.
     pub fn judgement(&self, outcome: &Outcome) -> Judgement {
-        judge(&self.figures(), &self.criteria, self.force_control, outcome)
+        judge(
+            &self.figures(),
+            &self.criteria,
+            self.force_control,
+            outcome,
+            &self.drive,
+        )
+    }
+
+    /// Whether judging this run needs its held run (`sim::held`): it failed a criterion the
+    /// loop may sustain by itself and what drives it is not yet known.
+    pub fn needs_held(&self, outcome: &Outcome) -> bool {
+        self.drive == Drive::Untested
+            && needs_held(&self.figures(), &self.criteria, self.force_control, outcome)
+    }
+
+    /// Judges the run again, knowing what drives it.
+    pub fn set_drive(&mut self, drive: Drive, outcome: &Outcome) {
+        self.drive = drive;
+        let j = self.judgement(outcome);
+        (self.stable, self.passed) = (j.stable, j.passed);
+    }
+
+    /// What this run shows as the held run of another (`sim::held`).
+    pub fn as_held(&self, outcome: &Outcome, holds: crate::sim::criteria::Holds) -> Held {
+        Held {
+            holds,
+            force_oscillation: self.force_oscillation,
+            contact_loss: self.contact_loss,
+            bounces: self.bounces,
+            first_contact_time: self.first_contact_time,
+            diverged_at: match outcome {
+                Outcome::Completed => f64::NAN,
+                Outcome::Diverged { time, .. } => *time,
+            },
+        }
     }
 
     /// What the criteria read.
@@ -594,6 +635,8 @@ impl OnlineMetrics {
             contact_start: nan,
             diverged,
             stable: None,
+            passed: None,
+            drive: Drive::Untested,
             criteria: self.criteria,
             force_control: self.force_control,
         };
@@ -606,7 +649,7 @@ impl OnlineMetrics {
                 _ => 0.0,
             };
         }
-        m.stable = self.judged(m, outcome);
+        m.set_drive(Drive::Untested, outcome);
         if diverged || len == 0 {
             return m;
         }
@@ -614,7 +657,7 @@ impl OnlineMetrics {
         m.z_rms_error = self.along_t.rms();
         m.path_rms_error = self.path.rms();
         if !self.force_control {
-            m.stable = self.judged(m, outcome);
+            m.set_drive(Drive::Untested, outcome);
             return m;
         }
         m.bounces = self.bounces as f64;
@@ -662,12 +705,8 @@ impl OnlineMetrics {
                 ),
             };
         }
-        m.stable = self.judged(m, outcome);
+        m.set_drive(Drive::Untested, outcome);
         m
-    }
-
-    fn judged(&self, m: Metrics, outcome: &Outcome) -> Option<bool> {
-        judge(&m.figures(), &self.criteria, self.force_control, outcome).stable
     }
 }
 
@@ -720,7 +759,10 @@ mod tests {
                 tau_cmd: &[0.0; 3],
             });
         }
-        online.finish(&Outcome::Completed)
+        let mut m = online.finish(&Outcome::Completed);
+        // The tip sits on its reference and f_d is constant: nothing drives these signals.
+        m.set_drive(Drive::Absent, &Outcome::Completed);
+        m
     }
 
     /// SPEC §16: a run that starts apart is judged from first contact + 1 s; one that
@@ -751,7 +793,8 @@ mod tests {
         assert_eq!(
             touching.judgement(&Outcome::Completed).verdict,
             "unstable: loss of contact: f = 0 in 7 % of samples after t = 1 s, 0 bounces \
-             (max_contact_loss 5 %)"
+             (max_contact_loss 5 %) — self-sustained: nothing drives the run (no motion, f_d \
+             constant in the last 2 s, no sensor noise)"
         );
         // Contact at 2.5 s of a 3-s run: 0.5 s of contact phase is too short to assess.
         let late = metrics_from(&config(), -0.02, |k| if k < 2500 { 0.0 } else { 10.0 });
@@ -767,7 +810,7 @@ mod tests {
         assert_eq!(never.contact_loss, 1.0);
         assert_eq!(
             never.judgement(&Outcome::Completed).verdict,
-            "unstable: no contact: f = 0 throughout, the tool never touched the surface \
+            "out of tolerance: no contact: f = 0 throughout, the tool never touched the surface \
              (max_contact_loss 5 %)"
         );
     }
@@ -798,16 +841,17 @@ mod tests {
         assert_eq!(m.first_contact_time, 0.5);
         assert_eq!(m.impact_peak, 30.0);
         assert_eq!(m.force_peak, 30.0);
-        assert_eq!(m.stable, Some(false));
+        // A force peak is the user's tolerance, not the loop's dynamics (SPEC §23).
+        assert_eq!((m.stable, m.passed), (Some(true), Some(false)));
         assert_eq!(
             m.judgement(&Outcome::Completed).verdict,
-            "unstable: impact peak 30 N (within 0.5 s of first contact at t = 0.5 s) above \
+            "out of tolerance: impact peak 30 N (within 0.5 s of first contact at t = 0.5 s) above \
              force_limit 20 N"
         );
         let m = metrics_from(&limited(20.0), -0.01, signal(40.0));
         assert_eq!(
             m.judgement(&Outcome::Completed).verdict,
-            "unstable: impact peak 30 N (within 0.5 s of first contact at t = 0.5 s) above \
+            "out of tolerance: impact peak 30 N (within 0.5 s of first contact at t = 0.5 s) above \
              force_limit 20 N (force peak 40 N later)"
         );
         // Only the later bump is above the limit: a force peak, not the impact.
@@ -815,7 +859,7 @@ mod tests {
         assert_eq!(m.impact_peak, 30.0);
         assert_eq!(
             m.judgement(&Outcome::Completed).verdict,
-            "unstable: force peak 40 N above force_limit 35 N"
+            "out of tolerance: force peak 40 N above force_limit 35 N"
         );
     }
 

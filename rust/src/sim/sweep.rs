@@ -4,7 +4,9 @@
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
+use crate::sim::criteria::Holds;
 use crate::sim::dispatch::AnySimulation;
+use crate::sim::held;
 use crate::sim::lanes::LaneKey;
 use crate::sim::metrics::Metrics;
 use crate::sim::outcome::SubstepChoice;
@@ -55,22 +57,10 @@ pub fn run_batch_with(
     for (index, c) in configs.iter().enumerate() {
         check(c).map_err(|error| BatchError { index, error })?;
     }
-    let workers = threads.unwrap_or_else(rayon::current_num_threads).max(1);
-    let size = if lanes {
-        // Every thread gets the same number of equal blocks (a thread with one block more
-        // than another would leave a core idle at the end of the call).
-        let per_worker = configs.len().div_ceil(workers).max(1);
-        per_worker.div_ceil(per_worker.div_ceil(LANE_BLOCK))
-    } else {
-        1
-    };
-    let blocks = blocks(configs.len(), size);
     let run_all = move || -> std::result::Result<Vec<RunSummary>, BatchError> {
-        let runs: Vec<Vec<RunSummary>> = blocks
-            .par_iter()
-            .map(|block| run_block(configs, block.clone(), keep_traces, lanes))
-            .collect::<std::result::Result<_, _>>()?;
-        Ok(runs.into_iter().flatten().collect())
+        let mut runs = run_blocks(configs, keep_traces, lanes)?;
+        settle(configs, &mut runs, lanes)?;
+        Ok(runs)
     };
     match threads {
         None => run_all(),
@@ -78,6 +68,68 @@ pub fn run_batch_with(
             .map_err(|error| BatchError { index: 0, error })?
             .install(run_all),
     }
+}
+
+/// Every config's run, in blocks on the current pool's threads; results in run order.
+fn run_blocks(
+    configs: &[ScenarioConfig],
+    keep_traces: bool,
+    lanes: bool,
+) -> std::result::Result<Vec<RunSummary>, BatchError> {
+    let blocks = blocks(configs.len(), block_size(configs.len(), lanes));
+    let runs: Vec<Vec<RunSummary>> = blocks
+        .par_iter()
+        .map(|block| run_block(configs, block.clone(), keep_traces, lanes))
+        .collect::<std::result::Result<_, _>>()?;
+    Ok(runs.into_iter().flatten().collect())
+}
+
+/// Judges the runs that need their held run (`sim::held`, SPEC §23): the held runs go as one
+/// more batch (in lanes where they fit), each a function of its own config alone, so the
+/// verdicts do not depend on the batch either.
+fn settle(
+    configs: &[ScenarioConfig],
+    runs: &mut [RunSummary],
+    lanes: bool,
+) -> std::result::Result<(), BatchError> {
+    let mut wanted: Vec<(usize, Holds)> = Vec::new();
+    let mut held_configs: Vec<ScenarioConfig> = Vec::new();
+    for (index, (config, run)) in configs.iter().zip(runs.iter_mut()).enumerate() {
+        let count = run.choice.as_ref().map(|c| c.substeps);
+        if let Some((held, holds)) = held::plan(config, &mut run.metrics, &run.outcome, count) {
+            wanted.push((index, holds));
+            held_configs.push(held);
+        }
+    }
+    if held_configs.is_empty() {
+        return Ok(());
+    }
+    let held_runs = run_blocks(&held_configs, false, lanes).map_err(|e| BatchError {
+        index: wanted.get(e.index).map_or(0, |w| w.0),
+        error: e.error,
+    })?;
+    for ((index, holds), h) in wanted.into_iter().zip(held_runs) {
+        let run = &mut runs[index];
+        held::attach(
+            &mut run.metrics,
+            &run.outcome,
+            &h.metrics,
+            &h.outcome,
+            holds,
+        );
+    }
+    Ok(())
+}
+
+/// Runs per block: with lanes, every thread of the pool gets the same number of equal
+/// blocks (a thread with one block more than another would leave a core idle at the end of
+/// the call); without, one run per block.
+fn block_size(runs: usize, lanes: bool) -> usize {
+    if !lanes {
+        return 1;
+    }
+    let per_worker = runs.div_ceil(rayon::current_num_threads().max(1)).max(1);
+    per_worker.div_ceil(per_worker.div_ceil(LANE_BLOCK))
 }
 
 /// Most runs per block of the lane scheduler: a block's runs of one [`LaneKey`] advance four
