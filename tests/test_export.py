@@ -29,8 +29,9 @@ def test_scheme1_maps_mass_damping_ratio_stiffness_axes_and_filter(tmp_path):
     a = p["admittance"]
     assert a["selected_axes"] == [True, False, False, False, False, False]
     assert a["mass"] == [pytest.approx(10.0)] * 6  # m / k_a
-    assert a["stiffness"] == [pytest.approx(4000.0)] * 6  # k / k_a
-    assert a["damping_ratio"] == [pytest.approx(20.0)] * 6  # b / (2 sqrt(m k))
+    # k / k_a on x; the unselected axes have no spring (and so no damping: D = ζ 2 √(M K)).
+    assert a["stiffness"] == [pytest.approx(4000.0)] + [0.0] * 5
+    assert a["damping_ratio"] == [pytest.approx(20.0)] + [0.0] * 5  # b / (2 sqrt(m k))
     assert p["ft_sensor"]["filter_coefficient"] == 1.0
     # Every double is written as a float (the controller rejects integers there).
     assert all(isinstance(v, float) for v in a["mass"] + a["stiffness"] + a["damping_ratio"])
@@ -136,21 +137,28 @@ def test_tilted_wall_warns_and_gives_the_control_frame_rotation():
 
     sc = ar.paper.scenario("fig8").replace(**{"wall.normal": (1.0, 0.0, -1.0)})
     with pytest.warns(ar.export.ExportWarning, match=r"wall normal n = \(0.707107, 0, -0.707107\)"
-                      r" is not the x axis: set control.frame.id") as record:  # fmt: skip
+                      r" is not the x axis: control.frame.id must be a link of the chain"
+                      ) as record:  # fmt: skip
         text = ar.export.ros2_admittance(sc, None)
     assert len(record) == 1 and record[0].filename == __file__
     notes = _comments(text)
     assert "REQUIRED: The wall normal n = (0.707107, 0, -0.707107) is not the x axis" in notes
+    assert "A TF frame published elsewhere is not seen (no admittance)" in notes
     quat = [float(v) for v in notes.split("[x, y, z, w] = [")[1].split("]")[0].split(",")]
     rot = Rotation.from_quat(quat).as_matrix()
     n, t = sc.wall.directions()
     np.testing.assert_allclose(rot @ [1, 0, 0], n, atol=1e-6)  # control x along n
     np.testing.assert_allclose(rot @ [0, 0, 1], t, atol=1e-6)  # control z along t
     np.testing.assert_allclose(n, [2**-0.5, 0, -(2**-0.5)], atol=1e-15)
-    # The paper's wall needs no rotation: no warning, no REQUIRED line.
+    # The URDF joint from the new root link to the base: the base's pose in it is Rᵀ, in
+    # URDF's rpy (R = Rz(yaw) Ry(pitch) Rx(roll), scipy's extrinsic "xyz").
+    rpy = [float(v) for v in notes.split("origin rpy = '")[1].split("'")[0].split(",")]
+    np.testing.assert_allclose(Rotation.from_euler("xyz", rpy).as_matrix(), rot.T, atol=1e-6)
+    # The paper's wall needs no rotation: no warning, no frame to add.
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert "REQUIRED" not in ar.export.ros2_admittance(ar.paper.scenario("fig8"), None)
+        assert "is not the x axis" not in ar.export.ros2_admittance(ar.paper.scenario("fig8"),
+                                                                    None)
 
 
 def test_header_describes_the_scenario_as_it_is():
@@ -254,3 +262,110 @@ def test_numpy_scalars_are_written_as_plain_toml_numbers():
     text = ar.export.toml(sc)
     assert "stiffness = 50000.0" in text and "latency = 2" in text and "np." not in text
     assert ar.Scenario.from_dict(tomllib.loads(text)) == sc
+
+
+# -- issue #57 part 1: nothing false (the controller's source on humble ad559d9, jazzy
+# ed360c9, kilted 0f8eb14, rolling 94e74de) -------------------------------------------------
+
+
+def test_the_force_set_point_goes_to_the_wrench_reference_and_humble_is_refused():
+    sc = ar.paper.scenario("fig8")
+    notes = _comments(ar.export.ros2_admittance(sc, None))
+    assert ("REQUIRED: the force set-point f_d (step, 10 N at the end of the run) is not a"
+            " parameter: publish it on the controller's ~/wrench_reference topic") in notes
+    assert "send force = 10 N along the wall normal n (into the surface)" in notes
+    assert "one message holds a constant f_d" in notes
+    assert "ros2_controllers jazzy, ed360c9" in notes
+    for version in ("kilted", "rolling"):
+        assert f"ros2_controllers {version}" in ar.export.ros2_admittance(sc, None,
+                                                                          version=version)
+    sine = _comments(ar.export.ros2_admittance(
+        sc.replace(force_reference=ar.Sine(offset=10.0, amplitude=2.0, omega=1.0)), None))
+    assert "publish f_d(t) at the update rate" in sine
+    with pytest.raises(ar.ExportError, match=r"humble \(ad559d9\): its admittance_controller has"
+                       r" no force set-point input \(the ~/wrench_reference topic exists from"
+                       r" jazzy on\)"):  # fmt: skip
+        ar.export.ros2_admittance(sc, None, version="humble")
+    with pytest.raises(ar.ParameterError, match=r"version = 'jazy' is invalid: must be one of"
+                       r" humble, jazzy, kilted, rolling \(did you mean 'jazzy'\?\)"):  # fmt: skip
+        ar.export.ros2_admittance(sc, None, version="jazy")
+
+
+def test_the_pose_shift_recipe_overshoots_and_the_wrench_reference_does_not():
+    """The advice this page used to give (shift the pose reference by f_d / K) against f_d
+    as a force set-point, on fig. 14's cell with the export's own Scheme 1 suggestion
+    (k = k_a k_e / 99 = 303 N/m), simulated with admit_rs's filter and TDC inner loop."""
+    sc = ar.paper.scenario("fig14")
+    k = sc.admittance.ka * sc.wall.stiffness / 99.0
+    scheme1 = sc.replace(admittance=ar.AdmittanceFilter.scheme1(m=1.0, b=800.0, k=k, ka=1.0))
+    wrench = ar.simulate(scheme1)
+    shift = 10.0 / (k / 1.0)  # f_d / K into the wall, f_d = 0 in the filter
+    shifted = ar.simulate(scheme1.replace(force_reference=ar.Step(value=0.0),
+                                          **{"wall.position_error": shift}))  # fmt: skip
+    assert wrench.metrics["force_peak"] == pytest.approx(12.6, abs=0.05)
+    assert shifted.metrics["force_peak"] == pytest.approx(86.3, abs=0.05)
+    # Both settle near 10 N: the recipe is exact once settled, and wrong on the way.
+    assert shifted.trace["f"][-1] == pytest.approx(9.91, abs=0.01)
+    # With an ideal inner loop the shifted reference would press k_e f_d / K.
+    assert sc.wall.stiffness * 10.0 / k == pytest.approx(990.0)
+
+
+def test_the_file_names_every_required_key_it_does_not_write():
+    required = ["joints", "command_interfaces", "state_interfaces", "kinematics.plugin_name",
+                "kinematics.plugin_package", "kinematics.base", "kinematics.tip",
+                "ft_sensor.name", "ft_sensor.frame.id", "control.frame.id",
+                "fixed_world_frame.frame.id", "gravity_compensation.frame.id",
+                "gravity_compensation.CoG.pos"]  # fmt: skip
+    notes = _comments(ar.export.ros2_admittance(ar.paper.scenario("fig8"), None))
+    listed = notes.split("merge them in): ")[1].split(". Every frame")[0]
+    assert listed.split(", ") == required
+    assert "a frame outside the chain fails every update" in notes
+    # A URDF arm: the file names its joints, base and tip, and lists the other ten.
+    from pathlib import Path
+
+    panda = ar.UrdfArm(Path(__file__).parent.parent / "examples" / "data" / "panda.urdf",
+                       "panda_hand_tcp", q0=(0, -0.785, 0, -2.356, 0, 1.571, 0.785))
+    sc = ar.paper.scenario("fig8").replace(robot=panda,
+                                           controller=ar.TimeDelayControl.for_arm(panda))
+    text = ar.export.ros2_admittance(sc, None)
+    p = yaml.safe_load(text)["admittance_controller"]["ros__parameters"]
+    assert p["joints"] == panda.joint_names and len(p["joints"]) == 7
+    assert p["kinematics"] == {"base": "panda_link0", "tip": "panda_hand_tcp"}
+    listed = _comments(text).split("merge them in): ")[1].split(". Every frame")[0]
+    assert listed.split(", ") == [r for r in required
+                                  if r not in ("joints", "kinematics.base", "kinematics.tip")]
+
+
+@pytest.mark.parametrize(("change", "what"), [
+    ({"admittance.sigma": 0.005}, "the adaptive term sigma = 0.005: the controller has no"
+                                  " integral action on the force error"),
+    ({"approach": ar.GuardedApproach()}, "the guarded approach: the controller is in force"
+                                         " control from its activation"),
+    ({"wall.position_error": 0.002}, "the wall estimate (position_error = 0.002 m): the"
+                                     " controller has no surface model"),
+    ({"sensor.bias": 0.3}, "the sensor bias 0.3: a property of your sensor"),
+    ({"sensor.noise_std": 0.5}, "the sensor noise (std 0.5 N): your sensor's own"),
+    ({"sensor.resolution": 0.01}, "the sensor resolution (0.01 N): your sensor's own"),
+    ({"sensor.latency": 2}, "the sensor latency (2 periods): your sensor's and driver's own"),
+])  # fmt: skip
+def test_every_dropped_part_is_a_warning_and_a_header_line(change, what):
+    sc = ar.paper.scenario("fig8").replace(**change)
+    with pytest.warns(ar.export.ExportWarning) as record:
+        text = ar.export.ros2_admittance(sc, None)
+    messages = [str(r.message) for r in record]
+    assert [m for m in messages if "not exported" in m] == [
+        m for m in messages if m.startswith(f"ros2_admittance: not exported: {what}")]
+    assert any(m.startswith(f"ros2_admittance: not exported: {what}") for m in messages)
+    assert f"NOT EXPORTED: {what}" in _comments(text)
+    # The paper's fig. 8 drops nothing.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert "NOT EXPORTED" not in ar.export.ros2_admittance(ar.paper.scenario("fig8"), None)
+
+
+def test_the_adaptive_filter_is_refused_naming_sigma():
+    sc = ar.paper.scenario("fig14").replace(admittance=ar.AdmittanceFilter.adaptive())
+    with pytest.raises(ar.ExportError, match=r"the adaptive filter \(admittance.sigma = 0.005,"
+                       r" k = 0\) cannot be written for admittance_controller: the controller"
+                       r" has no integral term on the force error"):  # fmt: skip
+        ar.export.ros2_admittance(sc, None)
