@@ -258,3 +258,22 @@ def test_scheme2_and_the_adaptive_filter_on_a_curved_part():
     assert e_end["adaptive"] == pytest.approx(adaptive, rel=0.02), e_end
     right = _curved(ar.AdmittanceFilter.scheme2(b=b, ka=1.0), ar.Sphere(radius=0.3))
     assert abs(10.0 - float(right.trace["f_measured"][-1])) < 1e-3
+
+
+def test_the_adaptive_filter_is_less_damped_on_softer_walls():
+    """Issue #53 item 8: σ_c = k_a k_e T / (4 b) falls with k_e, so the default σ = 0.005
+    is overdamped on fig. 14's wall and on stiffer ones, not on softer ones."""
+    sc = ar.paper.scenario("fig14").replace(admittance=ar.AdmittanceFilter.adaptive())
+    adm = sc.admittance
+    assert adm.sigma == 0.005 and (adm.ka, adm.b) == (1.0, 800.0)
+
+    def sigma_c(ke):
+        return adm.ka * ke * sc.period / (4 * adm.b)
+
+    assert sigma_c(1e4) == pytest.approx(0.003125) and sigma_c(1.6e4) == pytest.approx(0.005)
+    soft = ar.analysis.predict(sc.replace(**{"wall.stiffness": 1e4}))
+    paper = ar.analysis.predict(sc)
+    assert soft["stable"] is False and soft["dominant_damping"] < 0
+    assert soft["spectral_radius"] == pytest.approx(1.00027, abs=1e-5)
+    assert paper["stable"] is True and paper["dominant_damping"] == 1.0
+    assert paper["spectral_radius"] == pytest.approx(0.99512, abs=1e-5)

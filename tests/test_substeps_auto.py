@@ -201,3 +201,21 @@ def test_auto_reads_from_toml_and_writes_back():
     text = ar.export.toml(sc)
     assert 'substeps = "auto"' in text
     assert ar.Scenario.from_dict(tomllib.loads(text)) == sc
+
+
+def test_tune_and_the_stability_map_say_they_need_a_count():
+    """Issue #53 item 10: tune() reported "no gains keep every point predicted stable"."""
+    sc = ar.paper.scenario("fig14").replace(substeps="auto")
+    calls = {
+        "predict": lambda: ar.analysis.predict(sc),
+        "stability_map": lambda: ar.analysis.stability_map(
+            sc, x={"wall.stiffness": [1e4, 1e5]}, y={"admittance.b": [400.0, 800.0]}),
+        "tune": lambda: ar.analysis.tune(sc, vary={"admittance.b": (100.0, 3000.0)},
+                                         over={"wall.stiffness": (1e4, 1e5)}),
+    }  # fmt: skip
+    for name, call in calls.items():
+        with pytest.raises(ar.ParameterError, match=rf'{name}\(\): substeps = "auto" is '
+                           r"invalid: must be a count for the analysis") as info:  # fmt: skip
+            call()
+        assert info.value.field == "substeps"
+        assert "ar.simulate(scenario).substeps" in str(info.value)

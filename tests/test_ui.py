@@ -159,6 +159,19 @@ def test_the_dominant_pole_is_described_truthfully():
         ("dominant pole damping ζ", f"{v['dominant_damping']:.3g}", "")]
 
 
+def test_the_page_runs_a_scenario_whose_substeps_are_auto():
+    """Issue #53 item 10: every run of a substeps="auto" scenario failed on the page."""
+    from admit_rs.ui import runs
+
+    sc = ar.paper.scenario("fig14").replace(duration=1.5, substeps="auto")
+    view = runs.run(runs.Job(1, sc), lambda done, total: None)
+    alone = ar.simulate(sc)
+    assert view is not None and view.complete and view.verdict == alone.verdict
+    assert np.array_equal(view.columns["f"], alone.trace["f"].to_numpy())
+    # Its prediction says what it needs, once.
+    assert 'predict(): substeps = "auto" is invalid' in (runs.predict(sc).error or "")
+
+
 def test_the_page_says_why_prediction_and_simulation_differ():
     """Issue #54 part 3: one line when predicted and simulated `stable` differ, none when
     they agree."""

@@ -301,3 +301,18 @@ def test_sweeps_simulate_and_the_stepped_loop_agree_on_both_answers():
             table.select("stable", "passed", "verdict"))
     lanes = ar.sweep(base, grid=grid, progress=False)
     assert lanes.select("stable", "passed").equals(table.select("stable", "passed"))
+
+
+def test_the_held_run_can_be_turned_off_and_stability_is_then_not_told():
+    """``criteria.held_run=False``: no second run (a sweep over mostly failing cells pays up to
+    one more run each otherwise); `passed` and the verdict's figures stay."""
+    off = ar.simulate(SLOW.replace(**{"criteria.held_run": False}))
+    on = ar.simulate(SLOW)
+    assert off.passed is False and off.stable is None
+    assert off.metrics["force_oscillation"] == on.metrics["force_oscillation"]
+    assert off.verdict == on.verdict.split(" — ")[0] + (
+        " — driven or self-sustained: not told (criteria.held_run is false); stability not "
+        "assessed")
+    table = ar.sweep(SLOW, grid={"criteria.held_run": [True, False]}, progress=False)
+    assert table["stable"].to_list() == [True, None]
+    assert table["passed"].to_list() == [False, False]

@@ -121,6 +121,14 @@ def _check_scenario(scenario: Any, what: str) -> Scenario:
         raise ParameterTypeError(
             f"{what}() takes an admit_rs.Scenario, got {type(scenario).__name__}"
         )
+    if scenario.substeps == "auto":
+        # Said once, here, not as an error per cell (issue #53 item 10: tune() reported
+        # "no gains keep every point predicted stable" instead).
+        allowed = ("a count for the analysis (\"auto\" chooses one by comparing whole runs:"
+                   " scenario.replace(substeps=ar.simulate(scenario).substeps) is its choice)")
+        err = ParameterError(f'{what}(): substeps = "auto" is invalid: must be {allowed}')
+        err.field, err.value, err.allowed = "substeps", '"auto"', allowed
+        raise err
     return scenario
 
 

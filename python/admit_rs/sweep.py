@@ -487,10 +487,11 @@ class _Checkpoint:
 
     Every file carries, in its Parquet key-value metadata, the sweep's fingerprint (a
     SHA-256 of the manifest: base scenario, vary, grid, samples, seed, traces,
-    chunk_size, and lanes when off), its runs and a SHA-256 of its content (:func:`_checksum`). On resume a
-    file is used only if all three match, so neither a damaged file, nor one copied from
-    another sweep, nor a folder whose manifest was lost can put a wrong row in the table:
-    such a file is named in a :class:`CheckpointWarning` and its runs are computed again.
+    chunk_size, and lanes when off), its runs and a SHA-256 of its content
+    (:func:`_checksum`). On resume a file is used only if all three match, so neither a
+    damaged file, nor one copied from another sweep, nor a folder whose manifest was lost
+    can put a wrong row in the table: such a file is named in a :class:`CheckpointWarning`
+    and its runs are computed again.
     """
 
     def __init__(self, folder: str | os.PathLike[str], manifest: dict[str, Any]) -> None:

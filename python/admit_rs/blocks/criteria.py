@@ -57,4 +57,9 @@ class Criteria(_Block):
     min_assessed: float = 1.0
     """Shortest assessed window (assessed_time, from first contact + 1 s to the end) a
     force-controlled run needs for a verdict [s]; shorter runs are "not assessed"."""
+    held_run: bool = True
+    """Run a run that fails max_force_oscillation, max_contact_loss or max_bounces again with its
+    drives held (the motion at s(0), f_d held, no sensor noise) to tell a ripple the motion
+    drives (stable, out of tolerance) from one the loop sustains (unstable), SPEC §23; false: no
+    second run, such runs are "stable" None (``passed`` is judged either way)."""
     # end of generated fields

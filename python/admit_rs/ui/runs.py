@@ -22,7 +22,7 @@ import numpy.typing as npt
 from admit_rs import _core, analysis
 from admit_rs.config import Scenario, Wall
 from admit_rs.errors import AdmitError
-from admit_rs.simulation import Result, Simulation
+from admit_rs.simulation import Result, Simulation, simulate
 
 log = logging.getLogger("admit_rs.ui")
 
@@ -214,6 +214,12 @@ def run(job: Job, progress: Callable[[float, float], None]) -> RunView | None:
     ``progress(done_s, total_s)`` and stopping early when the job goes stale: ``None`` if a
     newer state waits, a partial view if the user cancelled. Parameter errors raise."""
     sc = job.scenario
+    if sc.substeps == "auto":
+        # "auto" chooses its count by comparing whole runs (issue #53 item 10: every run of
+        # such a scenario failed here): the run goes whole, as ar.simulate gives it, without
+        # progress or cancel.
+        res = simulate(sc)
+        return _view(res, joint_count(res.trace.columns))
     sim = Simulation(sc)
     total = sc.samples
     start = time.perf_counter()

@@ -26,6 +26,8 @@ pub struct CriteriaParams {
     pub max_torque_saturation: Option<f64>,
     /// Shortest assessed window (assessed_time, from first contact + 1 s to the end) a force-controlled run needs for a verdict [s]; shorter runs are "not assessed".
     pub min_assessed: f64,
+    /// Run a run that fails max_force_oscillation, max_contact_loss or max_bounces again with its drives held (the motion at s(0), f_d held, no sensor noise) to tell a ripple the motion drives (stable, out of tolerance) from one the loop sustains (unstable), SPEC §23; false: no second run, such runs are "stable" None (``passed`` is judged either way).
+    pub held_run: bool,
 }
 
 impl Default for CriteriaParams {
@@ -38,6 +40,7 @@ impl Default for CriteriaParams {
             max_path_error: None,
             max_torque_saturation: None,
             min_assessed: 1.0,
+            held_run: true,
         }
     }
 }
@@ -481,7 +484,12 @@ pub fn judge(
             ),
             Drive::Untested => (
                 None,
-                "driven or self-sustained: the run with its references held was not run".to_owned(),
+                if criteria.held_run {
+                    "driven or self-sustained: the run with its references held was not run"
+                        .to_owned()
+                } else {
+                    "driven or self-sustained: not told (criteria.held_run is false)".to_owned()
+                },
             ),
             Drive::Held(held) => {
                 let with = held.holds.words();

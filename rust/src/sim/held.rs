@@ -96,7 +96,7 @@ pub fn plan(
     outcome: &Outcome,
     substeps: Option<usize>,
 ) -> Option<(ScenarioConfig, Holds)> {
-    if !metrics.needs_held(outcome) {
+    if !metrics.needs_held(outcome) || !metrics.criteria.held_run {
         return None;
     }
     match held_config(config) {
