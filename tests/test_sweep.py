@@ -234,7 +234,7 @@ def test_ctrl_c_during_a_checkpoint_write_is_one_interrupt(tmp_path, monkeypatch
     import os
     import threading
 
-    module = sys.modules["admit_rs.sweep"]
+    module = sys.modules["admit_rs._checkpoint"]  # where a checkpoint chunk is written
     real = module._atomic_parquet
     big = pl.DataFrame({f"c{i}": np.arange(2_000_000, dtype=float) for i in range(4)})
     calls = {"n": 0}

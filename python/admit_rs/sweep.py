@@ -15,44 +15,42 @@ resumed from a checkpoint, or computed on Dask workers.
 
 from __future__ import annotations
 
-import contextlib
-import dataclasses
 import hashlib
-import itertools
 import json
-import math
 import os
-import tempfile
 import time
-import types
-import typing
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import polars as pl
-from polars.exceptions import PanicException
 
 from admit_rs import _core
+from admit_rs._checkpoint import (
+    CheckpointMismatchError,
+    CheckpointWarning,
+    _atomic_parquet,
+    _Checkpoint,
+)
+from admit_rs._sweep_plan import _column_value, _configs, _Plan, _plan, noise_seed
 from admit_rs._trace import trace_frame
-from admit_rs.blocks._base import _parameter_error
-from admit_rs.blocks.scenario import position_error_unread
 from admit_rs.config import (
     Scenario,
-    _Block,
-    _check_path,
-    _core_dict_with,
-    _core_value,
     _python_error,
 )
+from admit_rs.distributions import (
+    Choice,
+    Distribution,
+    DistributionError,
+    LogUniform,
+    Normal,
+    Uniform,
+)
 from admit_rs.errors import (
-    AdmitError,
     ArgumentError,
     ParameterError,
-    ParameterTypeError,
     closest,
     for_run,
 )
@@ -69,24 +67,12 @@ __all__ = [
     "Normal",
     "SweepInterrupted",
     "Uniform",
+    "noise_seed",
     "sweep",
 ]
 
 DEFAULT_CHUNK_SIZE = 256
 """Runs per checkpoint file and per Dask task."""
-
-
-class DistributionError(AdmitError, ValueError):
-    """A distribution with impossible parameters (low > high, negative sigma, ...)."""
-
-
-class CheckpointMismatchError(AdmitError, ValueError):
-    """A checkpoint folder holds a different sweep than the one asked for."""
-
-
-class CheckpointWarning(UserWarning):
-    """A checkpoint chunk file that cannot be used (unreadable, or not this sweep's): it is
-    named in the message, its runs are computed again and the file is replaced."""
 
 
 class LaneBuildWarning(UserWarning):
@@ -131,284 +117,6 @@ class SweepInterrupted(KeyboardInterrupt):
     def __init__(self, table: pl.DataFrame) -> None:
         super().__init__(f"sweep interrupted after {table.height} finished runs")
         self.table = table
-
-
-def _finite(name: str, value: float) -> float:
-    value = float(value)
-    if not math.isfinite(value):
-        raise DistributionError(f"{name} = {value} is invalid: must be finite")
-    return value
-
-
-@dataclass(frozen=True)
-class Uniform:
-    """Uniform on [low, high]."""
-
-    low: float
-    high: float
-
-    def __post_init__(self) -> None:
-        if _finite("low", self.low) > _finite("high", self.high):
-            raise DistributionError(f"Uniform: low = {self.low} > high = {self.high}")
-
-    def draw(self, rng: np.random.Generator) -> float:
-        return float(rng.uniform(self.low, self.high))
-
-
-@dataclass(frozen=True)
-class LogUniform:
-    """log-uniform on [low, high], 0 < low ≤ high (for stiffnesses and gains)."""
-
-    low: float
-    high: float
-
-    def __post_init__(self) -> None:
-        if _finite("low", self.low) <= 0:
-            raise DistributionError(f"LogUniform: low = {self.low} is invalid: must be > 0")
-        if self.low > _finite("high", self.high):
-            raise DistributionError(f"LogUniform: low = {self.low} > high = {self.high}")
-
-    def draw(self, rng: np.random.Generator) -> float:
-        return float(math.exp(rng.uniform(math.log(self.low), math.log(self.high))))
-
-
-@dataclass(frozen=True)
-class Normal:
-    """Normal(mean, std), optionally truncated to [low, high] by rejection."""
-
-    mean: float
-    std: float
-    low: float | None = None
-    high: float | None = None
-
-    MAX_TRIES = 10_000
-
-    def __post_init__(self) -> None:
-        _finite("mean", self.mean)
-        if _finite("std", self.std) < 0:
-            raise DistributionError(f"Normal: std = {self.std} is invalid: must be >= 0")
-        lo = -math.inf if self.low is None else float(self.low)
-        hi = math.inf if self.high is None else float(self.high)
-        if math.isnan(lo) or math.isnan(hi) or lo > hi:
-            raise DistributionError(f"Normal: bounds [{self.low}, {self.high}] are empty")
-        if self.std == 0 and not lo <= self.mean <= hi:
-            raise DistributionError(f"Normal: std = 0 and mean {self.mean} outside the bounds")
-
-    def draw(self, rng: np.random.Generator) -> float:
-        lo = -math.inf if self.low is None else self.low
-        hi = math.inf if self.high is None else self.high
-        for _ in range(self.MAX_TRIES):
-            x = float(rng.normal(self.mean, self.std))
-            if lo <= x <= hi:
-                return x
-        raise DistributionError(
-            f"Normal({self.mean}, {self.std}) truncated to [{lo}, {hi}]: no draw inside the"
-            f" bounds in {self.MAX_TRIES} tries; the bounds are too far in the tail"
-        )
-
-
-@dataclass(frozen=True)
-class Choice:
-    """One of ``values`` (numbers, strings or building blocks), optionally weighted."""
-
-    values: tuple[Any, ...]
-    weights: tuple[float, ...] | None = field(default=None)
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "values", tuple(self.values))
-        if not self.values:
-            raise DistributionError("Choice: values is empty")
-        if self.weights is not None:
-            w = tuple(float(x) for x in self.weights)
-            if len(w) != len(self.values) or any(not math.isfinite(x) or x < 0 for x in w):
-                raise DistributionError("Choice: weights must be one finite w >= 0 per value")
-            if sum(w) <= 0:
-                raise DistributionError("Choice: weights sum to 0")
-            object.__setattr__(self, "weights", w)
-
-    def draw(self, rng: np.random.Generator) -> Any:
-        p = None if self.weights is None else np.asarray(self.weights) / sum(self.weights)
-        return self.values[int(rng.choice(len(self.values), p=p))]
-
-
-Distribution = Uniform | LogUniform | Normal | Choice
-
-
-def _describe(value: Any) -> Any:
-    """A JSON-able description, for checkpoint manifests."""
-    if isinstance(value, _Block):
-        return {"block": type(value).__name__, **value.to_dict()}
-    if isinstance(value, Uniform | LogUniform | Normal | Choice):
-        d = {"dist": type(value).__name__}
-        for k, v in value.__dict__.items():
-            d[k] = _describe(v)
-        return d
-    if isinstance(value, tuple | list):
-        return [_describe(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return repr(value)
-    return value
-
-
-def _column_value(value: Any, dtype: Any = None) -> Any:
-    """A varied value as its table column holds it: blocks (and, in a column whose values
-    mix shapes, every value) as their repr."""
-    if isinstance(value, _Block) or (dtype == pl.String and not isinstance(value, str)):
-        return repr(value)
-    return value
-
-
-def _field_types(scenario: Scenario, path: str) -> tuple[type, ...]:
-    """The types a dotted path's field is declared with (``float | None`` ->
-    ``(float, NoneType)``), from the block's annotations; ``()`` when unknown."""
-    *parents, leaf = path.split(".")
-    owner: Any = scenario
-    for part in parents:
-        owner = getattr(owner, part, None)
-    if not dataclasses.is_dataclass(owner):
-        return ()
-    try:
-        hint = typing.get_type_hints(type(owner)).get(leaf)
-    except (NameError, TypeError):  # an annotation that does not resolve: no coercion
-        return ()
-    if hint is None:
-        return ()
-    args = typing.get_args(hint)
-    members = args if typing.get_origin(hint) in (typing.Union, types.UnionType) else (hint,)
-    # Plain types, and tuple[float, ...] (a vector field) as itself.
-    return tuple(m for m in members if isinstance(m, type) or typing.get_origin(m) is tuple)
-
-
-def _normalise(types_: tuple[type, ...], value: Any) -> Any:
-    """A listed or drawn value in its field's declared type, so that the table does not
-    depend on how it was typed (``200`` and ``200.0`` for a float field are both 200.0;
-    an integral ``10.0`` for an int field is 10). Booleans are left alone (the core
-    rejects a bool where a number belongs)."""
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, list | tuple | np.ndarray):
-        vector = any(typing.get_origin(t) is tuple and float in typing.get_args(t) for t in types_)
-        if vector:  # (1, 0, -1) and (1.0, 0.0, -1.0) are one normal
-            return tuple(_normalise((float,), v) for v in value)
-        return value
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return value
-    if float in types_ and int not in types_ and isinstance(value, int):
-        return float(value)
-    if int in types_ and float not in types_ and isinstance(value, float):
-        if math.isfinite(value) and value == int(value):
-            return int(value)
-    return value
-
-
-def _dtype(values: list[Any]) -> Any:
-    """The one polars dtype of a varied column, from all its values (not from the first
-    ones of a chunk): every chunk, thread count and resume builds it alike. Values that
-    no single dtype holds (a number and a tuple for one field) become their repr."""
-    try:
-        return pl.Series(values, strict=True).dtype
-    except (TypeError, ValueError, pl.exceptions.PolarsError):
-        return pl.String
-
-
-@dataclass(frozen=True)
-class _Plan:
-    """Everything that defines a sweep: the runs' parameters, in run_id order."""
-
-    base: dict[str, Any]
-    paths: list[str]
-    rows: list[dict[str, Any]]
-    seed: int
-    manifest: dict[str, Any]
-    dtypes: dict[str, Any] = field(default_factory=dict)
-    """The polars dtype of each varied column."""
-
-
-def _plan(
-    scenario: Scenario,
-    vary: Mapping[str, Distribution] | None,
-    grid: Mapping[str, Sequence[Any]] | None,
-    samples: int | None,
-    seed: int,
-) -> _Plan:
-    if not isinstance(scenario, Scenario):
-        raise ParameterTypeError(
-            f"sweep() takes an admit_rs.Scenario, got {type(scenario).__name__}"
-        )
-    vary = dict(vary or {})
-    grid = {k: list(v) for k, v in (grid or {}).items()}
-    if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < 2**63:
-        # The table's seed column is a 64-bit integer.
-        raise _parameter_error("seed", repr(seed), "an integer from 0 to 2**63 - 1")
-    # Paths in current field names (a deprecated name warns once, here).
-    vary = {_check_path(scenario, p): d for p, d in vary.items()}
-    grid = {_check_path(scenario, p): v for p, v in grid.items()}
-    both = set(vary) & set(grid)
-    if both:
-        raise ArgumentError(f"{sorted(both)} given in both vary and grid")
-    if scenario.wall_estimate is not None and "wall.position_error" in {*vary, *grid}:
-        raise position_error_unread("varied")
-    for path, dist in vary.items():
-        if not isinstance(dist, Uniform | LogUniform | Normal | Choice):
-            raise ParameterTypeError(
-                f"vary[{path!r}] must be a Uniform, LogUniform, Normal or Choice"
-            )
-    for path, values in grid.items():
-        if not values:
-            raise ArgumentError(f"grid[{path!r}] is empty")
-    declared = {path: _field_types(scenario, path) for path in [*grid, *vary]}
-    grid = {path: [_normalise(declared[path], v) for v in values] for path, values in grid.items()}
-    if samples is None:
-        if vary:
-            raise ArgumentError("samples is required with vary (how many draws per grid point)")
-        samples = 1
-    if not isinstance(samples, int) or isinstance(samples, bool) or samples < 1:
-        raise ArgumentError(f"samples = {samples!r} is invalid: must be an integer >= 1")
-
-    rows = []
-    points = list(itertools.product(*grid.values())) if grid else [()]
-    for g, point in enumerate(points):
-        for s in range(samples):
-            run_id = g * samples + s
-            row: dict[str, Any] = dict(zip(grid, point, strict=True))
-            rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, run_id])))
-            for path, dist in vary.items():
-                row[path] = _normalise(declared[path], dist.draw(rng))
-            rows.append(row)
-    manifest = {
-        "format": 1,
-        "scenario": _describe(scenario),
-        "vary": {k: _describe(v) for k, v in vary.items()},
-        "grid": {k: _describe(v) for k, v in grid.items()},
-        "samples": samples,
-        "seed": seed,
-    }
-    paths = list(grid) + list(vary)
-    dtypes = {p: _dtype([_column_value(r[p]) for r in rows]) for p in paths}
-    return _Plan(scenario._to_core(), paths, rows, seed, manifest, dtypes)
-
-
-def noise_seed(seed: int, run_id: int) -> int:
-    """The sensor-noise seed (``Scenario.seed``) of run ``run_id`` of a sweep with ``seed``.
-
-    Derived from (seed, run_id) alone, like the parameter draws, so a run's noise does not
-    depend on the thread count, the chunking, a resume or Dask; ``scenario.replace(seed=
-    noise_seed(seed, run_id))`` reproduces the run with :func:`admit_rs.simulate`.
-    """
-    state = np.random.SeedSequence([seed, run_id, 1]).generate_state(1, np.uint64)[0]
-    return int(state) >> 11  # 53 bits: exact as a float in the core's config
-
-
-def _configs(
-    base: dict[str, Any], rows: Sequence[dict[str, Any]], run_ids: Sequence[int], seed: int
-) -> list[dict[str, Any]]:
-    out = []
-    for row, run_id in zip(rows, run_ids, strict=True):
-        # A varied "seed" path overrides the run's own noise seed.
-        changes = {"seed": noise_seed(seed, run_id)}
-        changes.update((path, _core_value(value)) for path, value in row.items())
-        out.append(_core_dict_with(base, changes))
-    return out
 
 
 def _run_chunk(
@@ -480,256 +188,6 @@ def _run_chunk_remote(
 ) -> tuple[pl.DataFrame, pl.DataFrame | None]:
     # One task per worker thread: the worker's own cores run it, one Rust thread each.
     return _run_chunk(base, rows, run_ids, seed, 1, traces, lanes, dtypes)
-
-
-class _Checkpoint:
-    """Finished chunks as Parquet files plus a manifest of the sweep's definition.
-
-    Every file carries, in its Parquet key-value metadata, the sweep's fingerprint (a
-    SHA-256 of the manifest: base scenario, vary, grid, samples, seed, traces,
-    chunk_size, and lanes when off), its runs and a SHA-256 of its content
-    (:func:`_checksum`). On resume a file is used only if all three match, so neither a
-    damaged file, nor one copied from another sweep, nor a folder whose manifest was lost
-    can put a wrong row in the table: such a file is named in a :class:`CheckpointWarning`
-    and its runs are computed again.
-    """
-
-    def __init__(self, folder: str | os.PathLike[str], manifest: dict[str, Any]) -> None:
-        self.folder = Path(folder)
-        self.traces = bool(manifest.get("traces"))
-        self.folder.mkdir(parents=True, exist_ok=True)
-        path = self.folder / "manifest.json"
-        text = json.dumps(manifest, sort_keys=True, indent=1)
-        self.fingerprint = hashlib.sha256(text.encode()).hexdigest()
-        old = self._read_manifest(path)
-        if old is not None and old != json.loads(text):
-            keys = sorted(k for k in set(old) | set(manifest) if old.get(k) != manifest.get(k))
-            raise CheckpointMismatchError(
-                f"checkpoint {self.folder} holds a different sweep (differs in"
-                f" {', '.join(keys)}); use another folder or delete it"
-            )
-        if old is None:
-            _atomic_write(path, lambda f: f.write(text.encode()))
-
-    @staticmethod
-    def _read_manifest(path: Path) -> dict[str, Any] | None:
-        """The manifest on disk; ``None`` if there is none or it is unusable (then a
-        CheckpointWarning names it and it is written again: every chunk is checked against
-        the sweep's fingerprint anyway)."""
-        if not path.exists():
-            return None
-        try:
-            old = json.loads(path.read_bytes().decode("utf-8"))
-            if not isinstance(old, dict):
-                raise ArgumentError(f"a JSON {type(old).__name__}, not an object")
-            return old
-        except (OSError, ValueError) as e:  # JSONDecodeError, UnicodeDecodeError are ValueErrors
-            reason = str(e).strip().splitlines()[0] if str(e).strip() else ""
-            warnings.warn(
-                f"checkpoint: {path} is unreadable ({type(e).__name__}: {reason}); writing it"
-                " again for this sweep (every chunk is still checked against this sweep's"
-                " fingerprint before it is used)",
-                CheckpointWarning,
-                stacklevel=4,
-            )
-            return None
-
-    def _path(self, kind: str, index: int) -> Path:
-        return self.folder / f"{kind}-{index:06d}.parquet"
-
-    @staticmethod
-    def _digest_of(path: Path) -> str:
-        h = hashlib.sha256()
-        with path.open("rb") as f:
-            for block in iter(lambda: f.read(1 << 20), b""):
-                h.update(block)
-        return h.hexdigest()
-
-    def _seal(self, path: Path) -> None:
-        """Writes the SHA-256 of ``path``'s bytes beside it (``<name>.sha256``)."""
-        digest = self._digest_of(path).encode()
-        _atomic_write(_sidecar(path), lambda f: f.write(digest))
-
-    def _intact(self, path: Path) -> str | None:
-        """Why ``path`` must not be parsed, or ``None``: its bytes are checked against the
-        checksum beside it before Parquet reads them, because a flipped length in a page
-        can make the reader allocate exabytes and abort the process."""
-        seal = _sidecar(path)
-        if not seal.exists():
-            return f"{path} has no checksum file {seal.name} beside it (an older or foreign file)"
-        if seal.read_bytes().strip() != self._digest_of(path).encode():
-            return (f"{path} is damaged or not this sweep's (its bytes do not match"
-                    f" {seal.name})")  # fmt: skip
-        return None
-
-    def _read(self, path: Path, ids: range) -> tuple[pl.DataFrame | None, str | None]:
-        """A chunk or traces file, or why it cannot be used."""
-        meta = pl.read_parquet_metadata(path)
-        frame = pl.read_parquet(path)
-        if _FINGERPRINT not in meta or _CHECKSUM not in meta:
-            return None, f"{path} has no fingerprint or checksum (an older or foreign file)"
-        if meta[_FINGERPRINT] != self.fingerprint:
-            theirs, ours = meta[_FINGERPRINT][:12], self.fingerprint[:12]
-            return None, f"{path} is from another sweep (fingerprint {theirs}, this one's {ours})"
-        if meta.get(_RUNS) != _runs(ids):
-            runs = meta.get(_RUNS)
-            return None, f"{path} is not the chunk of runs {_runs(ids)} (its runs: {runs})"
-        if meta[_CHECKSUM] != _checksum(frame):
-            return None, f"{path} is damaged (its content does not match its checksum)"
-        return frame, None
-
-    def load(
-        self, index: int, plan: _Plan, ids: range
-    ) -> tuple[pl.DataFrame, pl.DataFrame | None] | None:
-        """Chunk ``index`` if it is on disk, readable and this sweep's; else ``None`` (to
-        compute), with a :class:`CheckpointWarning` naming a file that is not usable."""
-        path = self._path("chunk", index)
-        if not path.exists():
-            return None
-        tpath = self._path("traces", index)
-        table = long = None
-        # The bytes are checked before Parquet parses them (see `_intact`).
-        problem = self._intact(path)
-        if problem is None and self.traces and tpath.exists():
-            problem = self._intact(tpath)
-        if problem is None:
-            try:
-                # The run_ids check first: a chunk copied under another index says so.
-                table = pl.read_parquet(path)
-                foreign = _foreign(table, None, plan, ids)
-                if foreign:
-                    problem = f"{path} is {foreign}"
-                else:
-                    table, problem = self._read(path, ids)
-                if problem is None and self.traces:
-                    if not tpath.exists():
-                        problem = f"{path} has no {tpath.name} beside it"
-                    else:
-                        long, problem = self._read(tpath, ids)
-                if problem is None and table is not None:
-                    foreign = _foreign(table, long, plan, ids)
-                    problem = f"{path} is {foreign}" if foreign else None
-            except (Exception, PanicException) as e:  # a damaged file can fail in any way
-                reason = str(e).strip().splitlines()[0] if str(e).strip() else ""
-                problem = f"{path} is unreadable ({type(e).__name__}: {reason[:200]})"
-        if problem is not None or table is None:
-            warnings.warn(
-                f"checkpoint: {problem}; recomputing runs {ids.start}..{ids.stop - 1}"
-                " (the file will be replaced)",
-                CheckpointWarning,
-                stacklevel=3,
-            )
-            return None
-        return table, long
-
-    def save(
-        self, index: int, ids: range, table: pl.DataFrame, traces: pl.DataFrame | None
-    ) -> None:
-        # Traces first, the chunk last and atomically: a chunk file means a finished chunk.
-        if traces is not None:
-            tpath = self._path("traces", index)
-            _atomic_parquet(traces, tpath, self._metadata(ids, traces))
-            self._seal(tpath)
-        path = self._path("chunk", index)
-        _atomic_parquet(table, path, self._metadata(ids, table))
-        self._seal(path)
-
-    def _metadata(self, ids: range, frame: pl.DataFrame) -> dict[str, str]:
-        return {_FINGERPRINT: self.fingerprint, _RUNS: _runs(ids), _CHECKSUM: _checksum(frame)}
-
-
-def _sidecar(path: Path) -> Path:
-    """The file holding the SHA-256 of ``path``'s bytes."""
-    return path.with_name(path.name + ".sha256")
-
-
-_FINGERPRINT = "admit_rs.sweep_fingerprint"
-_RUNS = "admit_rs.runs"
-_CHECKSUM = "admit_rs.content_sha256"
-"""Keys of a checkpoint file's Parquet metadata."""
-
-
-def _runs(ids: range) -> str:
-    return f"{ids.start}..{ids.stop - 1}"
-
-
-def _checksum(frame: pl.DataFrame) -> str:
-    """SHA-256 of a table's content: column names, dtypes, null masks and values (numbers
-    as their bytes, anything else as JSON), independent of how polars chunks it in memory."""
-    h = hashlib.sha256()
-    h.update(json.dumps([frame.height, frame.columns, [str(d) for d in frame.dtypes]]).encode())
-    for s in frame.get_columns():
-        h.update(s.is_null().to_numpy().tobytes())
-        if s.dtype.is_numeric() or s.dtype == pl.Boolean:
-            filled = s.fill_null(False if s.dtype == pl.Boolean else 0)
-            h.update(filled.to_numpy().tobytes())
-        else:
-            h.update(json.dumps(s.to_list(), default=repr).encode())
-    return h.hexdigest()
-
-
-def _same(a: Any, b: Any) -> bool:
-    """Equal as read back from Parquet: tuples as lists, NaN equal to NaN."""
-    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
-        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
-    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
-        return True
-    return bool(a == b)
-
-
-def _foreign(table: pl.DataFrame, long: pl.DataFrame | None, plan: _Plan, ids: range) -> str | None:
-    """Why a readable chunk file is not chunk ``ids`` of this sweep, or ``None`` if it is."""
-    name = f"chunk of runs {ids.start}..{ids.stop - 1}"
-    if "run_id" not in table.columns or table["run_id"].to_list() != list(ids):
-        return f"not the {name} of this sweep (other run_ids)"
-    missing = [c for c in ("seed", *plan.paths, "stable", "passed") if c not in table.columns]
-    if missing:
-        return f"not the {name} of this sweep (no column {', '.join(missing)})"
-    if table["seed"].to_list() != [plan.seed] * len(ids):
-        return f"not the {name} of this sweep (another seed)"
-    rows = plan.rows[ids.start : ids.stop]
-    for path in plan.paths:
-        expected = [_column_value(r[path], plan.dtypes.get(path)) for r in rows]
-        if not _same(table[path].to_list(), expected):
-            return f"not the {name} of this sweep (other {path} values)"
-    if long is not None and set(long["run_id"].unique().to_list()) != set(ids):
-        return f"not the {name} of this sweep (its traces hold other run_ids)"
-    return None
-
-
-def _read_umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-_UMASK = _read_umask()
-"""The process umask, read once at import (os.umask can only be read by setting it)."""
-
-
-def _atomic_write(path: Path, write: Callable[[IO[bytes]], Any]) -> None:
-    """Writes ``path`` through a new temporary file beside it, then renames it into place.
-
-    The temporary file is created with O_CREAT | O_EXCL (:func:`tempfile.mkstemp`) under a
-    random name, so a file or symlink planted in the folder is never opened or followed;
-    the rename replaces ``path`` itself (a symlink there is replaced, not followed)."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        # mkstemp makes the file 0600; give it the mode open() would have (0666 & ~umask).
-        os.fchmod(fd, 0o666 & ~_UMASK)
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-
-
-def _atomic_parquet(
-    frame: pl.DataFrame, path: Path, metadata: dict[str, str] | None = None
-) -> None:
-    _atomic_write(path, lambda f: frame.write_parquet(f, metadata=metadata))
 
 
 def _chunks(n: int, size: int) -> Iterator[tuple[int, range]]:
@@ -1064,3 +522,4 @@ def _assemble(
 
 
 _check_lane_env()
+
