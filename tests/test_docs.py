@@ -11,8 +11,9 @@ BLOCKS = ["actuator", "approach", "controller", "criteria", "force_control", "ro
           "scenario", "sensor", "signal", "surface"]
 MODULES = ["admit_rs", *(f"admit_rs.blocks.{m}" for m in BLOCKS), "admit_rs.errors",
            "admit_rs.export", "admit_rs.simulation", "admit_rs.sweep", "admit_rs.paper",
-           "admit_rs.reproduction", "admit_rs.metrics", "admit_rs.plot", "admit_rs._names",
-           "admit_rs.analysis", "admit_rs._paper_scenarios"]  # fmt: skip
+           "admit_rs.reproduction", "admit_rs.metrics", "admit_rs.plot.sweeps",
+           "admit_rs.plot.axes", "admit_rs._names", "admit_rs.analysis.linear",
+           "admit_rs._paper_scenarios"]  # fmt: skip
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -20,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from admit_rs import _core, analysis
+from admit_rs.analysis.linear import _with_friction
 from admit_rs.config import Scenario, Wall
 from admit_rs.errors import AdmitError
 from admit_rs.simulation import Result, Simulation, simulate
@@ -331,7 +332,7 @@ def predict(scenario: Scenario) -> Prediction:
         return Prediction(None, None, str(e), scenario.period)
     amp = float(values.get("friction_amplitude", 0.0))  # type: ignore[arg-type]
     try:
-        model = analysis._with_friction(scenario, amp) if amp > 0 else scenario
+        model = _with_friction(scenario, amp) if amp > 0 else scenario
         raw = _core.linearize(model._to_core(), None)
         poles = np.linalg.eigvals(np.asarray(raw["a"], dtype=float))
     except (AdmitError, ValueError, np.linalg.LinAlgError) as e:
