@@ -468,3 +468,19 @@ def test_tune_refuses_counts_out_of_range_naming_them(name, value, allowed):
         ar.analysis.tune(sc, {"admittance.b": (100, 1000)}, {"wall.stiffness": (1e4, 1e5)},
                          verify=False, **{name: value})  # fmt: skip
     assert info.value.field == name and allowed in info.value.allowed
+
+
+def test_linearize_at_a_time_names_what_it_cannot_do():
+    """Issue #53 item 9: at=NaN blamed z_reference.value; with a guarded approach the run's
+    state did not fit the linear model ("state = 23 values ... must be 19")."""
+    sc = ar.paper.scenario("fig14")
+    for at in (math.nan, -1.0, 11.0, math.inf):
+        with pytest.raises(ar.ParameterError, match=r"at = .* is invalid: must be a time of the"
+                           r" run, from 0 to its duration 10 s, or None") as info:  # fmt: skip
+            ar.analysis.linearize(sc, at=at)
+        assert info.value.field == "at"
+    guarded = sc.replace(approach=ar.GuardedApproach(), **{"wall.gap": 0.01})
+    with pytest.raises(ar.AnalysisError, match=r"linearize\(at=\.\.\.\) with a guarded approach"
+                       r" is not supported"):  # fmt: skip
+        ar.analysis.linearize(guarded, at=1.0)
+    assert ar.analysis.linearize(sc, at=1.0).nstates == 18

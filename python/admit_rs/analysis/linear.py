@@ -146,7 +146,9 @@ def linearize(scenario: Scenario, at: float | None = None, friction: Any = "rest
 
     Raises :class:`admit_rs.errors.AnalysisError` (a ``ValueError``) when there is no
     contact equilibrium (wall out of reach, f_d ≤ 0), when it is singular (a pole at 1,
-    e.g. ``admittance.ka = 0``) or without a wall or force loop.
+    e.g. ``admittance.ka = 0``), without a wall or force loop, or for ``at`` with a guarded
+    approach (not supported yet); :class:`admit_rs.ParameterError` for an ``at`` outside
+    the run.
 
     Example:
         >>> import admit_rs as ar
@@ -164,6 +166,21 @@ def linearize(scenario: Scenario, at: float | None = None, friction: Any = "rest
     scenario = _with_friction(scenario, friction)
     if at is not None and not (isinstance(at, int | float) and not isinstance(at, bool)):
         raise ParameterTypeError(f"at must be a number of seconds or None, got {type(at).__name__}")
+    if at is not None and not 0.0 <= at <= scenario.duration:
+        # (A NaN was blamed on z_reference.value, issue #53 item 9.)
+        allowed = f"a time of the run, from 0 to its duration {scenario.duration:g} s, or None"
+        err = ParameterError(f"at = {at!r} is invalid: must be {allowed}")
+        err.field, err.value, err.allowed = "at", repr(at), allowed
+        raise err
+    if at is not None and scenario.approach is not None:
+        # The run's state at `at` holds the approach's stage, which the linearised loop (the
+        # contact phase, approach handed over) does not have (issue #53 item 9).
+        raise AnalysisError(
+            "linearize(at=...) with a guarded approach is not supported: the run's state there"
+            " includes the approach's, which the linear model of the contact phase has none"
+            " of; linearize about the contact equilibrium (at=None), or the same scenario"
+            " with approach=None"
+        )
     _check_friction(scenario)
     raw = _core.linearize(scenario._to_core(), None if at is None else float(at))
     sys = control.ss(
