@@ -327,7 +327,8 @@ def test_bad_input_gives_clear_errors():
 def test_predict_fields_and_friction_options():
     sc = ar.paper.scenario("fig14")
     rest = ar.analysis.predict(sc, friction="rest")
-    assert list(rest) == [*ar.analysis.PREDICTION_NAMES, "friction_amplitude", "verdict"]
+    assert list(rest) == [*ar.analysis.PREDICTION_NAMES, "friction_amplitude", "verdict",
+                          "passed", "force_oscillation", "contact_loss", "tolerance_verdict"]
     assert rest["stable"] and rest["spectral_radius"] < 1 and rest["friction_amplitude"] == 0
     assert rest["rise_time_63"] > 0 and rest["settling_time"] > rest["rise_time_63"]
     step = ar.analysis.predict(sc)

@@ -13,6 +13,7 @@ MODULES = ["admit_rs", *(f"admit_rs.blocks.{m}" for m in BLOCKS), "admit_rs.erro
            "admit_rs.export", "admit_rs.simulation", "admit_rs.sweep", "admit_rs.paper",
            "admit_rs.reproduction", "admit_rs.metrics", "admit_rs.plot.sweeps",
            "admit_rs.plot.axes", "admit_rs._names", "admit_rs.analysis.linear",
+           "admit_rs.analysis.forced", "admit_rs.analysis._checks",
            "admit_rs._paper_scenarios"]  # fmt: skip
 
 

@@ -150,14 +150,25 @@ def simulate_batch(
     An invalid scenario raises ``ParameterError`` (with ``index``) before anything runs.
     """
 
-def linearize(scenario: dict[str, Any], at: float | None = None) -> dict[str, Any]:
+def linearize(
+    scenario: dict[str, Any], at: float | None = None, driven: bool = False
+) -> dict[str, Any]:
     """The one-period closed loop linearised about its contact equilibrium (or the state
     at time ``at``), GIL released: ``a`` (n×n), ``b`` (n×1), ``c`` (3×n), ``d`` (3×1)
     and ``c_measured`` (n: the measured force f̃ = c_measured·x, what the force loop feeds
     back) as ndarrays, ``labels``, ``state`` (the operating point), ``force_desired``,
     ``outputs`` ([f, n·X, t̂·X] there), ``reference_normal``, ``penetration``,
-    ``period``, ``equilibrium``, ``iterations``, ``caveats``. Raises
+    ``period``, ``equilibrium``, ``iterations``, ``caveats``. ``driven`` adds the inputs
+    u = (s, ṡ, s̈, τ_1 … τ_N) (the motion reference and a torque added to each joint's):
+    ``b_drive`` (n×m), ``d_drive`` (3×m), ``c_measured_drive`` (m), ``drive_labels`` and
+    ``curvature`` (n + 4 symmetric (n+m)×(n+m) matrices: the second derivatives of each
+    row of Φ, then of f, n·X, t̂·X, f̃, in (x, u)). Raises
     ``admit_rs.errors.AnalysisError`` without a contact equilibrium or a singular one."""
+
+def reference_samples(scenario: dict[str, Any]) -> dict[str, Any]:
+    """The references at each sample t_k = k·T as the loop reads them: ``force`` (f_d),
+    ``motion`` (s), ``motion_rate`` (ṡ), ``motion_accel`` (s̈), ndarrays of the run's
+    sample count."""
 
 def predict_batch(scenarios: list[dict[str, Any]], threads: int | None = None) -> dict[str, Any]:
     """Linearise and predict every scenario on ``threads`` threads (None: all cores),

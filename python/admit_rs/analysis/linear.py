@@ -14,6 +14,8 @@ import numpy as np
 import polars as pl
 
 from admit_rs import _core
+from admit_rs.analysis._checks import _check_friction, _check_scenario, friction_gain
+from admit_rs.analysis.forced import forced_response
 from admit_rs.config import Scenario, _check_path, _core_dict_with, _core_value
 from admit_rs.errors import AnalysisError, ArgumentError, ParameterError, ParameterTypeError
 
@@ -100,22 +102,6 @@ class Margins:
 
 STEP_ITERATIONS = 4
 """Updates of the friction amplitude under ``friction="step"``."""
-
-
-def _check_scenario(scenario: Any, what: str) -> Scenario:
-    if not isinstance(scenario, Scenario):
-        raise ParameterTypeError(
-            f"{what}() takes an admit_rs.Scenario, got {type(scenario).__name__}"
-        )
-    if scenario.substeps == "auto":
-        # Said once, here, not as an error per cell (issue #53 item 10: tune() reported
-        # "no gains keep every point predicted stable" instead).
-        allowed = ("a count for the analysis (\"auto\" chooses one by comparing whole runs:"
-                   " scenario.replace(substeps=ar.simulate(scenario).substeps) is its choice)")
-        err = ParameterError(f'{what}(): substeps = "auto" is invalid: must be {allowed}')
-        err.field, err.value, err.allowed = "substeps", '"auto"', allowed
-        raise err
-    return scenario
 
 
 def linearize(scenario: Scenario, at: float | None = None, friction: Any = "rest") -> Any:
@@ -210,18 +196,6 @@ def linearize(scenario: Scenario, at: float | None = None, friction: Any = "rest
     return sys
 
 
-def friction_gain(amplitude: float, smoothing: float) -> float:
-    """Describing-function gain of c·tanh(q̇/ε) for q̇ = A sin(ωt), relative to its slope
-    c/ε at rest: (ε/(πA)) ∫₀^{2π} tanh(A sin θ / ε) sin θ dθ. 1 for A → 0, ≈ 4ε/(πA) for
-    A ≫ ε."""
-    if amplitude <= 0:
-        return 1.0
-    theta = np.linspace(0.0, 2 * np.pi, 2049)[:-1]
-    ratio = amplitude / smoothing
-    integral = float(np.mean(np.tanh(ratio * np.sin(theta)) * np.sin(theta))) * 2 * np.pi
-    return integral / (np.pi * ratio)
-
-
 def _with_friction(scenario: Scenario, friction: Any) -> Scenario:
     """``friction="rest"``: Coulomb friction as its slope at q̇ = 0 (SPEC §12). A number A
     [rad/s]: as its describing-function gain at a joint-velocity amplitude A (the Coulomb
@@ -247,25 +221,17 @@ def _with_friction(scenario: Scenario, friction: Any) -> Scenario:
     return scenario.replace(**{"robot.coulomb_friction": scaled})
 
 
-def _check_friction(scenario: Scenario) -> None:
-    robot = scenario.robot
-    eps = getattr(robot, "friction_smoothing", 1.0)
-    coulomb = getattr(robot, "coulomb_friction", 0.0)
-    if eps is not None and eps <= 0 and np.any(np.asarray(coulomb) != 0):
-        raise AnalysisError(
-            "cannot linearise: exact Coulomb friction (robot.friction_smoothing <= 0) is not "
-            "differentiable at rest; use a smoothing > 0 (the default is 0.01 rad/s)"
-        )
-
-
 def _raise_if(error: str | None) -> None:
     if error is not None:
         raise AnalysisError(error)
 
 
 def predict(
-    scenario: Scenario, friction: Any = "step", margins: Margins | None = None
-) -> dict[str, float | bool | str]:
+    scenario: Scenario,
+    friction: Any = "step",
+    margins: Margins | None = None,
+    motion: bool = True,
+) -> dict[str, float | bool | str | None]:
     """What the linear model predicts for ``scenario`` (SPEC §12, §17).
 
     ``force_ss_error`` (f_d − f) and ``x_ss_error`` (n·X_d − n·X) at the equilibrium;
@@ -280,6 +246,15 @@ def predict(
     the surface: it bounces or leaves it) is predicted unstable: ``stable`` False, the
     numbers NaN and ``verdict`` ``"unstable: no contact equilibrium: ..."`` with the
     reason (SPEC §23); a scenario the model does not cover raises :class:`AnalysisError`.
+
+    With the motion running (``motion=True``, SPEC §23; :func:`forced_response`, about
+    0.5–1 s per scenario): ``force_oscillation`` and ``contact_loss`` as the simulated
+    metrics, from the forced response to the references and to the friction reversals they
+    drive; ``passed``: that loop is stable (friction at the motion's joint speeds) and
+    within the scenario's ``max_force_oscillation`` and ``max_contact_loss``;
+    ``tolerance_verdict`` in words. ``stable`` stays the held loop's answer, with
+    ``margins``: a loop short of margin can still be predicted to pass. ``motion=False``
+    leaves these out (NaN, ``passed`` equal to ``stable``).
 
     ``friction``: as in :func:`linearize`; the default ``"step"`` (Coulomb friction at its
     describing-function gain for the step's own joint speeds) is the linearisation
@@ -298,7 +273,7 @@ def predict(
     error = row.pop("error")
     if error is not None and not error.startswith(NO_EQUILIBRIUM):
         raise AnalysisError(error)
-    out: dict[str, float | bool | str] = {}
+    out: dict[str, float | bool | str | None] = {}
     for k, v in row.items():
         out[k] = bool(v) if k == "stable" else str(v) if k == "verdict" else float(v)
     if error is not None:
@@ -306,6 +281,16 @@ def predict(
         # of its own, not an exception.
         out["stable"] = False
         out["verdict"] = f"unstable: {error}"
+        out.update(passed=False, force_oscillation=math.nan, contact_loss=math.nan,
+                   tolerance_verdict=f"unstable: {error}")  # fmt: skip
+    elif motion:
+        forced = forced_response(scenario)
+        out.update(passed=forced.passed, force_oscillation=forced.force_oscillation,
+                   contact_loss=forced.contact_loss, tolerance_verdict=forced.verdict)  # fmt: skip
+    else:
+        out.update(passed=bool(out["stable"]), force_oscillation=math.nan,
+                   contact_loss=math.nan,
+                   tolerance_verdict="not predicted (motion=False)")  # fmt: skip
     return out
 
 

@@ -14,13 +14,8 @@ import numpy as np
 import polars as pl
 
 from admit_rs import _core
-from admit_rs.analysis.linear import (
-    _cell_configs,
-    _check_friction,
-    _check_scenario,
-    _numeric_axis,
-    _predict_points,
-)
+from admit_rs.analysis._checks import _check_friction, _check_scenario
+from admit_rs.analysis.linear import _cell_configs, _numeric_axis, _predict_points
 from admit_rs.blocks._base import _parameter_error
 from admit_rs.config import Scenario, Step
 from admit_rs.errors import AnalysisError, ArgumentError, ParameterError, ParameterTypeError

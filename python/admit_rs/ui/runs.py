@@ -272,7 +272,7 @@ def _view(res: Result, joints: int) -> RunView:
 class Prediction:
     """``predict``'s numbers, the poles of the model they come from, or why there are none."""
 
-    values: dict[str, float | bool | str] | None
+    values: dict[str, float | bool | str | None] | None
     poles: npt.NDArray[np.complex128] | None
     error: str | None = None
     period: float = 0.0
@@ -348,7 +348,8 @@ def disagreement(view: RunView, pred: Prediction) -> str | None:
     predicted = bool(pred.values.get("stable"))
     if predicted == view.stable:
         return None
-    rho = float(pred.values.get("spectral_radius", math.nan))
+    radius = pred.values.get("spectral_radius")
+    rho = float(radius) if isinstance(radius, int | float) else math.nan
     verdict = str(pred.values.get("verdict", ""))
     if predicted:
         if view.metrics.get("diverged"):

@@ -18,9 +18,9 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::control::filter::ForceControlParams;
-use crate::control::reference::Signal;
+use crate::control::reference::{Sample, Signal};
 use crate::error::{approx, short, Error};
-use crate::robot::RobotModel;
+use crate::robot::{JointVector, RobotModel};
 use crate::sim::simulation::{Divergence, Outcome, ScenarioConfig, Simulation};
 
 /// Why an analysis could not be done.
@@ -46,6 +46,8 @@ pub type AnalysisResult<T> = std::result::Result<T, AnalysisError>;
 pub const SETTLE_SAMPLES: usize = 100;
 /// Relative step of the five-point differences.
 pub const STEP: f64 = 1e-5;
+/// Relative step of the second differences of [`DriveColumns::curvature`].
+const CURVATURE_STEP: f64 = 1e-4;
 /// Relative step of the central differences inside Newton.
 const NEWTON_STEP: f64 = 1e-6;
 /// Newton stops when every |Φ(x)_i − x_i| ≤ this × max(|x_i|, 1).
@@ -86,6 +88,27 @@ pub struct Linearization {
     pub iterations: usize,
     /// What the linear model assumes, in words.
     pub caveats: Vec<String>,
+    /// The columns of the other inputs, when asked for ([`linearize_driven`]).
+    pub drive: Option<DriveColumns>,
+}
+
+/// How the motion reference and a joint torque enter the linearised loop (SPEC §23):
+/// δx_{k+1} = A δx_k + B δf_d,k + B_u δu_k, δy_k = C δx_k + D δf_d,k + D_u δu_k with
+/// u = (s, ṡ, s̈, τ_1 … τ_N): the motion reference along t̂ and its rates, and a torque
+/// added to each joint's over the period.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DriveColumns {
+    pub b: DMatrix<f64>,
+    /// Rows f, n·X, t̂·X.
+    pub d: DMatrix<f64>,
+    /// The measured force's row.
+    pub c_measured: DVector<f64>,
+    /// The inputs' names ([`input_labels`]).
+    pub labels: Vec<String>,
+    /// Second derivatives of each row of Φ (then of y: f, n·X, t̂·X, f̃) in (x, u): the
+    /// quadratic terms (centripetal, the arm's geometry along the path, torque × pose) a
+    /// forced response of several centimetres meets.
+    pub curvature: Vec<DMatrix<f64>>,
 }
 
 /// The scenario with its references frozen for the analysis: f_d held at `force`, the
@@ -146,7 +169,46 @@ fn starts_apart(config: &ScenarioConfig) -> bool {
 struct Map<'a, R: RobotModel<N>, const N: usize> {
     sim: &'a mut Simulation<R, N>,
     buf: Vec<f64>,
-    force: f64,
+    /// The inputs besides f_d, at their operating values unless a column perturbs them.
+    drive: Drive<N>,
+}
+
+/// The map's inputs besides the state and f_d (SPEC §23): the motion reference (s, ṡ, s̈)
+/// and a joint torque added to the actuator's.
+#[derive(Debug, Clone, Copy)]
+struct Drive<const N: usize> {
+    motion: Sample,
+    torque: JointVector<N>,
+}
+
+impl<const N: usize> Drive<N> {
+    /// How many inputs there are besides f_d: s, ṡ, s̈ and one torque per joint.
+    const COUNT: usize = 3 + N;
+
+    fn get(&self, i: usize) -> f64 {
+        match i {
+            0 => self.motion.value,
+            1 => self.motion.rate,
+            2 => self.motion.accel,
+            _ => self.torque[i - 3],
+        }
+    }
+
+    fn set(&mut self, i: usize, v: f64) {
+        match i {
+            0 => self.motion.value = v,
+            1 => self.motion.rate = v,
+            2 => self.motion.accel = v,
+            _ => self.torque[i - 3] = v,
+        }
+    }
+}
+
+/// Names of the inputs of [`input_columns`], in column order.
+pub fn input_labels(joints: usize) -> Vec<String> {
+    let mut out = vec!["s".to_owned(), "s_rate".to_owned(), "s_accel".to_owned()];
+    out.extend((1..=joints).map(|j| format!("torque{j}")));
+    out
 }
 
 /// Φ(x) and y(x) at one point.
@@ -159,20 +221,32 @@ struct Eval {
 }
 
 impl<R: RobotModel<N>, const N: usize> Map<'_, R, N> {
-    fn eval(&mut self, x: &[f64], force: f64) -> AnalysisResult<Eval> {
-        if force != self.force {
-            self.sim.set_force_reference(Signal::Step {
-                value: force,
-                time: 0.0,
-                initial: force,
-            });
-            self.force = force;
+    fn new(sim: &mut Simulation<R, N>, s0: f64) -> Map<'_, R, N> {
+        Map {
+            sim,
+            buf: Vec::new(),
+            drive: Drive {
+                motion: Sample {
+                    value: s0,
+                    ..Sample::default()
+                },
+                torque: JointVector::zeros(),
+            },
         }
+    }
+
+    fn eval(&mut self, x: &[f64], force: f64) -> AnalysisResult<Eval> {
         self.buf.clear();
         self.buf.push(SAMPLE);
         self.buf.extend_from_slice(x);
         self.sim.set_state(&self.buf)?;
-        if let Some(Outcome::Diverged { cause, .. }) = self.sim.step(1) {
+        let f_d = Sample {
+            value: force,
+            ..Sample::default()
+        };
+        let (motion, torque) = (self.drive.motion, self.drive.torque);
+        if let Some(Outcome::Diverged { cause, .. }) = self.sim.step_forced((f_d, motion), &torque)
+        {
             return Err(match cause {
                 Divergence::SingularJacobian => AnalysisError::NoEquilibrium(
                     "the arm reaches a singular Jacobian (stretched out: is the wall within \
@@ -203,6 +277,102 @@ impl<R: RobotModel<N>, const N: usize> Map<'_, R, N> {
             reference_normal,
             penetration,
         })
+    }
+
+    /// (Φ, y) at (x + δx, drive + δu) for δ = (δx, δu) stacked, as one vector.
+    fn eval_shifted(&mut self, x: &[f64], force: f64, delta: &[f64]) -> AnalysisResult<Vec<f64>> {
+        let n = x.len();
+        let shifted: Vec<f64> = x.iter().zip(delta).map(|(x, d)| x + d).collect();
+        let saved = self.drive;
+        for (j, d) in delta[n..].iter().enumerate() {
+            self.drive.set(j, saved.get(j) + d);
+        }
+        let e = self.eval(&shifted, force);
+        self.drive = saved;
+        let e = e?;
+        Ok(e.next.into_iter().chain(e.y).collect())
+    }
+
+    /// The second derivatives of (Φ, y) in (x, u) (u the [`Drive`] inputs): one symmetric
+    /// matrix per row of Φ then of y, by central second differences with step `rel` × the
+    /// entry's scale (as [`Self::input_columns`]).
+    fn curvature(&mut self, x: &[f64], force: f64, rel: f64) -> AnalysisResult<Vec<DMatrix<f64>>> {
+        let n = x.len();
+        let dim = n + Drive::<N>::COUNT;
+        let rows = n + 4;
+        let steps: Vec<f64> = (0..dim)
+            .map(|i| {
+                let v = if i < n { x[i] } else { self.drive.get(i - n) };
+                rel * v.abs().max(1.0)
+            })
+            .collect();
+        let mut out = vec![DMatrix::zeros(dim, dim); rows];
+        let center = self.eval_shifted(x, force, &vec![0.0; dim])?;
+        let mut delta = vec![0.0; dim];
+        for i in 0..dim {
+            for j in i..dim {
+                let mut at = |si: f64, sj: f64, this: &mut Self| {
+                    delta.iter_mut().for_each(|d| *d = 0.0);
+                    delta[i] += si * steps[i];
+                    delta[j] += sj * steps[j];
+                    this.eval_shifted(x, force, &delta)
+                };
+                let second: Vec<f64> = if i == j {
+                    let (p, m) = (at(0.5, 0.5, self)?, at(-0.5, -0.5, self)?);
+                    let h2 = steps[i] * steps[i];
+                    (0..rows)
+                        .map(|r| (p[r] - 2.0 * center[r] + m[r]) / h2)
+                        .collect()
+                } else {
+                    let (pp, pm) = (at(1.0, 1.0, self)?, at(1.0, -1.0, self)?);
+                    let (mp, mm) = (at(-1.0, 1.0, self)?, at(-1.0, -1.0, self)?);
+                    let h2 = 4.0 * steps[i] * steps[j];
+                    (0..rows)
+                        .map(|r| (pp[r] - pm[r] - mp[r] + mm[r]) / h2)
+                        .collect()
+                };
+                for (r, v) in second.into_iter().enumerate() {
+                    out[r][(i, j)] = v;
+                    out[r][(j, i)] = v;
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// The columns of Φ and y for the [`Drive`] inputs at (x, f_d): five-point differences
+    /// with step `rel` × the input's scale (the motion's: 1 m, 1 m/s, 1 m/s²; a torque's:
+    /// 1 N·m).
+    fn input_columns(
+        &mut self,
+        x: &[f64],
+        force: f64,
+        rel: f64,
+    ) -> AnalysisResult<(DMatrix<f64>, DMatrix<f64>)> {
+        let n = x.len();
+        let m = Drive::<N>::COUNT;
+        let mut b = DMatrix::zeros(n, m);
+        let mut d = DMatrix::zeros(4, m);
+        for j in 0..m {
+            let v0 = self.drive.get(j);
+            let h = rel * v0.abs().max(1.0);
+            let at = |off: f64, this: &mut Self| {
+                this.drive.set(j, v0 + off);
+                let e = this.eval(x, force);
+                this.drive.set(j, v0);
+                e
+            };
+            let (p1, m1) = (at(h, self)?, at(-h, self)?);
+            let (p2, m2) = (at(2.0 * h, self)?, at(-2.0 * h, self)?);
+            let f = |a: f64, b: f64, c: f64, d: f64| (8.0 * (a - b) - (c - d)) / (12.0 * h);
+            for i in 0..n {
+                b[(i, j)] = f(p1.next[i], m1.next[i], p2.next[i], m2.next[i]);
+            }
+            for i in 0..4 {
+                d[(i, j)] = f(p1.y[i], m1.y[i], p2.y[i], m2.y[i]);
+            }
+        }
+        Ok((b, d))
     }
 
     /// Jacobians [A B; C D] at (x, f_d): central (`five = false`) or five-point differences.
@@ -457,6 +627,31 @@ pub fn linearize<R, const N: usize>(
 where
     R: RobotModel<N>,
 {
+    linearize_with(config, at, build, false)
+}
+
+/// [`linearize`] with [`Linearization::drive`]: the columns of the motion reference and of
+/// a joint torque disturbance, for the forced response (SPEC §23).
+pub fn linearize_driven<R, const N: usize>(
+    config: &ScenarioConfig,
+    at: Option<f64>,
+    build: impl Fn(&ScenarioConfig) -> crate::error::Result<Simulation<R, N>>,
+) -> AnalysisResult<Linearization>
+where
+    R: RobotModel<N>,
+{
+    linearize_with(config, at, build, true)
+}
+
+fn linearize_with<R, const N: usize>(
+    config: &ScenarioConfig,
+    at: Option<f64>,
+    build: impl Fn(&ScenarioConfig) -> crate::error::Result<Simulation<R, N>>,
+    driven: bool,
+) -> AnalysisResult<Linearization>
+where
+    R: RobotModel<N>,
+{
     let (fz, force) = frozen(config, at)?;
     let mut sim = build(&fz)?;
     let labels: Vec<String> = sim.state_labels().into_iter().skip(1).collect();
@@ -507,11 +702,8 @@ where
             )
         }
     };
-    let mut map = Map {
-        sim: &mut sim,
-        buf: Vec::new(),
-        force: f64::NAN,
-    };
+    let s0 = config.z_reference.at(at.unwrap_or(0.0)).value;
+    let mut map = Map::new(&mut sim, s0);
     let mut x = Vec::new();
     let mut iterations = 0;
     if equilibrium {
@@ -548,6 +740,21 @@ where
         rel = rel.min(e0.penetration / 8.0);
     }
     let (a, b, c4, d4) = map.jacobian(&x, force, rel, true)?;
+    let drive = if driven {
+        let (b, d4) = map.input_columns(&x, force, rel)?;
+        // Second differences need a larger step than first ones (round-off ε/h²), still
+        // within the penetration.
+        let curvature = map.curvature(&x, force, CURVATURE_STEP.min(2.0 * rel))?;
+        Some(DriveColumns {
+            b,
+            d: d4.rows(0, 3).into_owned(),
+            c_measured: d4.row(3).transpose(),
+            labels: input_labels(N),
+            curvature,
+        })
+    } else {
+        None
+    };
     let c_measured = c4.row(3).transpose();
     let (c, d) = (c4.rows(0, 3).into_owned(), d4.rows(0, 3).into_owned());
     if equilibrium {
@@ -580,6 +787,7 @@ where
         equilibrium,
         iterations,
         caveats: Vec::new(),
+        drive,
     };
     lin.caveats = caveats(config, &lin);
     Ok(lin)
@@ -641,11 +849,7 @@ mod tests {
         }
         // The measured force enters the filter with −B_d: ∂x_a'/∂(sensor) through f.
         let mut sim = ThreeLinkSimulation::new(&frozen(&cfg, None).unwrap().0).unwrap();
-        let mut map = Map {
-            sim: &mut sim,
-            buf: Vec::new(),
-            force: f64::NAN,
-        };
+        let mut map = Map::new(&mut sim, 0.0);
         let (a2, b2, c2, _) = map.jacobian(&l.state, 10.0, STEP / 2.0, true).unwrap();
         let scale = l.a.abs().max();
         let diff = (&a2 - &l.a).abs().max();
@@ -654,6 +858,53 @@ mod tests {
         assert!((c2.rows(0, 3) - &l.c).abs().max() <= 1e-7 * l.c.abs().max());
         // Without a sensor model the measured force is the true one.
         assert!((c2.row(3) - l.c.row(0)).abs().max() <= 1e-7 * l.c.abs().max());
+    }
+
+    /// A torque δτ held over one period moves q̇ by T M(q*)⁻¹ δτ and q by T²/2 M⁻¹ δτ (up
+    /// to the contact's and viscous friction's action within the period: under 1 % here,
+    /// without Coulomb friction, whose slope at rest c/ε would act too); the true force at
+    /// a sample depends on the state only, not on the inputs of its period.
+    #[test]
+    fn torque_columns_are_the_inverse_inertia() {
+        use crate::robot::ThreeLinkArm;
+        let mut cfg = fig14();
+        let crate::sim::scenario::RobotConfig::ThreeLink(p) = &mut cfg.robot else {
+            unreachable!()
+        };
+        p.coulomb_friction = [0.0; 3];
+        let params = p.clone();
+        let l = linearize_driven(&cfg, None, ThreeLinkSimulation::new).unwrap();
+        let drive = l.drive.as_ref().unwrap();
+        assert_eq!(
+            drive.labels,
+            ["s", "s_rate", "s_accel", "torque1", "torque2", "torque3"]
+        );
+        let q = nalgebra::Vector3::from_fn(|i, _| l.state[index(&l, &format!("plant.q{}", i + 1))]);
+        let (_, dynamics) = ThreeLinkArm::new(&params).evaluate(&q, &nalgebra::Vector3::zeros());
+        let m_inv = dynamics.inertia.try_inverse().unwrap();
+        let t = cfg.period;
+        for i in 0..3 {
+            let (qi, qdi) = (
+                index(&l, &format!("plant.q{}", i + 1)),
+                index(&l, &format!("plant.qd{}", i + 1)),
+            );
+            for j in 0..3 {
+                let (speed, angle) = (drive.b[(qdi, 3 + j)], drive.b[(qi, 3 + j)]);
+                let scale = m_inv.abs().max();
+                assert!(
+                    (speed - t * m_inv[(i, j)]).abs() <= 0.01 * t * scale,
+                    "q̇{i} per τ{j}: {speed:e}, T M⁻¹ = {:e}",
+                    t * m_inv[(i, j)]
+                );
+                assert!((angle - 0.5 * t * t * m_inv[(i, j)]).abs() <= 0.01 * t * t * scale);
+            }
+        }
+        for j in 0..6 {
+            assert!(drive.d[(0, j)].abs() < 1e-9, "f depends on input {j}");
+        }
+        // The motion reference moves the arm through the controller: the next q̇ answers.
+        let qd2 = index(&l, "plant.qd2");
+        assert!(drive.b[(qd2, 0)].abs() > 1e-3, "{}", drive.b[(qd2, 0)]);
     }
 
     /// Eqs. (26), (28) with k_a: f(∞) = f_d k_a k_e / (k + k_a k_e), penetration f/k_e.

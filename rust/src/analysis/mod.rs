@@ -6,29 +6,37 @@
 pub mod linearize;
 pub mod stability;
 
-pub use linearize::{linearize, AnalysisError, AnalysisResult, Linearization};
+pub use linearize::{
+    linearize, linearize_driven, AnalysisError, AnalysisResult, DriveColumns, Linearization,
+};
 pub use stability::{predict, predict_batch, predict_from, Prediction, PREDICTION_NAMES};
 
 use crate::sim::dispatch::{visit_arm, ArmVisitor};
 use crate::sim::scenario::ScenarioConfig;
 use crate::sim::simulation::Simulation;
 
-/// [`linearize`] for the scenario's own arm, whichever it is.
+/// [`linearize`] for the scenario's own arm, whichever it is; `driven` adds
+/// [`Linearization::drive`] ([`linearize_driven`]).
 pub fn linearize_scenario(
     config: &ScenarioConfig,
     at: Option<f64>,
+    driven: bool,
 ) -> AnalysisResult<Linearization> {
-    struct Visit<'a>(&'a ScenarioConfig, Option<f64>);
+    struct Visit<'a>(&'a ScenarioConfig, Option<f64>, bool);
     impl ArmVisitor for Visit<'_> {
         type Output = AnalysisResult<Linearization>;
         fn visit<R: crate::robot::RobotModel<N>, const N: usize>(
             self,
             build: &(dyn Fn(&ScenarioConfig) -> crate::error::Result<Simulation<R, N>> + Sync),
         ) -> Self::Output {
-            linearize(self.0, self.1, build)
+            if self.2 {
+                linearize_driven(self.0, self.1, build)
+            } else {
+                linearize(self.0, self.1, build)
+            }
         }
     }
-    visit_arm(&config.robot, Visit(config, at))?
+    visit_arm(&config.robot, Visit(config, at, driven))?
 }
 
 /// [`predict_batch`] for scenarios that share the first one's kind of arm (a stability map

@@ -470,6 +470,7 @@ mod tests {
             equilibrium: true,
             iterations: 0,
             caveats: vec![],
+            drive: None,
         };
         let m = loop_margins(&lin);
         let pi = std::f64::consts::PI;

@@ -24,19 +24,20 @@ fn dmatrix<'py>(
 
 /// The one-period closed loop linearised about its equilibrium (or the state at `at`).
 #[pyfunction]
-#[pyo3(signature = (scenario, at=None))]
+#[pyo3(signature = (scenario, at=None, driven=false))]
 pub(super) fn linearize<'py>(
     scenario: &Bound<'py, PyAny>,
     at: Option<f64>,
+    driven: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let py = scenario.py();
     let config = scenario_from(scenario)?;
     let lin = py
-        .detach(move || crate::analysis::linearize_scenario(&config, at))
+        .detach(move || crate::analysis::linearize_scenario(&config, at, driven))
         .map_err(|e| analysis_err(py, e))?;
     let b = nalgebra::DMatrix::from_column_slice(lin.b.len(), 1, lin.b.as_slice());
     let d = nalgebra::DMatrix::from_column_slice(lin.d.len(), 1, lin.d.as_slice());
-    Ok(py_dict!(py, {
+    let out = py_dict!(py, {
         "a": dmatrix(py, &lin.a)?,
         "b": dmatrix(py, &b)?,
         "c": dmatrix(py, &lin.c)?,
@@ -52,6 +53,42 @@ pub(super) fn linearize<'py>(
         "equilibrium": lin.equilibrium,
         "iterations": lin.iterations,
         "caveats": lin.caveats,
+    });
+    if let Some(drive) = &lin.drive {
+        out.set_item("b_drive", dmatrix(py, &drive.b)?)?;
+        out.set_item("d_drive", dmatrix(py, &drive.d)?)?;
+        out.set_item(
+            "c_measured_drive",
+            PyArray1::from_vec(py, drive.c_measured.as_slice().to_vec()),
+        )?;
+        out.set_item("drive_labels", drive.labels.clone())?;
+        let curvature = drive
+            .curvature
+            .iter()
+            .map(|m| dmatrix(py, m))
+            .collect::<PyResult<Vec<_>>>()?;
+        out.set_item("curvature", curvature)?;
+    }
+    Ok(out)
+}
+
+/// The scenario's references at each sample t_k = k·T: f_d, and the motion s with its
+/// rates ṡ, s̈ (`Signal::at`, as the loop reads them), for the forced response (SPEC §23).
+#[pyfunction]
+pub(super) fn reference_samples<'py>(scenario: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyDict>> {
+    let py = scenario.py();
+    let config = scenario_from(scenario)?;
+    let n = config.samples();
+    let at = |k: usize| k as f64 * config.period;
+    let force: Vec<f64> = (0..n)
+        .map(|k| config.force_reference.at(at(k)).value)
+        .collect();
+    let motion: Vec<_> = (0..n).map(|k| config.z_reference.at(at(k))).collect();
+    Ok(py_dict!(py, {
+        "force": PyArray1::from_vec(py, force),
+        "motion": PyArray1::from_vec(py, motion.iter().map(|m| m.value).collect()),
+        "motion_rate": PyArray1::from_vec(py, motion.iter().map(|m| m.rate).collect()),
+        "motion_accel": PyArray1::from_vec(py, motion.iter().map(|m| m.accel).collect()),
     }))
 }
 

@@ -60,5 +60,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(filter::filter_response, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::linearize, m)?)?;
     m.add_function(wrap_pyfunction!(analysis::predict_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(analysis::reference_samples, m)?)?;
     Ok(())
 }

@@ -15,6 +15,7 @@ use crate::control::belief::{Belief, CurvedBelief};
 use crate::control::controller::{Controller, TaskAtStart};
 use crate::control::filter::ForceControl;
 use crate::control::params::check_inertia_for;
+use crate::control::reference::Sample;
 use crate::control::task::TaskFrame;
 use crate::error::{Error, Result};
 use crate::robot::{ArmModel, JointVector, RobotModel, TaskVector, ThreeLinkArm};
@@ -371,6 +372,35 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
     /// if the run ended at this sample (stage 9 is then skipped).
     #[inline(always)]
     pub(crate) fn step_to_plant(&mut self) -> Option<JointVector<N>> {
+        let t = self.k as f64 * self.config.period;
+        let references = (
+            self.config.force_reference.at(t),
+            self.config.z_reference.at(t),
+        );
+        self.step_to_plant_with(references)
+    }
+
+    /// One period driven from outside (SPEC §12, §23): the references are the samples
+    /// given (f_d, and the motion s, ṡ, s̈) rather than the scenario's signals at t_k, and
+    /// `torque` is added to the actuator's output over the period (a disturbance: the
+    /// analysis puts the Coulomb friction the motion drives there). Returns as `step`.
+    pub(crate) fn step_forced(
+        &mut self,
+        references: (Sample, Sample),
+        torque: &JointVector<N>,
+    ) -> Option<Outcome> {
+        if self.outcome.is_none() {
+            if let Some(tau) = self.step_to_plant_with(references) {
+                self.plant.advance_inlined(&(tau + torque));
+                self.after_plant();
+            }
+        }
+        self.outcome
+    }
+
+    /// [`Self::step_to_plant`] with the references (f_d, motion) at t_k given.
+    #[inline(always)]
+    fn step_to_plant_with(&mut self, (f_d, motion): (Sample, Sample)) -> Option<JointVector<N>> {
         let k = self.k;
         let t = k as f64 * self.config.period;
         // 1. plant state (what the encoders give)
@@ -382,7 +412,6 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             .needs_rotation()
             .then(|| self.plant.tip_rotation());
         // 2.–7., with this run's noise draws and references at t_k
-        let f_d = self.config.force_reference.at(t);
         let out = self.stages.step(
             &Inputs {
                 first: k == 0,
@@ -394,7 +423,7 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
                 environment: self.plant.environment(),
                 noise: self.stages.sensor.noise_draws(k),
                 force_reference: f_d,
-                motion_reference: self.config.z_reference.at(t),
+                motion_reference: motion,
             },
             // Computed torque's model shares the plant's geometry: the same values at q.
             self.plant.config(),
@@ -574,14 +603,6 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         // The online metrics hold samples 0..self.k: rebuilt from the trace on demand.
         self.metrics_stale |= k != self.metrics.samples();
         Ok(())
-    }
-}
-
-impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
-    /// Replaces the desired force f_d(t) from here on (the analysis holds it at one value
-    /// and perturbs it; SPEC §12).
-    pub fn set_force_reference(&mut self, signal: crate::control::reference::Signal) {
-        self.config.force_reference = signal;
     }
 }
 
