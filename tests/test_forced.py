@@ -103,3 +103,32 @@ def test_unjudged_criteria_are_listed() -> None:
 def test_forced_response_takes_a_scenario() -> None:
     with pytest.raises(ar.errors.ParameterTypeError, match="forced_response"):
         ar.analysis.forced_response({"wall": None})  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("path", "value"),
+    [("duration", 1e6), ("duration", 200.0), ("period", 1e-7), ("z_reference.amplitude", 1e3),
+     ("z_reference.omega", 1e4), ("admittance.b", 1e9), ("wall.stiffness", 1e300)],
+)
+def test_hostile_values_give_an_answer_or_an_error(path: str, value: float) -> None:
+    try:
+        cell = _cell("fig14", **{path: value})
+    except ar.AdmitError:
+        return
+    try:
+        response = ar.analysis.forced_response(cell)
+    except ar.AdmitError as e:
+        assert str(e)
+        return
+    assert response.passed in (True, False, None)
+    if response.passed is None:
+        assert response.verdict.startswith("not predicted: ")
+    elif response.stable:
+        assert math.isfinite(response.force_oscillation)
+
+
+def test_a_long_run_is_not_predicted() -> None:
+    response = ar.analysis.forced_response(_cell("fig14", duration=200.0))
+    assert response.passed is None
+    assert response.verdict == ("not predicted: the run has 200001 samples, the forced response"
+                                " is computed for up to 100000")

@@ -55,6 +55,10 @@ TRANSIENT_END = 1.0
 STEADY_WINDOW = 2.0
 """``force_oscillation``'s window: the last 2 s (SPEC §7)."""
 
+MAX_SAMPLES = 100_000
+"""Longest run the forced response is computed for (100 s at 1 kHz: a few seconds); a
+longer one is not predicted (``passed`` None, the verdict says why)."""
+
 ROUGHNESS = 0.1
 """Above this rms increment per sample, relative to its spread, the predicted force is
 chatter, not a response to the motion (:func:`_chatters`)."""
@@ -93,6 +97,10 @@ class ForcedResponse:
     caveats: tuple[str, ...] = field(default_factory=tuple)
 
 
+_CHATTER = ("not predicted: the forced response chatters from sample to sample at the friction"
+            " reversals (a fast mode that friction's describing function leaves undamped);"
+            " simulate this one")
+
 _UNJUDGED = ("force_limit", "max_bounces", "max_path_error", "max_torque_saturation")
 
 
@@ -115,6 +123,11 @@ def forced_response(scenario: Scenario) -> ForcedResponse:
     """
     scenario = _check_scenario(scenario, "forced_response")
     _check_friction(scenario)
+    samples = int(round(scenario.duration / scenario.period)) + 1
+    if samples > MAX_SAMPLES:
+        return _unpredicted(scenario, np.zeros(0), np.zeros(0), math.nan, np.zeros(0),
+                            np.zeros(0), 0, f"not predicted: the run has {samples} samples, the"
+                            f" forced response is computed for up to {MAX_SAMPLES}")  # fmt: skip
     refs = _core.reference_samples(scenario._to_core())
     time = np.arange(len(refs["force"]), dtype=np.float64) * float(scenario.period)
     motion = np.stack(
@@ -162,7 +175,7 @@ def forced_response(scenario: Scenario) -> ForcedResponse:
         caveats.append("the second-order terms were dropped (not finite): the force is first"
                        " order")  # fmt: skip
     if _chatters(force, scenario.period):
-        return _unpredicted(scenario, time, force, rho, gains, amplitudes, iterations)
+        return _unpredicted(scenario, time, force, rho, gains, amplitudes, iterations, _CHATTER)
     f_d = refs["force"]
     window = (time >= scenario.duration - STEADY_WINDOW) & (time >= TRANSIENT_END)
     denominator = float(np.mean(np.abs(f_d[window]))) if np.any(window) else math.nan
@@ -288,6 +301,7 @@ def _unpredicted(
     gains: npt.NDArray[np.float64],
     amplitudes: npt.NDArray[np.float64],
     iterations: int,
+    verdict: str,
 ) -> ForcedResponse:
     return ForcedResponse(
         time=time,
@@ -299,9 +313,7 @@ def _unpredicted(
         joint_speed_amplitudes=tuple(map(float, amplitudes)),
         stable=True,
         passed=None,
-        verdict=("not predicted: the forced response chatters from sample to sample at the"
-                 " friction reversals (a fast mode that friction's describing function leaves"
-                 " undamped); simulate this one"),
+        verdict=verdict,
         second_order=False,
         iterations=iterations,
         unjudged=_unjudged(scenario),
