@@ -210,6 +210,39 @@ def test_the_page_says_why_prediction_and_simulation_differ():
     assert runs.disagreement(diverged, runs.Prediction(None, None, "no model")) is None
 
 
+def test_the_page_says_why_predicted_and_simulated_passed_differ():
+    """Issue #54 parts 2-3: the predicted `passed` (the motion running) beside the
+    simulated one, and one line when they differ."""
+    from admit_rs.ui import runs
+
+    sc = ar.paper.scenario("fig14").replace(**{"admittance.b": 2500.0})
+    res = ar.simulate(sc)
+    view, pred = runs._view(res, runs.joint_count(res.trace.columns)), runs.predict(sc)
+    # Both out of tolerance: no line.
+    assert view.passed is False and pred.values["passed"] is False
+    assert runs.passed_disagreement(view, pred) is None
+    # The model passes a run that bounces.
+    bouncing = runs.RunView({}, 3, {"force_oscillation": 0.3},
+                            "unstable: loss of contact: f = 0 in 8 % of samples, 578 bounces",
+                            False, False, None, 10.0, True)  # fmt: skip
+    passes = runs.Prediction({"stable": True, "passed": True, "force_oscillation": 0.03,
+                              "tolerance_verdict": "passed: …"}, None)  # fmt: skip
+    assert runs.passed_disagreement(bouncing, passes) == (
+        "the forced response keeps contact; the run leaves the surface and bounces (a limit "
+        "cycle of the force's clamp at zero, not in the model)")
+    # The model overestimates a ripple the run keeps within tolerance.
+    calm = runs.RunView({}, 3, {"force_oscillation": 0.07}, "stable", True, True, None, 10.0,
+                        True)  # fmt: skip
+    fails = runs.Prediction({"stable": True, "passed": False, "force_oscillation": 0.11,
+                             "tolerance_verdict": "out of tolerance: …"}, None)  # fmt: skip
+    assert runs.passed_disagreement(calm, fails) == (
+        "the forced response overestimates the run's ripple (predicted 11 %, simulated 7 %)")
+    # Not predicted: no line (the predicted verdict says so).
+    unknown = runs.Prediction({"stable": True, "passed": None, "tolerance_verdict": "not …"},
+                              None)  # fmt: skip
+    assert runs.passed_disagreement(calm, unknown) is None
+
+
 def test_an_uploaded_toml_is_a_base_while_the_server_runs():
     sc = ar.paper.scenario("fig19").replace(**{"admittance.b": 500.0})
     raw = ar.export.toml(sc).encode()
@@ -375,7 +408,10 @@ def test_default_page_is_stable_and_plots_the_run(server, chrome):
     assert "Simulated: stable" in page and "Predicted: stable" in page
     # Both answers of SPEC §23, and no "why" line where prediction and run agree.
     assert "class='stable'>yes<" in verdict and "class='passed'>yes<" in verdict
-    assert "Why they differ" not in page
+    assert "Why they differ" not in page and "Why passed differs" not in page
+    # The prediction with the motion running, fig. 14's ripple within tolerance.
+    assert "Predicted with the motion running: passed: predicted force oscillation" in page
+    assert "(passed: yes)" in page
     assert "force_ss_error" in page
     # fig. 14's dominant pole is real: its time constant, not "0 Hz, ζ = 1".
     sc = ar.paper.scenario("fig14")

@@ -568,17 +568,22 @@ class TuningPage:
     _last_prediction: tuple[int, runs.Prediction] | None = None
 
     def _why_html(self) -> str:
-        """When the simulated and predicted ``stable`` of one scenario (one generation)
-        differ, why, in one line."""
+        """When the simulated and predicted ``stable`` (or ``passed``) of one scenario (one
+        generation) differ, why, in one line each."""
         if self._last_view is None or self._last_prediction is None:
             return ""
         (ran, view), (predicted, pred) = self._last_view, self._last_prediction
         if ran != predicted:
             return ""
+        out = ""
         why = runs.disagreement(view, pred)
-        if why is None:
-            return ""
-        return f"<br><b>Why they differ:</b> <span class='why'>{html.escape(why)}</span>"
+        if why is not None:
+            out += f"<br><b>Why they differ:</b> <span class='why'>{html.escape(why)}</span>"
+        why = runs.passed_disagreement(view, pred)
+        if why is not None:
+            out += (f"<br><b>Why passed differs:</b> <span class='why-passed'>"
+                    f"{html.escape(why)}</span>")  # fmt: skip
+        return out
     _exports = 0
 
     @staticmethod
@@ -632,8 +637,23 @@ class TuningPage:
             f"phase margin {_number(v.get('phase_margin'), 3)}°, "
             f"delay margin {_number(v.get('delay_margin'), 3)} samples"
         )
+        passed = v.get("passed")
+        # Green: predicted to pass; orange: out of tolerance; red: unstable with the motion
+        # running; amber: not predicted.
+        if passed is True:
+            tint, words = "#137333", "yes"
+        elif passed is False:
+            unstable = str(v.get("tolerance_verdict", "")).startswith("unstable")
+            tint, words = ("#c5221f" if unstable else "#b45309"), "no"
+        else:
+            tint, words = "#8a6d00", "not predicted"
+        running = (f"<br><b>Predicted with the motion running:</b> <span style='color:{tint};"
+                   f"font-weight:bold' class='predicted-passed'>"
+                   f"{html.escape(str(v.get('tolerance_verdict', '')))}</span> (passed: "
+                   f"{words})")  # fmt: skip
         return (f"<br><b>Predicted:</b> <span style='color:{color};font-weight:bold'>"
-                f"{html.escape(str(v.get('verdict', '')))}</span> ({margins})")  # fmt: skip
+                f"{html.escape(str(v.get('verdict', '')))}</span> ({margins})"
+                + running)  # fmt: skip
 
     @staticmethod
     def _pole_html(pred: runs.Prediction) -> str:

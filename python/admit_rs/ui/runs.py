@@ -374,5 +374,38 @@ def disagreement(view: RunView, pred: Prediction) -> str | None:
             f"fail within {view.duration:g} s")  # fmt: skip
 
 
+def passed_disagreement(view: RunView, pred: Prediction) -> str | None:
+    """One line on why the predicted ``passed`` (the forced response with the motion
+    running, docs/analysis.md §3b) and the simulated one differ, or ``None`` when they
+    agree or one of them is missing or not predicted."""
+    if not view.complete or view.passed is None or pred.values is None:
+        return None
+    predicted = pred.values.get("passed")
+    if not isinstance(predicted, bool) or predicted == view.passed:
+        return None
+    words = str(pred.values.get("tolerance_verdict", ""))
+    ripple = pred.values.get("force_oscillation")
+    simulated = view.metrics.get("force_oscillation")
+    both = ""
+    if isinstance(ripple, float) and isinstance(simulated, float) and finite(ripple) \
+            and finite(simulated):
+        both = f" (predicted {100 * ripple:.3g} %, simulated {100 * simulated:.3g} %)"
+    if predicted:
+        if view.metrics.get("diverged"):
+            return ("the run diverged: a large-signal transient (the first contact, a "
+                    "saturation) that the forced response about the contact equilibrium does "
+                    "not see")  # fmt: skip
+        if "loss of contact" in view.verdict or "bounce" in view.verdict:
+            return ("the forced response keeps contact; the run leaves the surface and bounces "
+                    "(a limit cycle of the force's clamp at zero, not in the model)")  # fmt: skip
+        return ("the run fails a criterion the forced response misses or does not judge"
+                f"{both}: the ripple beyond second order, or the run's first transient")
+    if words.startswith("unstable with the motion running"):
+        return ("the loop with friction at its describing-function gain for the motion's joint "
+                "speeds is unstable; in the run the friction's steep slope near each reversal "
+                "damps it")  # fmt: skip
+    return f"the forced response overestimates the run's ripple{both}"
+
+
 def finite(x: Any) -> bool:
     return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
