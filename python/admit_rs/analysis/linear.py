@@ -422,9 +422,15 @@ def stability_map(
     threads: int | None = None,
     friction: Any = "step",
     margins: Margins | None = None,
+    motion: bool = False,
 ) -> pl.DataFrame:
     """:func:`predict` on every cell of the grid ``x`` × ``y`` (``{dotted path: values}``
     each), computed in Rust on all cores (or ``threads``).
+
+    ``motion=True`` adds the prediction with the motion running (:func:`forced_response`,
+    SPEC §23): columns ``passed`` (None where not predicted), ``force_oscillation`` and
+    ``contact_loss``, for :func:`admit_rs.plot.stability_map`'s ``by="passed"``. It costs
+    0.3–1 s per cell, in Python, one cell after another (a 10 × 10 map: about a minute).
 
     One row per cell, x varying fastest: the two parameter columns, the fields of
     :func:`predict` and ``error`` (None, or why the cell has no prediction, e.g. no contact
@@ -449,4 +455,24 @@ def stability_map(
     # Validate one cell of each extreme through the Python blocks (clear messages).
     for p in (points[0], points[-1]):
         scenario.replace(**p)
-    return _predict_points(scenario, points, threads, friction, margins)
+    table = _predict_points(scenario, points, threads, friction, margins)
+    if not motion:
+        return table
+    passed: list[bool | None] = []
+    ripple: list[float] = []
+    loss: list[float] = []
+    for point, error in zip(points, table["error"], strict=True):
+        if error is not None:
+            passed.append(False if error.startswith(NO_EQUILIBRIUM) else None)
+            ripple.append(math.nan)
+            loss.append(math.nan)
+            continue
+        response = forced_response(scenario.replace(**point))
+        passed.append(response.passed)
+        ripple.append(response.force_oscillation)
+        loss.append(response.contact_loss)
+    return table.with_columns(
+        pl.Series("passed", passed, dtype=pl.Boolean),
+        pl.Series("force_oscillation", ripple, dtype=pl.Float64),
+        pl.Series("contact_loss", loss, dtype=pl.Float64),
+    )

@@ -289,7 +289,9 @@ def stability_map(
     same two parameter columns) each simulated run as a green ○ (``stable``, SPEC §23) or a
     red × (not), and the share of cells where prediction and simulation agree.
     ``by="passed"`` marks and compares the runs by their criteria instead (a ripple the
-    motion drives fails them while the loop stays stable). An axis
+    motion drives fails them while the loop stays stable); on a map made with
+    ``motion=True`` it also hatches the cells predicted out of tolerance and compares the
+    runs with the predicted ``passed``. An axis
     is logarithmic when its values are log-spaced, or positive with linear cells that
     would start below zero; tick labels that would collide are thinned.
 
@@ -333,6 +335,23 @@ def stability_map(
                    linewidths=2)  # fmt: skip
         handles.append(Line2D([], [], color="k", lw=2, label="predicted boundary ρ = 1"))
     subtitle = ""
+    # Predicted with the motion running (stability_map(..., motion=True)): hatch the cells
+    # stable by ρ that the forced response predicts out of tolerance.
+    motion = by == "passed" and "passed" in table.columns
+    if motion:
+        from matplotlib.patches import Rectangle
+
+        out = table.filter((pl.col("passed") == False) & (pl.col("spectral_radius") < 1))  # noqa: E712
+        for cx, cy in zip(out[x].to_numpy().astype(float), out[y].to_numpy().astype(float),
+                          strict=True):  # fmt: skip
+            i, j = int(np.searchsorted(xv, cx)), int(np.searchsorted(yv, cy))
+            ax.add_patch(Rectangle((xe[i], ye[j]), xe[i + 1] - xe[i], ye[j + 1] - ye[j],
+                                   fill=False, hatch="///", edgecolor="0.25", lw=0))  # fmt: skip
+        if out.height:
+            label = f"predicted out of tolerance ({out.height})"
+            handles.append(Rectangle((0, 0), 1, 1, fill=False, hatch="///", edgecolor="0.25",
+                                     label=label))  # fmt: skip
+    predicted_by = "passed" if motion else "stable"
     if overlay is not None:
         from admit_rs._names import check_column
 
@@ -347,15 +366,16 @@ def stability_map(
         bad = f"simulated {_bad(overlay, by)} ({(~ok).sum()})"
         handles.append(ax.scatter(ox[~ok], oy[~ok], marker="x", color="darkred", s=28,
                                   lw=1.2, label=bad))  # fmt: skip
-        joined = table.select(x, y, pl.col("stable").alias("_predicted")).join(
+        joined = table.select(x, y, pl.col(predicted_by).alias("_predicted")).join(
             overlay.select(pl.col(x).cast(table[x].dtype), pl.col(y).cast(table[y].dtype),
                            pl.col(by).alias("_simulated")),
             on=[x, y],
         )  # fmt: skip
         if joined.height:
-            agree = float((joined["_predicted"] == joined["_simulated"]).mean())  # type: ignore[arg-type]
-            subtitle = (f"\nsimulated `{by}` agrees with predicted `stable` in {agree:.0%} of "
-                        f"{joined.height} cells")  # fmt: skip
+            same = (joined["_predicted"] == joined["_simulated"]).fill_null(False)
+            agree = float(same.mean())  # type: ignore[arg-type]
+            subtitle = (f"\nsimulated `{by}` agrees with predicted `{predicted_by}` in "
+                        f"{agree:.0%} of {joined.height} cells")  # fmt: skip
     xlabel, ylabel = _with_unit(x, {x: parameter_unit(x)}), _with_unit(y, {y: parameter_unit(y)})
     _finish_grid_axes(ax, xe, ye, logx, logy, xlabel, ylabel, handles)
     for axis, values in ((ax.xaxis, xv), (ax.yaxis, yv)):
