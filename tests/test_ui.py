@@ -228,8 +228,8 @@ def test_the_page_says_why_predicted_and_simulated_passed_differ():
     passes = runs.Prediction({"stable": True, "passed": True, "force_oscillation": 0.03,
                               "tolerance_verdict": "passed: …"}, None)  # fmt: skip
     assert runs.passed_disagreement(bouncing, passes) == (
-        "the forced response keeps contact; the run leaves the surface and bounces (a limit "
-        "cycle of the force's clamp at zero, not in the model)")
+        "the forced response assumes contact is kept; the run leaves the surface and bounces "
+        "(the clamp of the force at zero is not in the model)")
     # The model overestimates a ripple the run keeps within tolerance.
     calm = runs.RunView({}, 3, {"force_oscillation": 0.07}, "stable", True, True, None, 10.0,
                         True)  # fmt: skip

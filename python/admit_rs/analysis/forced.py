@@ -74,7 +74,8 @@ class ForcedResponse:
     metric; ``contact_loss``: the fraction of samples t ≥ 1 s with f ≤ 0;
     ``spectral_radius``: ρ of the loop with friction at its gains for the motion's joint
     speeds (``friction_gains``, relative to the slope at rest, per joint, at
-    ``joint_speed_amplitudes`` [rad/s]); ``stable``: ρ < 1; ``passed``: stable and within
+    ``joint_speed_amplitudes`` [rad/s]); ``stable``: ρ < 1 (None for a run too long to
+    predict); ``passed``: stable and within
     the scenario's ``max_force_oscillation`` and ``max_contact_loss`` (the criteria the
     forced response can judge: the others are listed in ``unjudged``), None where the
     response chatters at the reversals (not predicted, ``verdict`` says so); ``verdict`` in
@@ -88,7 +89,7 @@ class ForcedResponse:
     spectral_radius: float
     friction_gains: tuple[float, ...]
     joint_speed_amplitudes: tuple[float, ...]
-    stable: bool
+    stable: bool | None
     passed: bool | None
     verdict: str
     second_order: bool
@@ -125,9 +126,11 @@ def forced_response(scenario: Scenario) -> ForcedResponse:
     _check_friction(scenario)
     samples = int(round(scenario.duration / scenario.period)) + 1
     if samples > MAX_SAMPLES:
-        return _unpredicted(scenario, np.zeros(0), np.zeros(0), math.nan, np.zeros(0),
-                            np.zeros(0), 0, f"not predicted: the run has {samples} samples, the"
-                            f" forced response is computed for up to {MAX_SAMPLES}")  # fmt: skip
+        verdict = (f"not predicted: the run has {samples} samples, the forced response is"
+                   f" computed for up to {MAX_SAMPLES}")  # fmt: skip
+        empty = np.zeros(0)
+        return _without_ripple(scenario, empty, empty, (math.nan, empty, empty, 0),
+                               (None, None, verdict))  # fmt: skip
     refs = _core.reference_samples(scenario._to_core())
     time = np.arange(len(refs["force"]), dtype=np.float64) * float(scenario.period)
     motion = np.stack(
@@ -154,7 +157,7 @@ def forced_response(scenario: Scenario) -> ForcedResponse:
         g = np.ones(joints) if gains is None else gains
         rho = float(np.max(np.abs(np.linalg.eigvals(np.asarray(raw["a"])))))
         if not rho < 1.0:
-            return _unstable(scenario, time, rho, g, amplitudes, iterations)
+            return _unstable(scenario, time, (rho, g, amplitudes, iterations))
         if speeds is None or eps <= 0:
             disturbance = np.zeros((len(time), joints))
         else:
@@ -175,7 +178,8 @@ def forced_response(scenario: Scenario) -> ForcedResponse:
         caveats.append("the second-order terms were dropped (not finite): the force is first"
                        " order")  # fmt: skip
     if _chatters(force, scenario.period):
-        return _unpredicted(scenario, time, force, rho, gains, amplitudes, iterations, _CHATTER)
+        return _without_ripple(scenario, time, force, (rho, gains, amplitudes, iterations),
+                               (True, None, _CHATTER))  # fmt: skip
     f_d = refs["force"]
     window = (time >= scenario.duration - STEADY_WINDOW) & (time >= TRANSIENT_END)
     denominator = float(np.mean(np.abs(f_d[window]))) if np.any(window) else math.nan
@@ -293,16 +297,22 @@ def _judge(scenario: Scenario, oscillation: float, loss: float) -> tuple[bool, s
                   f"loss of contact {100 * loss:.3g} %")  # fmt: skip
 
 
-def _unpredicted(
+def _unjudged(scenario: Scenario) -> tuple[str, ...]:
+    criteria = scenario.criteria
+    return tuple(name for name in _UNJUDGED if getattr(criteria, name, None) is not None)
+
+
+def _without_ripple(
     scenario: Scenario,
     time: npt.NDArray[np.float64],
     force: npt.NDArray[np.float64],
-    rho: float,
-    gains: npt.NDArray[np.float64],
-    amplitudes: npt.NDArray[np.float64],
-    iterations: int,
-    verdict: str,
+    loop: tuple[float, npt.NDArray[np.float64], npt.NDArray[np.float64], int],
+    answer: tuple[bool | None, bool | None, str],
 ) -> ForcedResponse:
+    """A response without a ripple to judge: ``loop`` = (ρ, gains, amplitudes, passes),
+    ``answer`` = (stable, passed, verdict)."""
+    rho, gains, amplitudes, iterations = loop
+    stable, passed, verdict = answer
     return ForcedResponse(
         time=time,
         force=force,
@@ -311,8 +321,8 @@ def _unpredicted(
         spectral_radius=rho,
         friction_gains=tuple(map(float, gains)),
         joint_speed_amplitudes=tuple(map(float, amplitudes)),
-        stable=True,
-        passed=None,
+        stable=stable,
+        passed=passed,
         verdict=verdict,
         second_order=False,
         iterations=iterations,
@@ -321,36 +331,15 @@ def _unpredicted(
     )
 
 
-def _unjudged(scenario: Scenario) -> tuple[str, ...]:
-    criteria = scenario.criteria
-    return tuple(name for name in _UNJUDGED if getattr(criteria, name, None) is not None)
-
-
 def _unstable(
     scenario: Scenario,
     time: npt.NDArray[np.float64],
-    rho: float,
-    gains: npt.NDArray[np.float64],
-    amplitudes: npt.NDArray[np.float64],
-    iterations: int,
+    loop: tuple[float, npt.NDArray[np.float64], npt.NDArray[np.float64], int],
 ) -> ForcedResponse:
+    rho, iterations = loop[0], loop[3]
     where = ("with Coulomb friction at its slope at rest" if iterations == 1 else
              "with Coulomb friction at its describing-function gain for the motion's joint "
              "speeds")  # fmt: skip
-    nan = np.full(len(time), math.nan)
-    return ForcedResponse(
-        time=time,
-        force=nan,
-        force_oscillation=math.nan,
-        contact_loss=math.nan,
-        spectral_radius=rho,
-        friction_gains=tuple(map(float, gains)),
-        joint_speed_amplitudes=tuple(map(float, amplitudes)),
-        stable=False,
-        passed=False,
-        verdict=f"unstable with the motion running: spectral radius ρ = {rho:.6g} ≥ 1 {where}",
-        second_order=False,
-        iterations=iterations,
-        unjudged=_unjudged(scenario),
-        caveats=_CAVEATS,
-    )
+    verdict = f"unstable with the motion running: spectral radius ρ = {rho:.6g} ≥ 1 {where}"
+    return _without_ripple(scenario, time, np.full(len(time), math.nan), loop,
+                           (False, False, verdict))  # fmt: skip

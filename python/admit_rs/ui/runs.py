@@ -352,15 +352,9 @@ def disagreement(view: RunView, pred: Prediction) -> str | None:
     rho = float(radius) if isinstance(radius, int | float) else math.nan
     verdict = str(pred.values.get("verdict", ""))
     if predicted:
-        if view.metrics.get("diverged"):
-            return ("the run diverged: a large-signal transient (the first contact, a "
-                    "saturation) that the linear model about the contact equilibrium does not "
-                    "see")  # fmt: skip
-        if "loss of contact" in view.verdict or "bounce" in view.verdict:
-            return ("the linear model assumes contact is kept; the run leaves the surface and "
-                    "bounces (the clamp of the force at zero is not in the model)")  # fmt: skip
-        return ("the run oscillates by itself at an amplitude the linear model, exact only "
-                "for small signals about the equilibrium, does not reach")  # fmt: skip
+        return _large_signal(view, "the linear model") or (
+            "the run oscillates by itself at an amplitude the linear model, exact only for "
+            "small signals about the equilibrium, does not reach")
     if verdict.startswith("unstable: no contact equilibrium"):
         return (f"the linearisation found no contact equilibrium ({verdict.split(': ', 2)[-1]}) "
                 "where the run settles in contact")  # fmt: skip
@@ -372,6 +366,18 @@ def disagreement(view: RunView, pred: Prediction) -> str | None:
             "run the oscillation is held by what the model leaves out (Coulomb friction "
             "beyond its describing-function gain, the contact clamp), or grows too slowly to "
             f"fail within {view.duration:g} s")  # fmt: skip
+
+
+def _large_signal(view: RunView, model: str) -> str | None:
+    """Why a run fails where ``model`` (about the contact equilibrium, contact kept) does
+    not: it diverged, or it left the surface; None otherwise."""
+    if view.metrics.get("diverged"):
+        return ("the run diverged: a large-signal transient (the first contact, a saturation) "
+                f"that {model} about the contact equilibrium does not see")  # fmt: skip
+    if "loss of contact" in view.verdict or "bounce" in view.verdict:
+        return (f"{model} assumes contact is kept; the run leaves the surface and bounces (the "
+                "clamp of the force at zero is not in the model)")  # fmt: skip
+    return None
 
 
 def passed_disagreement(view: RunView, pred: Prediction) -> str | None:
@@ -391,15 +397,9 @@ def passed_disagreement(view: RunView, pred: Prediction) -> str | None:
             and finite(simulated):
         both = f" (predicted {100 * ripple:.3g} %, simulated {100 * simulated:.3g} %)"
     if predicted:
-        if view.metrics.get("diverged"):
-            return ("the run diverged: a large-signal transient (the first contact, a "
-                    "saturation) that the forced response about the contact equilibrium does "
-                    "not see")  # fmt: skip
-        if "loss of contact" in view.verdict or "bounce" in view.verdict:
-            return ("the forced response keeps contact; the run leaves the surface and bounces "
-                    "(a limit cycle of the force's clamp at zero, not in the model)")  # fmt: skip
-        return ("the run fails a criterion the forced response misses or does not judge"
-                f"{both}: the ripple beyond second order, or the run's first transient")
+        return _large_signal(view, "the forced response") or (
+            "the run fails a criterion the forced response misses or does not judge"
+            f"{both}: the ripple beyond second order, or the run's first transient")
     if words.startswith("unstable with the motion running"):
         return ("the loop with friction at its describing-function gain for the motion's joint "
                 "speeds is unstable; in the run the friction's steep slope near each reversal "
