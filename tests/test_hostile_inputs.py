@@ -371,8 +371,11 @@ def test_a_sensor_cutoff_above_nyquist_is_rejected():
         (lambda: ar.paper.scenario("fig14").replace(seed=10**400),
          "seed = ≈1.00000e+400 is invalid: must be an integer from 0 to 9007199254740992"),
         (lambda: ar.Sine(omega=-1e-300), "omega = -1e-300 is invalid: must be finite and >= 0"),
+        (lambda: ar.ForceSensor(latency=10**20),
+         "latency = ≈1.00000e+20 is invalid: must be a whole number of at most 64 bits "
+         "(-2^63 to 2^64 - 1)"),
     ],
-    ids=["wall", "latency", "duration", "seed", "omega"],
+    ids=["wall", "latency", "duration", "seed", "omega", "latency beyond 64 bits"],
 )
 def test_error_messages_print_values_short(make, message):
     # -1e300 used to print as 301 digits (a 350-character message).

@@ -102,6 +102,18 @@ def test_query_round_trips_and_names_bad_values():
     assert errors[1].startswith("admittance.bb=3: not a parameter of this page; did you mean")
     assert errors[2].startswith("wall.stiffness=-5: wall.stiffness = -5") and "invalid" in errors[2]
     assert errors[3] == "sensor.latency=1.5: must be a whole number"
+    # Issue #53 item 17: whole numbers read digit by digit (a seed above 2^53 was rounded to
+    # it), and one beyond 64 bits named with its field, not "expected any value as u128".
+    overrides, errors = controls.parse_query(
+        {"seed": ["9007199254740993"], "sensor.latency": ["1e20"]}, base)  # fmt: skip
+    assert overrides == {}
+    assert errors == [
+        "seed=9007199254740993: seed = 9007199254740993 is invalid: must be an integer from 0 "
+        "to 9007199254740992",
+        "sensor.latency=1e20: sensor.latency = ≈1.00000e+20 is invalid: must be a whole number "
+        "of at most 64 bits (-2^63 to 2^64 - 1)"]
+    assert controls.parse_query({"seed": ["9007199254740991"]}, base)[0] == {
+        "seed": 9007199254740991}
 
 
 def test_bases_are_every_figure_curve_and_toml_files(tmp_path):

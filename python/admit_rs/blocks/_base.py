@@ -219,6 +219,13 @@ class _Block:
                 if abs(value) > sys.float_info.max:
                     # float() would raise OverflowError deep in the conversion.
                     raise _parameter_error(f.name, shown(value), "a finite number")
+            if isinstance(value, int) and not isinstance(value, bool) and "int" in kind and not (
+                -(2**63) <= value < 2**64
+            ):
+                # The core's decoder would say "expected any value … as u128" (issue #53
+                # item 17); the field's own bounds are checked once the value fits.
+                allowed = "a whole number of at most 64 bits (-2^63 to 2^64 - 1)"
+                raise _parameter_error(f.name, shown(value), allowed)
 
     def _plain_scalars(self) -> None:
         """NumPy scalars (alone or in sequences) become the Python numbers they hold, so a

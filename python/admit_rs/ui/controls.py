@@ -340,6 +340,11 @@ def _parse_value(path: str, text: str, control: Control | None) -> float | int |
         if control is not None and not control.nullable:
             raise QueryError(f"{path}={text}: {path} cannot be off (it takes a number)")
         return None
+    if control is not None and control.integer:
+        try:  # exactly, digit by digit: float() would round a seed above 2^53
+            return int(raw)
+        except ValueError:
+            pass
     try:
         value = float(raw)
     except ValueError:
