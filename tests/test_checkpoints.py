@@ -217,6 +217,19 @@ def test_damaged_traces_file_is_named_and_recomputed(tmp_path):
     assert table.equals(clean) and long.equals(clean_traces)
 
 
+def test_a_directory_in_a_chunk_s_place_is_named(tmp_path):
+    """Issue #53 item 17: it raised a bare IsADirectoryError."""
+    ck = tmp_path / "ck"
+    run(checkpoint=ck)
+    chunk = ck / "chunk-000001.parquet"
+    chunk.unlink()
+    chunk.mkdir()
+    with pytest.raises(ar.errors.ArgumentError) as e:
+        run(checkpoint=ck)
+    assert str(e.value) == (f"checkpoint: {chunk} is not a file (a directory?): it cannot hold"
+                            " runs 2..3; remove it or use another folder")
+
+
 def test_checkpoint_files_get_the_usual_permissions(tmp_path):
     ck = tmp_path / "ck"
     run(checkpoint=ck)

@@ -138,9 +138,16 @@ class _Checkpoint:
         """Chunk ``index`` if it is on disk, readable and this sweep's; else ``None`` (to
         compute), with a :class:`CheckpointWarning` naming a file that is not usable."""
         path = self._path("chunk", index)
+        tpath = self._path("traces", index)
+        for planted in (path, tpath):
+            if planted.exists() and not planted.is_file():
+                # Neither read nor replaceable (issue #53 item 17: IsADirectoryError).
+                raise ArgumentError(
+                    f"checkpoint: {planted} is not a file (a directory?): it cannot hold runs"
+                    f" {ids.start}..{ids.stop - 1}; remove it or use another folder"
+                )
         if not path.exists():
             return None
-        tpath = self._path("traces", index)
         table = long = None
         # The bytes are checked before Parquet parses them (see `_intact`).
         problem = self._intact(path)
