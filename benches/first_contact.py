@@ -3,7 +3,7 @@ plain, with ``AdmittanceFilter.adaptive`` and with ``GuardedApproach()``, scalar
 (``ar.simulate``, best of ``--repeat`` rounds) and in lanes (``ar.sweep`` of ``--samples`` runs over
 the wall stiffness, no traces, best of every fifth round).
 
-    PYTHONPATH=python python benches/first_contact.py [--repeat 15] [--samples 64]
+    python benches/first_contact.py [--repeat 15] [--samples 64]
 
 The ratio to the plain run is what docs/performance-history.md §13 states (target ≤ 1.1×).
 """

@@ -1,6 +1,6 @@
 """Slider change -> redrawn plot on the tuning page, in headless Chromium (issue #24).
 
-    PYTHONPATH=python python benches/ui_latency.py [--changes 50] [--scenario fig14]
+    python benches/ui_latency.py [--changes 50] [--scenario fig14]
         [--slider admittance.b] [--framework page|panel]
 
 Serves the page (``--framework page``: the real page, plain Bokeh) on a free port of

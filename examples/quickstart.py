@@ -1,9 +1,15 @@
 """Quick start: run the paper's fig. 14, change the wall, compare, plot.
 
-python examples/quickstart.py
+    python examples/quickstart.py [OUT_DIR]    # writes OUT_DIR/fig14.png (default: here)
 """
 
+import sys
+from pathlib import Path
+
 import admit_rs as ar
+
+out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(".")
+out.mkdir(parents=True, exist_ok=True)
 
 sc = ar.paper.scenario("fig14")  # TDC + Scheme 2 (b = 800, k_a = 1), k_e = 30 000 N/m
 print(sc)
@@ -21,5 +27,5 @@ try:
 except ar.ParameterError as e:
     print("ParameterError:", e)
 
-res.plot().savefig("fig14.png", dpi=100)
-print("wrote fig14.png")
+res.plot().savefig(out / "fig14.png", dpi=100)
+print("wrote", out / "fig14.png")

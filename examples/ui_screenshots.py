@@ -1,6 +1,6 @@
 """The screenshots of docs/ui.md, taken of the real page in headless Chromium.
 
-    PYTHONPATH=python python examples/ui_screenshots.py [OUT_DIR]    # default docs/ui
+    python examples/ui_screenshots.py [OUT_DIR]    # default: here; docs/ui refreshes the docs
 
 default.png   the page on fig. 14 as ``admit-rs ui`` opens it
 unstable.png  the page opened from ``?admittance.b=200&wall.stiffness=1e6`` (a stiff wall
@@ -20,8 +20,6 @@ from pathlib import Path
 import admit_rs as ar
 from admit_rs.ui import browser
 from admit_rs.ui.server import serve_in_thread
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def shoot(out: Path) -> None:
@@ -88,4 +86,4 @@ def shoot_jupyter(drv: object, out: Path) -> None:
 
 
 if __name__ == "__main__":
-    shoot(Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "docs" / "ui")
+    shoot(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("."))
