@@ -277,3 +277,28 @@ def test_the_adaptive_filter_is_less_damped_on_softer_walls():
     assert soft["spectral_radius"] == pytest.approx(1.00027, abs=1e-5)
     assert paper["stable"] is True and paper["dominant_damping"] == 1.0
     assert paper["spectral_radius"] == pytest.approx(0.99512, abs=1e-5)
+
+
+@pytest.mark.parametrize(
+    "change",
+    [{"approach.threshold": 1e4}, {"sensor.latency": 20000}],
+    ids=["unreachable threshold", "latency longer than the run"],
+)
+def test_an_approach_that_never_hands_over_says_so(change):
+    """Issue #53 item 7: the approach pushed on (709 N) and the verdict read "force
+    oscillation, contact kept: 1219 %" without saying that force control never took over;
+    the same in lanes."""
+    base = ar.paper.scenario("fig19").replace(approach=ar.GuardedApproach(), **change)
+    res = ar.simulate(base)
+    assert res.stable is None and res.passed is False
+    measured = res.trace["f_measured"].max()
+    threshold = base.approach.threshold
+    assert measured <= threshold
+    assert res.verdict.startswith("not assessed: force control never took over: the measured "
+                                  "force peaked at ")  # fmt: skip
+    assert res.verdict.endswith(f"never above the guarded approach's threshold {threshold:g} N,"
+                                " so the approach pushed on to the end")  # fmt: skip
+    table = ar.sweep(base, grid={"admittance.b": [800.0, 900.0]}, progress=False)
+    assert table["verdict"][0] == res.verdict
+    assert table["passed"].to_list() == [False, False]
+    assert table["stable"].to_list() == [None, None]

@@ -87,6 +87,26 @@ pub struct Figures {
     pub assessed_time: f64,
     pub path_rms_error: f64,
     pub torque_saturation: f64,
+    /// A guarded approach's handover, if the run has one.
+    pub handover: Option<crate::sim::metrics::Handover>,
+}
+
+impl Figures {
+    /// "force control never took over (…)" when a guarded approach never handed over: the
+    /// force loop never ran, so neither its dynamics nor its criteria can be judged.
+    fn never_handed_over(&self) -> Option<String> {
+        let h = self.handover.filter(|h| !h.happened())?;
+        let peak = if h.measured_peak.is_finite() {
+            format!("{} N", short(h.measured_peak))
+        } else {
+            "nothing".to_owned()
+        };
+        Some(format!(
+            "force control never took over: the measured force peaked at {peak}, never above \
+             the guarded approach's threshold {} N, so the approach pushed on to the end",
+            short(h.threshold)
+        ))
+    }
 }
 
 /// What drives a run besides its own loop, and what the run showed with those drives held
@@ -401,6 +421,7 @@ pub fn needs_held(
     outcome: &Outcome,
 ) -> bool {
     !outcome.is_diverged()
+        && m.never_handed_over().is_none()
         && failures(m, criteria, force_control)
             .0
             .iter()
@@ -462,6 +483,14 @@ pub fn judge(
             stable: Some(false),
             passed: Some(false),
             verdict: format!("unstable: diverged at t = {} s ({cause})", short(*time)),
+        };
+    }
+    if let Some(why) = m.never_handed_over() {
+        // Not the force loop's dynamics (it never ran): not assessed, and failed.
+        return Judgement {
+            stable: None,
+            passed: Some(false),
+            verdict: format!("not assessed: {why}"),
         };
     }
     let (failed, unjudged) = failures(m, criteria, force_control);
@@ -644,7 +673,49 @@ mod tests {
             assessed_time: 9.0,
             path_rms_error: 1e-4,
             torque_saturation: 0.0,
+            handover: None,
         }
+    }
+
+    /// Issue #53 item 7: a guarded approach whose threshold is never reached pushes on
+    /// (709 N); the verdict said "force oscillation, contact kept: 1219 %".
+    #[test]
+    fn an_approach_that_never_hands_over_is_said() {
+        use crate::sim::metrics::Handover;
+        let pushing = Figures {
+            force_peak: 709.0,
+            force_oscillation: 12.19,
+            handover: Some(Handover {
+                measured_peak: 709.2,
+                threshold: 1e4,
+            }),
+            ..rippling()
+        };
+        let criteria = CriteriaParams::default();
+        let j = judge(
+            &pushing,
+            &criteria,
+            true,
+            &Outcome::Completed,
+            &Drive::Untested,
+        );
+        assert_eq!(
+            j.verdict,
+            "not assessed: force control never took over: the measured force peaked at 709.2 \
+             N, never above the guarded approach's threshold 10000 N, so the approach pushed \
+             on to the end"
+        );
+        assert_eq!((j.stable, j.passed), (None, Some(false)));
+        assert!(!needs_held(&pushing, &criteria, true, &Outcome::Completed));
+        // Handed over: judged as usual.
+        let handed = Figures {
+            handover: Some(Handover {
+                measured_peak: 10.5,
+                threshold: 1.0,
+            }),
+            ..rippling()
+        };
+        assert!(needs_held(&handed, &criteria, true, &Outcome::Completed));
     }
 
     fn held(force_oscillation: f64, contact_loss: f64) -> Drive {

@@ -95,6 +95,24 @@ pub struct Metrics {
     pub criteria: CriteriaParams,
     /// Whether the run has a force loop (what [`judge`] applies).
     pub force_control: bool,
+    /// With a guarded approach (SPEC §16): the largest measured force and the threshold
+    /// it had to exceed for force control to take over; `None` without one.
+    pub handover: Option<Handover>,
+}
+
+/// Whether a guarded approach handed over to force control: it does at the first sample
+/// whose measured force exceeds its threshold (`control::approach`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Handover {
+    pub measured_peak: f64,
+    pub threshold: f64,
+}
+
+impl Handover {
+    /// Force control took over at some sample.
+    pub fn happened(&self) -> bool {
+        self.measured_peak > self.threshold
+    }
 }
 
 /// Metric names in the order of `Metrics::values`.
@@ -204,6 +222,7 @@ impl Metrics {
             assessed_time: self.assessed_time,
             path_rms_error: self.path_rms_error,
             torque_saturation: self.torque_saturation,
+            handover: self.handover,
         }
     }
 
@@ -350,6 +369,9 @@ pub struct OnlineMetrics {
     // Running values.
     samples: usize,
     force_peak: f64,
+    /// The largest measured force, and the guarded approach's threshold (if any).
+    measured_peak: f64,
+    handover_threshold: Option<f64>,
     saturated: usize,
     /// Largest excursion of a joint beyond its limits so far.
     limit_excursion: f64,
@@ -417,6 +439,8 @@ impl OnlineMetrics {
             window_start: steady_start.max(late_start),
             samples: 0,
             force_peak: f64::NEG_INFINITY,
+            measured_peak: f64::NEG_INFINITY,
+            handover_threshold: config.approach.as_ref().map(|a| a.threshold),
             saturated: 0,
             limit_excursion: 0.0,
             along_n: SumOfSquares::ZERO,
@@ -452,6 +476,7 @@ impl OnlineMetrics {
         self.impact_peak = f64::NAN;
         self.samples = 0;
         self.force_peak = f64::NEG_INFINITY;
+        self.measured_peak = f64::NEG_INFINITY;
         self.saturated = 0;
         self.limit_excursion = 0.0;
         self.along_n = SumOfSquares::ZERO;
@@ -501,6 +526,7 @@ impl OnlineMetrics {
         self.path.push((e - self.normal * e_n).norm());
         let (f, f_d) = (row.f, row.f_d);
         self.force_peak = self.force_peak.max(f);
+        self.measured_peak = self.measured_peak.max(row.f_measured);
         if k == 0 {
             // NaN (no surface) is not touching.
             self.starts_touching = row.penetration >= -TOUCHING_TOLERANCE;
@@ -639,6 +665,13 @@ impl OnlineMetrics {
             drive: Drive::Untested,
             criteria: self.criteria,
             force_control: self.force_control,
+            handover: match (self.force_control, self.handover_threshold) {
+                (true, Some(threshold)) => Some(Handover {
+                    measured_peak: self.measured_peak,
+                    threshold,
+                }),
+                _ => None,
+            },
         };
         if self.force_control {
             // Facts about what happened, like force_peak: kept for a diverged run too.
