@@ -424,6 +424,8 @@ def test_default_page_is_stable_and_plots_the_run(server, chrome):
     # The prediction with the motion running, fig. 14's ripple within tolerance.
     assert "Predicted with the motion running: passed: predicted force oscillation" in page
     assert "(passed: yes)" in page
+    # The step metrics say what they are of (issue #53 item 11).
+    assert "predicted settling time (step, motion held)" in page
     assert "force_ss_error" in page
     # fig. 14's dominant pole is real: its time constant, not "0 Hz, ζ = 1".
     sc = ar.paper.scenario("fig14")
