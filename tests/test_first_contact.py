@@ -281,14 +281,15 @@ def test_the_adaptive_filter_is_less_damped_on_softer_walls():
 
 @pytest.mark.parametrize(
     "change",
-    [{"approach.threshold": 1e4}, {"sensor.latency": 20000}],
+    [{"approach": ar.GuardedApproach(threshold=1e4)},
+     {"approach": ar.GuardedApproach(), "sensor.latency": 20000}],
     ids=["unreachable threshold", "latency longer than the run"],
 )
 def test_an_approach_that_never_hands_over_says_so(change):
     """Issue #53 item 7: the approach pushed on (709 N) and the verdict read "force
     oscillation, contact kept: 1219 %" without saying that force control never took over;
     the same in lanes."""
-    base = ar.paper.scenario("fig19").replace(approach=ar.GuardedApproach(), **change)
+    base = ar.paper.scenario("fig19").replace(**change)
     res = ar.simulate(base)
     assert res.stable is None and res.passed is False
     measured = res.trace["f_measured"].max()
