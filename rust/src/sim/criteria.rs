@@ -88,7 +88,22 @@ pub struct Figures {
     pub path_rms_error: f64,
     pub torque_saturation: f64,
     /// A guarded approach's handover, if the run has one.
-    pub handover: Option<crate::sim::metrics::Handover>,
+    pub handover: Option<Handover>,
+}
+
+/// Whether a guarded approach handed over to force control: it does at the first sample
+/// whose measured force exceeds its threshold (`control::approach`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Handover {
+    pub measured_peak: f64,
+    pub threshold: f64,
+}
+
+impl Handover {
+    /// Force control took over at some sample.
+    pub fn happened(&self) -> bool {
+        self.measured_peak > self.threshold
+    }
 }
 
 impl Figures {
@@ -681,7 +696,6 @@ mod tests {
     /// (709 N); the verdict said "force oscillation, contact kept: 1219 %".
     #[test]
     fn an_approach_that_never_hands_over_is_said() {
-        use crate::sim::metrics::Handover;
         let pushing = Figures {
             force_peak: 709.0,
             force_oscillation: 12.19,

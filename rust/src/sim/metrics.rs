@@ -4,7 +4,9 @@
 use crate::control::reference::Signal;
 use crate::control::task::TaskFrame;
 use crate::robot::TaskVector;
-use crate::sim::criteria::{judge, needs_held, CriteriaParams, Drive, Figures, Held, Judgement};
+use crate::sim::criteria::{
+    judge, needs_held, CriteriaParams, Drive, Figures, Handover, Held, Judgement,
+};
 use crate::sim::outcome::Outcome;
 use crate::sim::scenario::ScenarioConfig;
 use crate::sim::trace::{Row, Trace};
@@ -98,21 +100,6 @@ pub struct Metrics {
     /// With a guarded approach (SPEC §16): the largest measured force and the threshold
     /// it had to exceed for force control to take over; `None` without one.
     pub handover: Option<Handover>,
-}
-
-/// Whether a guarded approach handed over to force control: it does at the first sample
-/// whose measured force exceeds its threshold (`control::approach`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Handover {
-    pub measured_peak: f64,
-    pub threshold: f64,
-}
-
-impl Handover {
-    /// Force control took over at some sample.
-    pub fn happened(&self) -> bool {
-        self.measured_peak > self.threshold
-    }
 }
 
 /// Metric names in the order of `Metrics::values`.
