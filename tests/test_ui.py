@@ -683,7 +683,7 @@ def test_the_jupyter_path_renders(chrome, tmp_path):
 
 def test_the_spectral_radius_hint_says_what_this_radius_means():
     """The pole table's hint beside ρ is about the value shown: 1.117 is not called stable."""
-    from admit_rs.ui.page import _radius_words
+    from admit_rs.ui.texts import radius_words as _radius_words
 
     assert _radius_words(0.99485) == "(< 1: decays)"
     assert _radius_words(1.11703) == "(≥ 1: unstable)"

@@ -32,9 +32,8 @@ from bokeh.plotting import figure
 from admit_rs import export
 from admit_rs.config import Scenario
 from admit_rs.errors import AdmitError
-from admit_rs.metrics import METRICS
 from admit_rs.ui import controls as ctl
-from admit_rs.ui import runs
+from admit_rs.ui import runs, texts
 
 log = logging.getLogger("admit_rs.ui")
 
@@ -136,16 +135,6 @@ def _error_html(message: str) -> str:
         'padding:6px 10px;border-radius:4px;white-space:pre-wrap;max-width:1000px">'
         f"<b>Error:</b> {html.escape(message)}</div>"
     )
-
-
-def _number(x: Any, digits: int = 4) -> str:
-    if x is None:
-        return "–"
-    if isinstance(x, bool):
-        return str(x)
-    if not isinstance(x, int | float) or not math.isfinite(x):
-        return "–"
-    return f"{x:.{digits}g}"
 
 
 class TuningPage:
@@ -351,7 +340,7 @@ class TuningPage:
         lo, hi = c.slider_range
         value = c.to_slider(c.value if c.value is not None else (c.low if c.scale == "log"
                                                                   else c.low))  # fmt: skip
-        title = c.title + (" (per joint: " + ", ".join(_number(v, 3) for v in c.per_joint)
+        title = c.title + (" (per joint: " + ", ".join(texts.number(v, 3) for v in c.per_joint)
                            + ")" if c.per_joint else "")  # fmt: skip
         slider = Slider(start=lo, end=hi, value=value, step=c.slider_step, title=title,
                         format=_slider_format(c), width=300, name=c.path,
@@ -545,10 +534,10 @@ class TuningPage:
                     color.append(COLORS[j % len(COLORS)])
         if xs or self.limits.data["xs"]:
             self.limits.data = {"xs": xs, "ys": ys, "color": color}
-        self._sim_html = self._simulated_html(view)
+        self._sim_html = texts.simulated_html(view)
         self._last_view = (generation, view)
         self.verdict.text = self._sim_html + self._predicted_html + self._why_html()
-        self.metrics.text = self._metrics_html(view)
+        self.metrics.text = texts.metrics_html(view)
 
     def _set_torque_lines(self, joints: int) -> None:
         if len(self.torque_lines) == 2 * joints:  # each a line and its legend's stand-in
@@ -586,30 +575,11 @@ class TuningPage:
         return out
     _exports = 0
 
-    @staticmethod
-    def _simulated_html(view: runs.RunView) -> str:
-        if not view.complete:
-            return ("<b>Simulated:</b> <span style='color:#8a6d00'>cancelled</span> "
-                    "(the plots show the run up to then; move a slider to run again)")  # fmt: skip
-        # Green: passed; orange: stable but out of tolerance; red: unstable; amber: not
-        # assessed (SPEC §23).
-        if view.passed is True:
-            color = "#137333"
-        elif view.stable is True:
-            color = "#b45309"
-        else:
-            color = {False: "#c5221f", None: "#8a6d00"}[view.stable]
-        words = {True: "yes", False: "no", None: "not assessed"}
-        both = (f"stable: <span class='stable'>{words[view.stable]}</span>, passed: "
-                f"<span class='passed'>{words[view.passed]}</span>")
-        return (f"<b>Simulated:</b> <span style='color:{color};font-weight:bold' "
-                f"class='verdict'>{html.escape(view.verdict)}</span> ({both})")  # fmt: skip
-
     def _show_prediction(self, generation: int, pred: runs.Prediction) -> None:
         if generation < self.applied_prediction:
             return
         self.applied_prediction = generation
-        self._predicted_html = self._prediction_html(pred)
+        self._predicted_html = texts.prediction_html(pred)
         self._last_prediction = (generation, pred)
         self.verdict.text = ((self._sim_html or "<b>Simulated:</b> running…")
                              + self._predicted_html + self._why_html())  # fmt: skip
@@ -621,88 +591,7 @@ class TuningPage:
         else:
             self.poles.data = {"re": [], "im": [], "mag": []}
             self.dominant.data = {"re": [], "im": []}
-        self.pole_text.text = self._pole_html(pred)
-
-    @staticmethod
-    def _prediction_html(pred: runs.Prediction) -> str:
-        if pred.values is None:
-            return ("<br><b>Predicted:</b> not available: "
-                    f"{html.escape(pred.error or 'no linear model')}")  # fmt: skip
-        v = pred.values
-        stable = bool(v.get("stable"))
-        color = "#137333" if stable else "#c5221f"
-        margins = (
-            f"spectral radius ρ = {_number(v.get('spectral_radius'), 5)}; "
-            f"gain margin {_number(v.get('gain_margin'), 3)}×, "
-            f"phase margin {_number(v.get('phase_margin'), 3)}°, "
-            f"delay margin {_number(v.get('delay_margin'), 3)} samples"
-        )
-        passed = v.get("passed")
-        # Green: predicted to pass; orange: out of tolerance; red: unstable with the motion
-        # running; amber: not predicted.
-        if passed is True:
-            tint, words = "#137333", "yes"
-        elif passed is False:
-            unstable = str(v.get("tolerance_verdict", "")).startswith("unstable")
-            tint, words = ("#c5221f" if unstable else "#b45309"), "no"
-        else:
-            tint, words = "#8a6d00", "not predicted"
-        running = (f"<br><b>Predicted with the motion running:</b> <span style='color:{tint};"
-                   f"font-weight:bold' class='predicted-passed'>"
-                   f"{html.escape(str(v.get('tolerance_verdict', '')))}</span> (passed: "
-                   f"{words})")  # fmt: skip
-        return (f"<br><b>Predicted:</b> <span style='color:{color};font-weight:bold'>"
-                f"{html.escape(str(v.get('verdict', '')))}</span> ({margins})"
-                + running)  # fmt: skip
-
-    @staticmethod
-    def _pole_html(pred: runs.Prediction) -> str:
-        if pred.values is None:
-            return f"No linear model: {html.escape(pred.error or '')}"
-        v = pred.values
-        pole = pred.dominant()
-        if pole is not None:
-            rows = runs.dominant_words(pole, pred.period)
-        else:  # no eigenvalues (see the note below): predict's own numbers
-            rows = [
-                ("dominant pole frequency", _number(v.get("dominant_frequency"), 4), "Hz"),
-                ("dominant pole damping ζ", _number(v.get("dominant_damping"), 3), ""),
-            ]
-        rows += [
-            ("spectral radius ρ", _number(v.get("spectral_radius"), 6),
-             _radius_words(v.get("spectral_radius"))),
-            # Of the step 0 → f_d with the motion held (issue #53 item 11: 0.397 s stood
-            # beside the run's 9.488 s, whose ±2 % band the motion's ripple keeps leaving).
-            ("predicted overshoot (step, motion held)", _number(v.get("overshoot_pct"), 3),
-             "%"),
-            ("predicted settling time (step, motion held)", _number(v.get("settling_time"), 3),
-             "s"),
-            # An unstable loop reaches no steady state: its "steady" error is no prediction.
-            ("predicted force error", _number(v.get("force_ss_error"), 3)
-             if _radius_words(v.get("spectral_radius")) == "(< 1: decays)" else "–", "N"),
-        ]
-        body = "".join(f"<tr><td>{a}</td><td style='text-align:right'>{b}</td><td>{c}</td></tr>"
-                       for a, b, c in rows)  # fmt: skip
-        extra = f"<br><i>{html.escape(pred.error)}</i>" if pred.error else ""
-        return f"<table style='font-size:90%'>{body}</table>{extra}"
-
-    @staticmethod
-    def _metrics_html(view: runs.RunView) -> str:
-        if not view.metrics:
-            return ""
-        rows = []
-        for name, value in view.metrics.items():
-            if name in ("stable", "passed", "diverged"):
-                continue
-            m = METRICS.get(name)
-            unit = m.unit if m is not None and not m.unit.startswith("bool") else ""
-            tip = html.escape(m.description, quote=True) if m is not None else ""
-            rows.append(f"<tr title='{tip}'><td>{name}</td><td style='text-align:right'>"
-                        f"{_number(value)}</td><td>{html.escape(unit)}</td></tr>")  # fmt: skip
-        return ("<b>Metrics of the run</b><table style='font-size:85%;line-height:1.15'>"
-                + "".join(rows) + "</table>")  # fmt: skip
-
-    # -- buttons --------------------------------------------------------------------------
+        self.pole_text.text = texts.pole_html(pred)
 
     def _on_pin(self) -> None:
         if self.last_run is not None:
@@ -794,11 +683,3 @@ def build(doc: Document, start_name: str | None, start: Scenario) -> None:
     page = TuningPage(doc, start_name, start, query)
     doc.title = "admit_rs tuning"
     page.add_roots()
-
-
-def _radius_words(radius: object) -> str:
-    """What ρ says on its own: below 1 the linear loop decays, at or above 1 it does not (the
-    margins of the verdict line may still fail a loop whose ρ is below 1)."""
-    if not isinstance(radius, int | float) or radius != radius:
-        return ""
-    return "(< 1: decays)" if radius < 1.0 else "(≥ 1: unstable)"
