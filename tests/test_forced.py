@@ -177,3 +177,15 @@ def test_predicted_passed_agrees_on_a_grid_with_motion(figure: str) -> None:
     ratio = (both["predicted_oscillation"] / both["force_oscillation"]).to_numpy()
     close = np.abs(ratio - 1) <= CLOSE
     assert close.mean() >= 0.9, ratio
+
+
+def test_nothing_to_judge_is_not_predicted() -> None:
+    for cell in (_cell("fig14", duration=0.5), _cell("fig14", **{"force_reference.value": 0.0,
+                                                                 "force_reference.initial": 0.0})):
+        try:
+            response = ar.analysis.forced_response(cell)
+        except ar.errors.AnalysisError as e:  # f_d = 0: no contact equilibrium to expand about
+            assert "no contact equilibrium" in str(e)
+            continue
+        assert response.passed is None
+        assert response.verdict.startswith("not predicted: the run has no window to judge")

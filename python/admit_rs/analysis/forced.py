@@ -280,7 +280,11 @@ def _chatters(force: npt.NDArray[np.float64], period: float) -> bool:
     return spread > 0 and float(np.std(np.diff(tail))) > ROUGHNESS * spread
 
 
-def _judge(scenario: Scenario, oscillation: float, loss: float) -> tuple[bool, str]:
+def _judge(scenario: Scenario, oscillation: float, loss: float) -> tuple[bool | None, str]:
+    if not (math.isfinite(oscillation) and math.isfinite(loss)):
+        # As the simulated metrics: nothing to assess after t = 1 s, or f_d = 0 there.
+        return None, ("not predicted: the run has no window to judge (shorter than 1 s, or"
+                      " f_d = 0 in its last 2 s)")  # fmt: skip
     criteria = scenario.criteria
     failures = []
     limit = criteria.max_force_oscillation
