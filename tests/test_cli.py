@@ -70,6 +70,22 @@ def test_tune_verb_reports_gains_and_verification(capsys):
     assert len(data["verification"]) == 3 and all(v["stable"] for v in data["verification"])
 
 
+def test_tune_table_fits_an_80_column_terminal(capsys, monkeypatch):
+    """Issue #53, item 20: the table format wrapped numbers and verdicts mid-word at 80
+    columns; now every line fits the terminal and each point says its verdicts whole."""
+    monkeypatch.setenv("COLUMNS", "80")
+    argv = ["tune", "fig14", "--vary", "admittance.b=100:3000", "--over",
+            "wall.stiffness=1e4:1e5", "--verify-duration", "2", "--format", "table"]  # fmt: skip
+    cli.main(argv)
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    assert max(len(line) for line in lines) <= 80, out
+    assert sum(line.startswith("  corner: wall.stiffness = ") for line in lines) == 2, out
+    assert any(line.startswith("  centre: wall.stiffness = 3.162e+04") for line in lines), out
+    assert out.count("motion held: ") >= 3 and out.count("with motion: ") >= 3, out
+    assert lines[0].startswith("gains: admittance.b = ")
+
+
 def test_tune_verb_bad_input_exits_2(capsys):
     with pytest.raises(SystemExit) as e:
         cli.main(["tune", "fig14", "--vary", "admittance.b=100", "--over", "wall.stiffness=1:2"])

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import textwrap
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -78,6 +79,10 @@ class TuneResult:
     def summary(self) -> str:
         """A few lines of text: the gains, the true worst case predicted and simulated over
         every point, the verification and, if it fails, why."""
+        return "\n".join(self._head() + [f"  {reason}" for reason in self._failures()])
+
+    def _head(self) -> list[str]:
+        """The summary's lines before the failures."""
         gains = ", ".join(f"{k} = {v:.4g}" for k, v in self.gains.items())
         v = self.verification
         over_pred, over_sim = self.worst("overshoot_pct")
@@ -102,7 +107,46 @@ class TuneResult:
                 f"{moving} passed, {moving_stable} stable -> "
                 + ("verified" if self.verified else "NOT verified")
             )
-            lines += [f"  {reason}" for reason in self._failures()]
+        return lines
+
+    def report(self, width: int = 80) -> str:
+        """:meth:`summary` and one block per verification point, every line at most
+        ``width`` characters (at least 40): a terminal's report (``admit-rs tune``)."""
+        width = max(40, width)
+
+        def wrap(text: str, indent: str = "") -> list[str]:
+            return textwrap.wrap(text, width, initial_indent=indent,
+                                 subsequent_indent=indent + "    ", break_long_words=True,
+                                 break_on_hyphens=False)  # fmt: skip
+
+        lines = [w for line in self._head() for w in wrap(line)]
+        v = self.verification
+        if v.height == 0:
+            return "\n".join(lines)
+        over = list(v.columns[: v.columns.index("point")])
+        lines.append("verification (simulated; predicted in brackets):")
+
+        def state(stable: bool | None, passed: bool | None, verdict: str) -> str:
+            judged = {True: "stable", False: "unstable", None: "stability not assessed"}
+            said = f"{judged[stable]}, {'passed' if passed else 'not passed'}"
+            return said if passed else f"{said}: {verdict}"
+
+        def seconds(t: float) -> str:
+            return f"{t:.3f} s" if math.isfinite(t) else "not within the run"
+
+        for r in v.iter_rows(named=True):
+            at = ", ".join(f"{k} = {r[k]:.4g}" for k in over)
+            lines += wrap(f"{r['point']}: {at}", "  ")
+            too_much = r["overshoot_pct"] > self.max_overshoot_pct
+            lines += wrap(
+                f"motion held: {state(r['stable'], r['passed'], r['verdict'])}; overshoot "
+                f"{r['overshoot_pct']:.2f} % ({r['predicted_overshoot_pct']:.2f} %)"
+                + (f" > {self.max_overshoot_pct:g} %" if too_much else "")
+                + f", settling {seconds(r['settling_time'])} "
+                f"({seconds(r['predicted_settling_time'])})", "    ")  # fmt: skip
+            lines += wrap(
+                "with motion: " + state(r["stable_with_motion"], r["passed_with_motion"],
+                                        r["verdict_with_motion"]), "    ")  # fmt: skip
         return "\n".join(lines)
 
     def _failures(self) -> list[str]:
