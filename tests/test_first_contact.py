@@ -303,3 +303,49 @@ def test_an_approach_that_never_hands_over_says_so(change):
     assert table["verdict"][0] == res.verdict
     assert table["passed"].to_list() == [False, False]
     assert table["stable"].to_list() == [None, None]
+
+
+def _switch_step(res: ar.Result) -> float:
+    """The largest move of X_d in one period [m] within 20 ms of the switch to force
+    control (the first sample with x_a's record leaving the approach's ramp: the first
+    f_measured above the threshold)."""
+    xd = np.column_stack([res.trace[c].to_numpy() for c in ("x_ref", "y_ref", "z_ref")])
+    steps = np.linalg.norm(np.diff(xd, axis=0), axis=1)
+    k = int(np.argmax(res.trace["f_measured"].to_numpy() > ar.GuardedApproach().threshold))
+    assert k > 0
+    return float(steps[max(k - 20, 0): k + 20].max())
+
+
+@pytest.mark.parametrize("shape", ["plane", "sphere", "cylinder", "height field"])
+def test_reanchoring_is_bumpless_on_curved_parts(shape):
+    """Issue #53, item 1: on a curved belief re-anchoring moved x̂_e but not the believed
+    surface, so X_d jumped at the switch by the re-anchoring's move (fig. 14, a ball of
+    R = 0.3 m 1 cm away believed touching: 12.7 mm in one period, then contact lost 32 % of
+    the time). Now the believed surface moves along its own normal by the same δ, and X_d
+    moves at the switch no more than the approach and the motion move it (as on a plane)."""
+    r = 0.3
+    part, belief = {
+        "plane": (ar.Wall(gap=0.01), ar.Wall()),
+        "sphere": (ar.Sphere(radius=r, gap=0.01), ar.Sphere(radius=r)),
+        "cylinder": (ar.Cylinder(radius=r, gap=0.01), ar.Cylinder(radius=r)),
+        "height field": (ar.Sphere(radius=r, gap=0.01),
+                         ar.HeightField(heights=_cap_heights(r, 0.004), spacing=(0.004, 0.004))),
+    }[shape]  # fmt: skip
+    sc = FIG14.replace(wall=part, wall_estimate=belief, approach=ar.GuardedApproach(),
+                       duration=4.0)  # fmt: skip
+    res = ar.simulate(sc)
+    kept = ar.simulate(sc.replace(**{"approach.reanchor": False}))
+    # 0.03 mm on every shape here: the approach's and the motion's own move in a period.
+    assert _switch_step(res) < 1e-4, (shape, _switch_step(res))
+    assert res.metrics["contact_loss"] == 0.0 and res.stable is True, res.verdict
+    # Scheme 2 has no spring toward x̂_e: re-anchoring moves x_a's zero (by 10 mm on the
+    # plane, 12.7 mm on the ball, where the motion carries the tip along the curve during
+    # the approach), never the force.
+    shift = float(kept.trace["x_a"][-1] - res.trace["x_a"][-1])
+    assert shift > 9e-3, shift
+    assert np.max(np.abs(res.trace["f"].to_numpy() - kept.trace["f"].to_numpy())) < 1e-6
+
+
+def _cap_heights(radius: float, spacing: float, half_width: float = 0.08) -> np.ndarray:
+    u = np.arange(-half_width, half_width + 1e-12, spacing)
+    return radius - np.sqrt(radius**2 - u[:, None] ** 2 - u[None, :] ** 2)

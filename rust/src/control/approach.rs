@@ -29,6 +29,11 @@
 //! rounding) and Ẋ_d = ẋ_a n̂ + ṡ t̂ continues v_{k_s}; from there ẋ_a follows the filter, whose
 //! change over one period is ẍ_a T to first order (the "loop's discretisation").
 //!
+//! A curved estimate (SPEC §15: X_d = p(Y) + x_a n̂(p(Y))) is re-anchored the same way: it
+//! moves along its own normal by δ = x̂_e − x̂_e,0 (its parallel surface: a sphere's or a
+//! cylinder's radius changes by δ), X_d = p(Y) + (δ + x_a) n̂(p(Y)), so only x̂_e + x_a enters
+//! and the switch is bumpless on any shape.
+//!
 //! With Scheme 2 (k = 0) the force loop does not depend on where x̂_e is (only x̂_e + x_a
 //! enters X_d, and the filter has no stiffness term), so re-anchoring moves x_a's zero, not
 //! the force; it changes the run of Scheme 1 (k > 0), whose spring pulls toward x̂_e.
@@ -210,6 +215,14 @@ impl<T: Real> Approach<T> {
         self.position = self.start;
         self.velocity = T::zero();
         frame.wall_estimate = self.estimate;
+    }
+
+    /// δ = x̂_e − x̂_e,0: how far re-anchoring moved the estimate along n̂ (0 before the
+    /// switch and without `reanchor`). A curved estimate is moved by it along its own normal
+    /// (`pipeline::desired`), as a plane's x̂_e is.
+    #[inline(always)]
+    pub fn reanchor_shift(&self, frame: &TaskFrame<T>) -> T {
+        frame.wall_estimate - self.estimate
     }
 
     /// Whether any lane is still approaching.

@@ -141,18 +141,19 @@ impl<T: Real, M: ArmModel<T, N>, const N: usize> Pipeline<T, M, N> {
                 // the offset p − x̂_e), the others (and those switching now) the filter.
                 let tip = self.frame.normal.dot(&kin.position);
                 let g = approach.guard(measured, tip, &mut self.frame, fc);
+                let shift = Some(approach.reanchor_shift(&self.frame));
                 let held = Sample {
                     value: g.normal.value - self.frame.wall_estimate,
                     rate: g.normal.rate,
                     accel: g.normal.accel,
                 };
                 let offset = self.frame.approach_offset(&g.normal);
-                let guarded = desired(self.belief.as_ref(), &self.frame, &offset, s);
+                let guarded = desired(self.belief.as_ref(), &self.frame, &offset, s, shift);
                 if T::all(g.approaching) {
                     (held, guarded)
                 } else {
                     let x_a = fc.step(&input.force_reference, measured);
-                    let force = desired(self.belief.as_ref(), &self.frame, &x_a, s);
+                    let force = desired(self.belief.as_ref(), &self.frame, &x_a, s, shift);
                     if T::none(g.approaching) {
                         (x_a, force)
                     } else {
@@ -163,9 +164,13 @@ impl<T: Real, M: ArmModel<T, N>, const N: usize> Pipeline<T, M, N> {
                     }
                 }
             }
-            (Some(fc), _) => {
+            (Some(fc), approach) => {
                 let x_a = fc.step(&input.force_reference, measured);
-                (x_a, desired(self.belief.as_ref(), &self.frame, &x_a, s))
+                let shift = approach.as_ref().map(|a| a.reanchor_shift(&self.frame));
+                (
+                    x_a,
+                    desired(self.belief.as_ref(), &self.frame, &x_a, s, shift),
+                )
             }
             (None, _) => (Sample::default(), self.frame.motion_reference(s)),
         };
@@ -211,10 +216,21 @@ fn desired<T: Real>(
     frame: &TaskFrame<T>,
     x_a: &Sample<T>,
     s: &Sample<T>,
+    reanchored: Option<T>,
 ) -> Desired<T> {
-    match belief {
-        Some(b) => b.reference(x_a, s),
-        None => frame.force_reference(x_a, s),
+    match (belief, reanchored) {
+        // A re-anchored curved estimate is its parallel surface at δ = x̂_e − x̂_e,0 (the
+        // approach's `reanchor_shift`): X_d = p(Y) + (δ + x_a) n̂(p(Y)). Only x̂_e + x_a
+        // enters, as on a plane, so the switch is bumpless (issue #53, item 1).
+        (Some(b), Some(shift)) => b.reference(
+            &Sample {
+                value: x_a.value + shift,
+                ..*x_a
+            },
+            s,
+        ),
+        (Some(b), None) => b.reference(x_a, s),
+        (None, _) => frame.force_reference(x_a, s),
     }
 }
 
