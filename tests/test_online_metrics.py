@@ -170,6 +170,31 @@ def test_stepping_back_recomputes_the_metrics_from_the_trace():
         assert _same(again[name], whole[name]), name
 
 
+def test_a_fresh_run_given_a_later_state_starts_there():
+    """Issue #53, item 3: a fresh run given another run's state at sample 2000 had a trace
+    starting at 2 s and metrics that took its first row as t = 0 (first contact at 0 s,
+    "not assessed: only 0 s"). Now it starts at sample 2000; a run that took samples cannot
+    jump forward past them."""
+    scenario = ar.paper.scenario("fig14").replace(duration=5.0)
+    whole = ar.simulate(scenario)
+    donor = ar.Simulation(scenario)
+    donor.step(2000)
+    late = ar.Simulation(scenario)
+    late.set_state(donor.state_vector())
+    late.step(10_000)
+    res = late.result()
+    assert res.trace["t"][0] == 2.0 and res.trace.height == whole.trace.height - 2000
+    assert res.trace["f"].to_list() == whole.trace["f"].to_list()[2000:]
+    m = res.metrics
+    assert m["first_contact_time"] == 2.0 and m["assessed_time"] == pytest.approx(3.0)
+    assert m["force_ss_error"] == whole.metrics["force_ss_error"]
+    assert "not assessed" not in res.verdict, res.verdict
+    ahead = ar.Simulation(scenario)
+    ahead.step(500)
+    with pytest.raises(ar.ParameterError, match=r"an integer from 0 to 500 .*never took"):
+        ahead.set_state({"sample": 2000.0})
+
+
 def test_a_20000_run_sweep_without_traces_stays_under_50_mb():
     # In a fresh process, so that ru_maxrss measures this sweep and nothing else.
     script = textwrap.dedent(

@@ -170,6 +170,24 @@ def test_an_unreachable_tolerance_ends_in_seconds_with_a_warning():
     assert r.substep_error is not None and r.substep_error > 1e-300
 
 
+def test_a_run_without_contact_force_is_not_assessed_and_says_so():
+    """Issue #53, item 5: fig. 5 (position control, no wall) was "met" at 1 substep with an
+    estimated error of 0 N, 1.3 mm off in z against 200 substeps. Forces of 0 N cannot judge
+    it: the default count's run, with a warning and no error figure."""
+    sc = ar.paper.scenario("fig5")
+    sc = sc.replace(duration=1.0, substeps="auto")
+    with pytest.warns(ar.SubstepWarning, match="could not assess the tolerance"):
+        r = ar.simulate(sc)
+    assert (r.substeps, r.substep_standing) == (10, "not assessed")
+    assert r.substep_error is not None and np.isnan(r.substep_error)
+    assert "tried 1, 2, 10" in (r.substep_note or "")
+    fixed = ar.simulate(sc.replace(substeps=10))
+    assert r.trace["z"].to_list() == fixed.trace["z"].to_list()
+    t = ar.sweep(sc, grid={"seed": [0, 1]}, progress=False)
+    assert t["substep_standing"].to_list() == ["not assessed"] * 2
+    assert t["substeps_used"].to_list() == [10, 10]
+
+
 @pytest.mark.parametrize(
     ("change", "field", "allowed"),
     [

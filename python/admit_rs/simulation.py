@@ -80,9 +80,10 @@ class Result:
     substep_standing: str | None = None
     """``substeps="auto"``: how its search ended: ``"met"`` (the estimate is within the
     tolerance), ``"diverged"`` (the run diverges at every count), ``"not converging"``
-    (the traces stop converging: a bouncing, chaotic contact) or ``"limit"`` (256
-    substeps did not meet it); a :class:`SubstepWarning` says so for all but ``"met"``.
-    ``None`` for a fixed count."""
+    (the traces stop converging: a bouncing, chaotic contact), ``"limit"`` (256
+    substeps did not meet it) or ``"not assessed"`` (no run tried had any contact force,
+    so the force tolerance could not judge it: the default 10 substeps); a
+    :class:`SubstepWarning` says so for all but ``"met"``. ``None`` for a fixed count."""
     substep_note: str | None = None
     """``substeps="auto"``: what it chose, the estimate and the counts tried, in words, and
     why the tolerance is not met when it is not."""
@@ -132,8 +133,9 @@ class Result:
 
 
 class SubstepWarning(UserWarning):
-    """``substeps="auto"`` could not meet its tolerance; the message says why (the run
-    diverges at every count, its traces stop converging, or the count limit)."""
+    """``substeps="auto"`` could not meet or could not assess its tolerance; the message says
+    why (the run diverges at every count, its traces stop converging, the count limit, or
+    no contact force to judge)."""
 
 
 def _result(scenario: Scenario, trace: FlatTrace, raw: Mapping[str, Any]) -> Result:
@@ -259,6 +261,11 @@ class Simulation:
     ) -> None:
         """Sets the state: a mapping of some labels (the others keep their values) or a full
         vector in :attr:`state_labels` order. The trace keeps the samples before ``sample``.
+
+        A simulation that has taken no sample yet starts at any ``sample`` (another run's
+        state carried over): its trace's first row is that sample and its metrics count from
+        it. One that has taken samples goes back to any of them, never forward past them
+        (its trace would have a hole): that raises :class:`admit_rs.ParameterError`.
 
         Unknown labels raise :class:`admit_rs.UnknownNameError` (a ``KeyError``) naming the
         closest valid ones; a bool is refused (it would be taken as 0 or 1)."""

@@ -251,7 +251,8 @@ def sweep(
         ``divergence_cause``, ``substeps_used`` (the RK4 substeps the run was integrated
         with: its own count or what ``substeps="auto"`` chose for it), ``substep_error``
         and ``substep_standing`` (``"auto"``: the estimated largest force error [N] and
-        ``"met"``, ``"diverged"``, ``"not converging"`` or ``"limit"``; null for a fixed
+        ``"met"``, ``"diverged"``, ``"not converging"``, ``"limit"`` or ``"not assessed"``
+        (no contact force to judge: NaN error); null for a fixed
         count); with ``traces``, the tuple ``(table, traces)``. Each run
         is judged by its scenario's ``criteria`` (``criteria.*`` paths can be varied too):
         ``passed`` is False for a run that fails one, ``stable`` False only for an

@@ -348,7 +348,9 @@ pub struct OnlineMetrics {
     /// Samples in 1 s (the transient) and in the impact window.
     transient_samples: usize,
     impact_samples: usize,
-    /// Sample 0 touched the surface (δ_0 ≥ 0): the contact phase starts at t = 0.
+    /// The run's first sample: 0, unless a fresh run was set to start later (`start_at`).
+    start: usize,
+    /// The first sample touched the surface (δ ≥ 0): the contact phase starts with it.
     starts_touching: bool,
     /// The first sample with f > 0, and the largest f within the impact window after it.
     first_contact: Option<usize>,
@@ -407,6 +409,7 @@ impl OnlineMetrics {
         Self {
             transient_samples: late_start,
             impact_samples: first_index_at(IMPACT_WINDOW, period),
+            start: 0,
             starts_touching: false,
             first_contact: None,
             impact_peak: f64::NAN,
@@ -458,6 +461,7 @@ impl OnlineMetrics {
         self.late_start = self.transient_samples;
         self.steady_start = self.fixed_steady_start;
         self.window_start = self.steady_start.max(self.late_start);
+        self.start = 0;
         self.starts_touching = false;
         self.first_contact = None;
         self.impact_peak = f64::NAN;
@@ -482,12 +486,24 @@ impl OnlineMetrics {
         self.bounces = 0;
     }
 
-    /// Samples taken so far.
+    /// The index of the next sample (the samples taken so far, counted from 0 however late
+    /// the run started).
     pub fn samples(&self) -> usize {
         self.samples
     }
 
-    /// Takes sample k (they must come in order, from 0).
+    /// With no sample taken yet (just built or `reset`): the run starts at sample `first`
+    /// (a state set on a fresh run, issue #53 item 3). Times stay the loop's, t_k = k T;
+    /// the windows begin no earlier than `first`, and fractions count only samples taken.
+    pub fn start_at(&mut self, first: usize) {
+        self.start = first;
+        self.samples = first;
+        self.late_start = self.transient_samples.max(first);
+        self.steady_start = self.fixed_steady_start.max(first);
+        self.window_start = self.steady_start.max(self.late_start);
+    }
+
+    /// Takes sample k (they must come in order, from `start`).
     #[inline(always)]
     pub fn push(&mut self, row: &Row) {
         let k = self.samples;
@@ -514,7 +530,7 @@ impl OnlineMetrics {
         let (f, f_d) = (row.f, row.f_d);
         self.force_peak = self.force_peak.max(f);
         self.measured_peak = self.measured_peak.max(row.f_measured);
-        if k == 0 {
+        if k == self.start {
             // NaN (no surface) is not touching.
             self.starts_touching = row.penetration >= -TOUCHING_TOLERANCE;
         }
@@ -599,8 +615,11 @@ impl OnlineMetrics {
         tau.iter().enumerate().any(|(j, t)| t.abs() >= limit(j))
     }
 
-    /// Pushes every sample of a recorded trace.
+    /// Pushes every sample of a recorded trace (started where it starts).
     pub fn replay(&mut self, trace: &Trace) {
+        if trace.first() > 0 {
+            self.start_at(trace.first());
+        }
         trace.for_each_row(|row| self.push(row));
     }
 
@@ -632,10 +651,10 @@ impl OnlineMetrics {
             contact_loss: nan,
             force_oscillation: nan,
             tangential_force_mean: nan,
-            torque_saturation: match (&self.torque_limit, len) {
+            torque_saturation: match (&self.torque_limit, len - self.start) {
                 (None, _) => 0.0,
                 (Some(_), 0) => nan,
-                (Some(_), _) => self.saturated as f64 / len as f64,
+                (Some(_), taken) => self.saturated as f64 / taken as f64,
             },
             joint_limit_violation: self.limit_excursion,
             step_overshoot_pct: nan,
@@ -666,11 +685,11 @@ impl OnlineMetrics {
             m.impact_peak = self.impact_peak;
             m.contact_start = match self.first_contact {
                 Some(c) if !self.starts_touching => self.time(c),
-                _ => 0.0,
+                _ => self.time(self.start),
             };
         }
         m.set_drive(Drive::Untested, outcome);
-        if diverged || len == 0 {
+        if diverged || len == self.start {
             return m;
         }
         m.x_rms_error = self.along_n.rms();

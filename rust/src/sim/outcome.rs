@@ -73,6 +73,9 @@ pub enum Standing {
     NotConverging,
     /// [`MAX_AUTO_SUBSTEPS`] did not meet the tolerance.
     Limit,
+    /// No run tried had any contact force (a position-only run, a surface never touched):
+    /// a tolerance in newtons cannot judge them, so the run is the default count's.
+    NotAssessed,
 }
 
 impl Standing {
@@ -82,6 +85,7 @@ impl Standing {
             Standing::Diverged => "diverged",
             Standing::NotConverging => "not converging",
             Standing::Limit => "limit",
+            Standing::NotAssessed => "not assessed",
         }
     }
 }
@@ -147,6 +151,12 @@ impl SubstepChoice {
                 "substeps=\"auto\" reached {n} substeps without meeting the tolerance: \
                  estimated force error {e} N, tolerance {tol} N (observed order {p:.1}; \
                  tried {tried})"
+            ),
+            Standing::NotAssessed => format!(
+                "substeps=\"auto\" could not assess the tolerance: no run tried had any \
+                 contact force, and the tolerance {tol} N is on the force trace; this is \
+                 the default count, {n} substeps (tried {tried}); fix `substeps` to a count \
+                 whose positions and torques you have checked"
             ),
         }
     }

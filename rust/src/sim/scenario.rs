@@ -14,6 +14,10 @@ use crate::world::surface::SurfaceParams;
 
 /// Largest run accepted, in samples: a trace this long already takes ~1.5 GB.
 pub const MAX_SAMPLES: usize = 10_000_000;
+/// RK4 substeps per period unless a scenario says otherwise (and `"auto"`'s count when no
+/// run it tried touched anything).
+pub const DEFAULT_SUBSTEPS: usize = 10;
+
 /// Largest number of RK4 substeps per control period.
 pub const MAX_SUBSTEPS: usize = 10_000;
 
@@ -123,7 +127,7 @@ impl Default for ScenarioConfig {
             actuator: ActuatorParams::default(),
             seed: 0,
             period: 1e-3,
-            substeps: Substeps::Count(10),
+            substeps: Substeps::Count(DEFAULT_SUBSTEPS),
             tolerance: 1e-4,
             duration: 10.0,
             velocity_limit: 100.0,

@@ -571,6 +571,25 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
             ));
         }
         let k = sample as usize;
+        // A run that has taken no sample yet may start anywhere (a state carried over from
+        // another run); one that has may only go back to a sample it took: forward, its
+        // trace would have a hole and its metrics samples it never took (issue #53, item 3).
+        let first = self.trace.first();
+        let fresh = self.k == first && self.trace.is_empty() && self.metrics.samples() == first;
+        let taken = first..=first + self.trace.len();
+        if self.recording && !fresh && !taken.contains(&k) {
+            return Err(Error::parameter(
+                "sample",
+                sample,
+                &format!(
+                    "an integer from {} to {} (a run can go back to a sample it took, not \
+                     forward past samples it never took; to start at a later sample, set the \
+                     state of a fresh Simulation)",
+                    taken.start(),
+                    taken.end()
+                ),
+            ));
+        }
         if !self.recording && k != self.k {
             return Err(Error::parameter(
                 "sample",
@@ -599,8 +618,19 @@ impl<R: RobotModel<N>, const N: usize> Simulation<R, N> {
         st.actuator.set_state(&values[at..]);
         self.k = k;
         self.outcome = None;
-        self.trace.truncate(k);
-        // The online metrics hold samples 0..self.k: rebuilt from the trace on demand.
+        if fresh && self.recording {
+            // The run starts here: its trace's first row and its metrics' first sample.
+            self.trace.start_at(k);
+            if let Some(f) = &mut self.forces {
+                f.clear();
+            }
+            self.metrics.reset();
+            self.metrics.start_at(k);
+            self.metrics_stale = false;
+            return Ok(());
+        }
+        self.trace.truncate(k - first);
+        // The online metrics hold samples first..self.k: rebuilt from the trace on demand.
         self.metrics_stale |= k != self.metrics.samples();
         Ok(())
     }
@@ -780,6 +810,61 @@ mod tests {
         state[0] = 5.0;
         let e = sim.set_state(&state).unwrap_err().to_string();
         assert!(e.contains("cannot move in time"), "{e}");
+    }
+
+    /// Issue #53, item 3: a fresh run given another run's state at sample 2000 starts there
+    /// (its trace's first row at t = 2 s, its metrics from that sample on, the steady window
+    /// the whole run's); a run that took samples cannot jump forward past them.
+    #[test]
+    fn a_fresh_run_starts_where_its_state_is_and_others_cannot_jump_ahead() {
+        let cfg = ScenarioConfig {
+            duration: 4.0,
+            ..ScenarioConfig::default()
+        };
+        let mut donor = Simulation::new(&cfg).unwrap();
+        let whole = donor.run();
+        donor.reset();
+        donor.step(2000);
+        let state = donor.state();
+        let mut late = Simulation::new(&cfg).unwrap();
+        late.set_state(&state).unwrap();
+        let outcome = late.step(usize::MAX).unwrap();
+        let (trace, m) = (late.trace(), late.metrics(&outcome));
+        assert_eq!(trace.first(), 2000);
+        assert_eq!(trace.len(), whole.trace.len() - 2000);
+        assert_eq!(trace.column(0)[0], 2.0);
+        // Every column of the tail is the whole run's, bit for bit.
+        for c in 0..crate::sim::trace::trace_columns(3).len() {
+            assert_eq!(
+                trace.column(c),
+                &whole.trace.column(c)[2000..],
+                "column {c}"
+            );
+        }
+        let (m, w) = (&m, &whole.metrics);
+        assert_eq!(m.contact_start, 2.0);
+        // The steady window (the last 2 s) is the whole run's; the run is assessed over the
+        // 2 s it took (the whole run from 1 s on, after its transient).
+        assert_eq!(m.force_ss_error, w.force_ss_error);
+        assert_eq!((m.assessed_time, w.assessed_time), (2.0, 3.0));
+        assert_eq!(m.first_contact_time, 2.0);
+        // Replayed from the trace, the same numbers.
+        let replayed = Metrics::compute(trace, &cfg, &outcome, late.frame());
+        assert_eq!(format!("{replayed:?}"), format!("{m:?}"));
+        // A run that took samples goes back, never forward past them.
+        let mut sim = Simulation::new(&cfg).unwrap();
+        sim.step(500);
+        let e = sim.set_state(&state).unwrap_err().to_string();
+        assert!(e.contains("an integer from 0 to 500"), "{e}");
+        assert!(e.contains("not forward past samples it never took"), "{e}");
+        // The late run goes back within what it took, and not before its start.
+        let mut back = state.clone();
+        back[0] = 2500.0;
+        late.set_state(&back).unwrap();
+        assert_eq!(late.trace().len(), 500);
+        back[0] = 1999.0;
+        let e = late.set_state(&back).unwrap_err().to_string();
+        assert!(e.contains("an integer from 2000 to 2500"), "{e}");
     }
 
     #[test]

@@ -28,7 +28,7 @@
 //! depend on its neighbours, the thread count or the chunking.
 
 use crate::sim::outcome::{Standing, SubstepChoice, MAX_AUTO_SUBSTEPS, MIN_ORDER};
-use crate::sim::scenario::ScenarioConfig;
+use crate::sim::scenario::{ScenarioConfig, DEFAULT_SUBSTEPS};
 use crate::sim::simulation::RunResult;
 use crate::sim::trace::ForceLog;
 
@@ -88,6 +88,8 @@ pub struct SubstepSearch {
     descent: Option<Descent>,
     /// The largest count a descent measured and found not to meet the tolerance.
     known_fail: usize,
+    /// The first two runs had no contact force: the default count's run was asked for.
+    untouched: bool,
     tried: Vec<usize>,
 }
 
@@ -105,6 +107,7 @@ impl SubstepSearch {
             orders: Vec::new(),
             descent: None,
             known_fail: 0,
+            untouched: false,
             tried: vec![Self::CLIMB_START[0]],
         };
         (search, Self::CLIMB_START[0])
@@ -122,6 +125,11 @@ impl SubstepSearch {
         if let Some(d) = self.descent.take() {
             return self.descend_from(d, probe);
         }
+        if std::mem::take(&mut self.untouched) && !probe.diverged && !probe.forces.touches() {
+            return self.finish(&probe, f64::NAN, f64::NAN, Standing::NotAssessed);
+        }
+        // (A default-count run that touches joins the climb as its third run: the order
+        // three runs show needs no particular counts.)
         self.climb.push(probe);
         let j = self.climb.len() - 1;
         // Only the last three climb runs can be returned or measured against (`descend`):
@@ -136,6 +144,13 @@ impl SubstepSearch {
         self.gaps.push(gap);
         let (coarse, fine) = (&self.climb[j - 1], &self.climb[j]);
         let (c, f) = (coarse.count, fine.count);
+        let untouched = |p: &Probe| !p.diverged && !p.forces.touches();
+        if j == 1 && untouched(coarse) && untouched(fine) {
+            // Forces of 0 N agree at any count, whatever the positions and torques do
+            // (issue #53, item 5): the tolerance cannot judge these runs.
+            self.untouched = true;
+            return self.ask(DEFAULT_SUBSTEPS);
+        }
         if j == 1 && coarse.diverged == fine.diverged {
             // Two runs so close that the coarser meets the tolerance at the slowest order
             // credited: no third run is needed to measure the order.
@@ -512,6 +527,42 @@ mod tests {
                 "order {p}: {choice:?} is not the fewest"
             );
         }
+    }
+
+    /// Runs with no contact force agree at any count, so the force tolerance cannot judge
+    /// them (issue #53, item 5): the default count's run, "not assessed", no error figure.
+    #[test]
+    fn runs_without_contact_force_are_not_assessed() {
+        let zero = |n: usize| {
+            let mut f = ForceLog::default();
+            for _ in 0..50 {
+                f.push(0.0, if n == 1 { f64::NAN } else { 0.0 });
+            }
+            (f, false)
+        };
+        let choice = search(1e-4, zero);
+        assert_eq!(choice.standing, Standing::NotAssessed);
+        assert_eq!(choice.substeps, DEFAULT_SUBSTEPS);
+        assert_eq!(choice.tried, [1, 2, DEFAULT_SUBSTEPS]);
+        assert!(choice.error.is_nan() && !choice.met());
+        assert!(
+            choice.describe().contains("could not assess"),
+            "{}",
+            choice.describe()
+        );
+        // A default-count run that touches after all joins the climb, which goes on.
+        let late = search(1e-4, |n| {
+            if n < DEFAULT_SUBSTEPS {
+                zero(n)
+            } else {
+                (log(n, 1.0), false)
+            }
+        });
+        assert_eq!(late.tried[..3], [1, 2, DEFAULT_SUBSTEPS]);
+        assert!(
+            late.tried.len() > 3 && late.standing != Standing::NotAssessed,
+            "{late:?}"
+        );
     }
 
     /// Drives a search over synthetic runs; returns the choice.

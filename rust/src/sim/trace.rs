@@ -140,6 +140,12 @@ impl ForceLog {
         self.f.is_empty()
     }
 
+    /// Whether the run had any contact force: a normal force other than 0 (NaN counts) or
+    /// a friction force (NaN there means none at that sample).
+    pub fn touches(&self) -> bool {
+        self.f.iter().any(|&f| f != 0.0) || self.f_t.iter().any(|&t| t != 0.0 && !t.is_nan())
+    }
+
     /// The largest difference between two runs' forces, max over samples of |Δf| and
     /// |Δf_t|: infinite when one run took samples the other did not (it diverged sooner)
     /// or one value is NaN where the other is not.
@@ -174,6 +180,9 @@ impl ForceLog {
 #[derive(Default)]
 pub struct Trace {
     joints: usize,
+    /// The sample index of the first row: 0, unless a fresh run was set to start later
+    /// (`Simulation::set_state`).
+    first: usize,
     stride: usize,
     len: usize,
     data: Vec<MaybeUninit<f64>>,
@@ -203,6 +212,7 @@ impl Trace {
         unsafe { data.set_len(Self::width(joints) * capacity) };
         Self {
             joints,
+            first: 0,
             stride: capacity,
             len: 0,
             data,
@@ -246,6 +256,7 @@ impl Trace {
             bigger.fill(c, self.column(c));
         }
         bigger.len = self.len;
+        bigger.first = self.first;
         *self = bigger;
     }
 
@@ -254,16 +265,28 @@ impl Trace {
         self.len = self.len.min(len);
     }
 
+    /// The sample index of the first row.
+    pub fn first(&self) -> usize {
+        self.first
+    }
+
+    /// Empty, its first row to be sample `first` (a fresh run started there).
+    pub fn start_at(&mut self, first: usize) {
+        self.len = 0;
+        self.first = first;
+    }
+
     /// Drops every sample and makes room for `capacity` (a run started again).
     pub fn clear(&mut self, capacity: usize) {
         if self.stride < capacity {
             *self = Self::new(self.joints, capacity);
         }
         self.len = 0;
+        self.first = 0;
     }
 
     /// Column `c` (in `trace_columns` order).
-    fn column(&self, c: usize) -> &[f64] {
+    pub(crate) fn column(&self, c: usize) -> &[f64] {
         let recorded = &self.data[c * self.stride..c * self.stride + self.len];
         // SAFETY: a column's first `len` samples are initialised (the type's invariant), and
         // `MaybeUninit<f64>` has `f64`'s layout.
@@ -406,6 +429,7 @@ impl Clone for Trace {
             copy.fill(c, self.column(c));
         }
         copy.len = self.len;
+        copy.first = self.first;
         copy
     }
 }
@@ -414,6 +438,7 @@ impl Clone for Trace {
 impl PartialEq for Trace {
     fn eq(&self, other: &Self) -> bool {
         self.joints == other.joints
+            && self.first == other.first
             && self.len == other.len
             && (0..Self::width(self.joints)).all(|c| self.column(c) == other.column(c))
     }
