@@ -67,7 +67,13 @@ def test_no_motion_no_ripple() -> None:
     response = ar.analysis.forced_response(cell)
     assert response.stable and response.passed
     assert response.force_oscillation < 1e-9
-    assert np.allclose(response.force, 10.0, atol=1e-6)
+    # The run starts touching at rest (f = 0): the response starts there, its first
+    # transient included, and holds f_d over the last 2 s.
+    assert abs(response.force[0]) < 1e-5
+    assert np.allclose(response.force[-2000:], 10.0, atol=1e-6)
+    simulated = ar.simulate(cell).trace["f"].to_numpy()
+    assert response.force.max() == pytest.approx(simulated.max(), rel=0.05)  # 11.94, 11.66
+    assert np.max(np.abs(response.force[:1000] - simulated[:1000])) < 1.0  # 0.76 N
     assert response.verdict.startswith("passed: predicted force oscillation")
 
 
@@ -160,7 +166,8 @@ def test_stability_map_with_the_motion_running() -> None:
 def test_predicted_passed_agrees_on_a_grid_with_motion(figure: str) -> None:
     """The issue's acceptance grid (examples/stable_or_out_of_tolerance.py): k_e 1e4–1e6 ×
     b 100–2500 × latency 0, 3 samples, the sine motion running; ≥ 95 % agreement on
-    `passed`, the ripple within 30 % on nearly every cell stable in both."""
+    `passed` (39/40 and 40/40 measured), every miss conservative (never predicted to pass
+    where the run fails), the ripple within 30 % on every cell stable in both."""
     import importlib.util
     from pathlib import Path
 
@@ -172,11 +179,26 @@ def test_predicted_passed_agrees_on_a_grid_with_motion(figure: str) -> None:
     table = example.grid(figure)
     assert table.height == 40
     same = (table["predicted_passed"] == table["passed"]).fill_null(False)
-    assert int(same.sum()) >= 38
+    assert int(same.sum()) >= 39
+    optimistic = table.filter(table["predicted_passed"].fill_null(False) & ~table["passed"])
+    assert optimistic.height == 0, optimistic
     both = table.filter(table["stable"] & table["predicted_oscillation"].is_finite())
     ratio = (both["predicted_oscillation"] / both["force_oscillation"]).to_numpy()
-    close = np.abs(ratio - 1) <= CLOSE
-    assert close.mean() >= 0.9, ratio
+    assert both.height >= 20 and np.all(np.abs(ratio - 1) <= CLOSE), ratio
+
+
+def test_a_first_transient_that_can_sustain_itself_is_predicted_unstable() -> None:
+    """Fig. 8 at k_e = 1e6 N/m, b = 400 N·s/m: stable at the motion's joint speeds
+    (ρ < 1), but the first contact's transient moves the joints faster, where Coulomb
+    friction's describing-function gain is lower and ρ ≥ 1; the run bounces for 4 s."""
+    cell = _cell("fig8", **{"wall.stiffness": 1e6, "admittance.b": 400.0})
+    simulated = ar.simulate(cell)
+    assert simulated.stable is False and simulated.metrics["bounces"] > 100
+    response = ar.analysis.forced_response(cell)
+    assert response.stable is False and response.passed is False
+    assert response.spectral_radius >= 1.0
+    assert response.verdict.startswith("unstable at the first transient: its joint speeds")
+    assert min(response.friction_gains) < 1.0
 
 
 def test_nothing_to_judge_is_not_predicted() -> None:
