@@ -313,3 +313,19 @@ def test_height_field_files_excel_csv_latin1_and_complex(tmp_path):
     np.save(tmp_path / "complex.npy", np.zeros((2, 2), complex))
     with pytest.raises(ar.ParameterError, match="real heights"):
         ar.HeightField.from_file(tmp_path / "complex.npy")
+
+
+def test_a_sweep_over_a_height_field_holds_one_copy_of_it():
+    """Issue #53, item 16: every run of a sweep decoded and interpolated its own copy of
+    the part (a 300 × 300 grid: 720 KB of heights, 2.9 MB of interpolation nodes per run;
+    256 runs with ``twin=True`` grew the peak resident set by 276 MB here). Now the runs
+    share one table and one interpolation (+33 MB): `benches/height_field_memory.py`."""
+    import subprocess
+    import sys
+
+    bench = Path(__file__).resolve().parents[1] / "benches" / "height_field_memory.py"
+    out = subprocess.run([sys.executable, str(bench), "--twin"], capture_output=True,
+                         text=True, timeout=600, check=True).stdout  # fmt: skip
+    growth = float(out.rsplit("(+", 1)[1].split(" MB")[0])
+    # +33 MB measured (the batch's configs, traces dropped, one grid); +276 MB before.
+    assert out.startswith("256 runs") and growth < 100.0, out

@@ -220,7 +220,7 @@ mod tests {
         use nalgebra::SimdValue;
         let start = TaskVector::new(0.7, 0.1, 0.9);
         let field = |bend: f64, stiffness: f64| {
-            let heights = (0..9)
+            let heights: Vec<Vec<f64>> = (0..9)
                 .map(|i| {
                     (0..9)
                         .map(|j| bend * ((i * i + 2 * j * j) as f64))
@@ -228,7 +228,7 @@ mod tests {
                 })
                 .collect();
             let p = SurfaceParams::HeightField(HeightFieldParams {
-                heights,
+                heights: heights.into(),
                 stiffness,
                 ..Default::default()
             });

@@ -8,6 +8,7 @@ use pyo3::types::{PyDict, PyList};
 
 use super::errors::analysis_err;
 use super::params::scenario_from;
+use crate::world::height_field::HeightsInterner;
 
 fn dmatrix<'py>(
     py: Python<'py>,
@@ -102,9 +103,14 @@ pub(super) fn predict_batch<'py>(
     threads: Option<usize>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let py = scenarios.py();
+    let mut interner = HeightsInterner::default();
     let configs = scenarios
         .iter()
-        .map(|s| scenario_from(&s))
+        .map(|s| {
+            let mut config = scenario_from(&s)?;
+            config.share_heights(&mut interner);
+            Ok(config)
+        })
         .collect::<PyResult<Vec<_>>>()?;
     let results = py.detach(move || crate::analysis::predict_scenarios(&configs, threads));
     let names = crate::analysis::PREDICTION_NAMES;

@@ -15,6 +15,7 @@ use crate::sim::metrics::{Metrics, METRIC_NAMES};
 use crate::sim::outcome::SubstepChoice;
 use crate::sim::simulation::{Outcome, RunResult};
 use crate::sim::trace::Trace;
+use crate::world::height_field::HeightsInterner;
 
 fn run_to_dict<'py>(py: Python<'py>, run: RunResult) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
@@ -207,11 +208,12 @@ pub(super) fn simulate_batch<'py>(
     lanes: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let py = scenarios.py();
+    let mut interner = HeightsInterner::default();
     let configs = scenarios
         .iter()
         .enumerate()
         .map(|(i, s)| {
-            scenario_from(&s).map_err(|e| {
+            let mut config = scenario_from(&s).map_err(|e| {
                 let msg = format!("scenario {i}: {}", e.value(py));
                 if e.is_instance_of::<ParameterError>(py) {
                     let new = ParameterError::new_err(msg);
@@ -227,7 +229,11 @@ pub(super) fn simulate_batch<'py>(
                     // attributes (suggestions, ...), the run's index in front of the message.
                     with_message(py, &e, msg)
                 }
-            })
+            })?;
+            // One copy of each part's heights however many runs touch it (the duplicate
+            // just decoded is dropped here, before the next run is decoded).
+            config.share_heights(&mut interner);
+            Ok(config)
         })
         .collect::<PyResult<Vec<_>>>()?;
     let counts: Vec<Option<usize>> = configs.iter().map(|c| c.substeps.count()).collect();

@@ -9,6 +9,7 @@ use crate::robot::chain::UrdfArmParams;
 use crate::robot::RobotParams;
 use crate::sim::criteria::CriteriaParams;
 use crate::world::actuator::ActuatorParams;
+use crate::world::height_field::HeightsInterner;
 use crate::world::sensor::SensorParams;
 use crate::world::surface::SurfaceParams;
 
@@ -137,6 +138,19 @@ impl Default for ScenarioConfig {
 }
 
 impl ScenarioConfig {
+    /// The height tables of its surfaces shared with equal ones `interner` has seen (a
+    /// batch decoded run by run keeps one copy of each part, issue #53 item 16).
+    pub fn share_heights(&mut self, interner: &mut HeightsInterner) {
+        for surface in [&mut self.wall, &mut self.wall_estimate]
+            .into_iter()
+            .flatten()
+        {
+            if let SurfaceParams::HeightField(p) = surface {
+                interner.intern(&mut p.heights);
+            }
+        }
+    }
+
     /// Checks every field; errors name the field by its dotted path.
     pub fn validate(&self) -> Result<()> {
         let joints = self.robot.validate().map_err(|e| e.within("robot"))?;

@@ -8,8 +8,10 @@
 //! plane at the nearest edge point. δ = (n·X − x_e − h)/√(1 + |∇h|²), the inward normal
 //! N ∝ n − h_u t̂ − h_v b̂ and δ̇ = N·Ẋ.
 
+use std::collections::HashMap;
+use std::hash::{DefaultHasher, Hasher};
 use std::ops::{Add, Mul, Sub};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError, Weak};
 
 use nalgebra::Vector3;
 
@@ -29,13 +31,75 @@ const MAX_LANES: usize = 8;
 /// Largest |height| and spacing accepted [m].
 pub const MAX_SIZE: f64 = 1e3;
 
+/// A height field's rows of heights, shared: the runs of a sweep over one part hold one
+/// copy (`HeightsInterner`), and their simulations one interpolation of it (`shared_grid`).
+pub type Heights = Arc<Vec<Vec<f64>>>;
+
+/// Gives equal height tables one allocation as a batch's scenarios are decoded one by one,
+/// so that a sweep of 1 024 runs over a 300 × 300 grid holds one copy, not 1 024 (issue
+/// #53, item 16). Equal means equal bits (keyed by a hash, then compared in full).
+#[derive(Debug, Default)]
+pub struct HeightsInterner {
+    seen: HashMap<u64, Vec<Heights>>,
+}
+
+impl HeightsInterner {
+    /// `heights`, or the equal table seen before.
+    pub fn intern(&mut self, heights: &mut Heights) {
+        let mut hasher = DefaultHasher::new();
+        for row in heights.iter() {
+            hasher.write_usize(row.len());
+            row.iter().for_each(|h| hasher.write_u64(h.to_bits()));
+        }
+        let same = |a: &Heights, b: &Heights| {
+            a.len() == b.len()
+                && a.iter().zip(b.iter()).all(|(x, y)| {
+                    x.len() == y.len() && x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits())
+                })
+        };
+        let bucket = self.seen.entry(hasher.finish()).or_default();
+        match bucket.iter().find(|known| same(known, heights)) {
+            Some(known) => *heights = Arc::clone(known),
+            None => bucket.push(Arc::clone(heights)),
+        }
+    }
+}
+
+/// The interpolated grids alive, by the heights they were built from and the spacing: a
+/// grid is built once for any number of simulations over the same shared heights. The weak
+/// reference to the heights keeps their address from being reused while the entry lives.
+type GridCache = Vec<(Weak<Vec<Vec<f64>>>, [u64; 2], Weak<HeightGrid>)>;
+static GRIDS: Mutex<GridCache> = Mutex::new(Vec::new());
+
+/// The grid of `p` (valid): the one already built for the same shared heights and spacing
+/// while it is alive, else a new one.
+fn shared_grid(p: &HeightFieldParams) -> Arc<HeightGrid> {
+    let spacing = p.spacing.map(f64::to_bits);
+    // A panic elsewhere while the lock was held leaves a list that is still valid.
+    let mut cache = GRIDS.lock().unwrap_or_else(PoisonError::into_inner);
+    cache.retain(|(h, _, g)| h.strong_count() > 0 && g.strong_count() > 0);
+    let hit = cache.iter().find_map(|(h, s, g)| {
+        let same = *s == spacing && h.upgrade().is_some_and(|h| Arc::ptr_eq(&h, &p.heights));
+        if same {
+            g.upgrade()
+        } else {
+            None
+        }
+    });
+    hit.unwrap_or_else(|| {
+        let grid = Arc::new(HeightGrid::new(p));
+        cache.push((Arc::downgrade(&p.heights), spacing, Arc::downgrade(&grid)));
+        grid
+    })
+}
+
 surface_params! {
     /// A height field (SPEC §15): heights over a grid centred on the tip's start.
     pub struct HeightFieldParams {
         /// Heights h[i][j] [m] at u_i = (i − (rows − 1)/2)·du, v_j = (j − (cols − 1)/2)·dv
         /// along n (positive: further into the part); at least 2×2, shifted so that
         /// h(0, 0) = 0.
-        pub heights: Vec<Vec<f64>> = vec![vec![0.0; 2]; 2],
+        pub heights: Heights = Arc::new(vec![vec![0.0; 2]; 2]),
         /// Grid spacing (du, dv) [m] along t̂ and b̂ = n × t̂.
         pub spacing: [f64; 2] = [0.01, 0.01],
         /// Normal n pointing into the part (any length; normalised): heights are measured
@@ -337,7 +401,7 @@ impl HeightField {
     pub fn new(p: &HeightFieldParams, start: &TaskVector) -> Result<Self> {
         let normal = unit_normal(&p.normal)?;
         let tangent = crate::control::task::motion_direction(&normal);
-        let grid = Arc::new(HeightGrid::new(p));
+        let grid = shared_grid(p);
         Ok(Self {
             law: p.law(),
             normal,
@@ -616,10 +680,47 @@ mod tests {
             })
             .collect();
         HeightFieldParams {
-            heights,
+            heights: Arc::new(heights),
             spacing: [d, d],
             ..HeightFieldParams::default()
         }
+    }
+
+    /// Issue #53, item 16: equal tables (to the bit) share one allocation once interned,
+    /// and simulations over one shared table share one interpolated grid while it lives.
+    #[test]
+    fn equal_heights_are_stored_and_interpolated_once() {
+        let bump = |i: usize, j: usize| 1e-3 * ((i * 7 + j) % 5) as f64;
+        let table = || -> Heights {
+            Arc::new((0..40).map(|i| (0..30).map(|j| bump(i, j)).collect()).collect())
+        };
+        let (mut a, mut b) = (table(), table());
+        let mut other = table();
+        Arc::make_mut(&mut other)[0][0] = -0.0; // equal by ==, not by bits
+        let mut interner = HeightsInterner::default();
+        for h in [&mut a, &mut b, &mut other] {
+            interner.intern(h);
+        }
+        assert!(Arc::ptr_eq(&a, &b));
+        assert!(!Arc::ptr_eq(&a, &other));
+        let start = TaskVector::new(0.7, 0.0, 0.9);
+        let p = |heights: &Heights, d: f64| HeightFieldParams {
+            heights: Arc::clone(heights),
+            spacing: [d, d],
+            ..HeightFieldParams::default()
+        };
+        let one = HeightField::new(&p(&a, 0.01), &start).unwrap();
+        let two = HeightField::new(&p(&b, 0.01), &start).unwrap();
+        let wider = HeightField::new(&p(&a, 0.02), &start).unwrap();
+        assert!(Arc::ptr_eq(&one.grids[0], &two.grids[0]));
+        assert!(!Arc::ptr_eq(&one.grids[0], &wider.grids[0]));
+        // Once every field over it is gone, the grid is too: a later one is built anew and
+        // equals it.
+        let kept = Arc::downgrade(&one.grids[0]);
+        drop((one, two));
+        assert!(kept.upgrade().is_none());
+        let again = HeightField::new(&p(&a, 0.01), &start).unwrap();
+        assert_eq!(again.grids[0].nodes, HeightGrid::new(&p(&a, 0.01)).nodes);
     }
 
     /// A linear field is the tilted plane, inside the grid and beyond it.
@@ -745,17 +846,17 @@ mod tests {
     fn bad_grids_name_the_field() {
         let bad = |p: HeightFieldParams| p.validate().unwrap_err().to_string();
         assert!(bad(HeightFieldParams {
-            heights: vec![vec![0.0; 3]],
+            heights: vec![vec![0.0; 3]].into(),
             ..HeightFieldParams::default()
         })
         .starts_with("heights = a 1×3 grid"));
         assert!(bad(HeightFieldParams {
-            heights: vec![vec![0.0; 3], vec![0.0; 2]],
+            heights: vec![vec![0.0; 3], vec![0.0; 2]].into(),
             ..HeightFieldParams::default()
         })
         .starts_with("heights[1] = 2 values"));
         assert!(bad(HeightFieldParams {
-            heights: vec![vec![0.0, f64::INFINITY], vec![0.0; 2]],
+            heights: vec![vec![0.0, f64::INFINITY], vec![0.0; 2]].into(),
             ..HeightFieldParams::default()
         })
         .starts_with("heights[0][1] = inf"));

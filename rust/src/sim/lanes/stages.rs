@@ -592,7 +592,7 @@ mod every_kind {
                     stiffness,
                     damping,
                     friction,
-                    heights: bump(i),
+                    heights: bump(i).into(),
                     spacing: [0.01 + 0.002 * f, 0.015],
                     ..Default::default()
                 }),
