@@ -49,6 +49,7 @@ from admit_rs.errors import (
     UnknownParameterError,
 )
 from admit_rs.metrics import METRICS, Metric
+from admit_rs.recording import LogError, read_log
 from admit_rs.simulation import Result, Simulation, SubstepWarning, simulate
 from admit_rs.sweep import (
     CheckpointMismatchError,
@@ -77,6 +78,7 @@ __all__ = [
     "DistributionError",
     "ExportError",
     "LaneBuildWarning",
+    "LogError",
     "LogUniform",
     "Metric",
     "Normal",
@@ -117,6 +119,7 @@ __all__ = [
     "paper",
     "parameter_paths",
     "plot",
+    "read_log",
     "simulate",
     "sweep",
     "ui",
