@@ -692,7 +692,11 @@ mod tests {
     fn equal_heights_are_stored_and_interpolated_once() {
         let bump = |i: usize, j: usize| 1e-3 * ((i * 7 + j) % 5) as f64;
         let table = || -> Heights {
-            Arc::new((0..40).map(|i| (0..30).map(|j| bump(i, j)).collect()).collect())
+            Arc::new(
+                (0..40)
+                    .map(|i| (0..30).map(|j| bump(i, j)).collect())
+                    .collect(),
+            )
         };
         let (mut a, mut b) = (table(), table());
         let mut other = table();
