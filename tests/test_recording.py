@@ -196,6 +196,23 @@ def test_bad_arguments_name_the_field(tmp_path, kw, error, message):
         ar.read_log(tmp_path, **kw)
 
 
+def test_a_clock_too_fine_for_memory_is_refused_at_once(tmp_path):
+    """The count of the common clock's samples is checked before anything is allocated:
+    a long recording at a fine rate is refused, not read into memory it does not fit."""
+    from admit_rs import recording
+
+    path = _write(tmp_path, "sqlite3")
+    assert ar.read_log(path, rate=1e5).height == 189_601  # 1.896 s at 100 kHz
+    limit = recording.MAX_ROWS
+    try:
+        recording.MAX_ROWS = 100_000
+        with pytest.raises(ar.LogError, match=r"at 100000 Hz over 1\.896 s would have "
+                                              r"1\.896e\+05 samples, more than 100,000"):
+            ar.read_log(path, rate=1e5)
+    finally:
+        recording.MAX_ROWS = limit
+
+
 def test_what_is_not_a_log(tmp_path):
     with pytest.raises(ar.LogError, match="does not exist"):
         ar.read_log(tmp_path / "nothing.bag")

@@ -43,6 +43,9 @@ __all__ = ["LogError", "read_log"]
 JOINT_STATE = "sensor_msgs/msg/JointState"
 WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
 WRENCH_AXES = ("fx", "fy", "fz", "tx", "ty", "tz")
+MAX_ROWS = 20_000_000
+"""Most samples of the common clock (5.6 h at 1 kHz; about 2.4 GB for a six-joint arm's
+table): a ``rate`` that would make more is refused before anything is allocated."""
 ROLES = ("joints", "wrench", "wrench_reference")
 """The topics a log table is made of: ``topics={"joints": ..., "wrench": ...,
 "wrench_reference": ...}`` (the first two are found by type when not named)."""
@@ -289,7 +292,12 @@ def _one_clock(series: dict[str, _Series], rate: float | None, max_gap: float) -
         raise LogError(f"read_log: the topics do not overlap in time: {spans}")
     if rate is None:
         rate = max(1e9 / float(np.median(np.diff(s.stamps))) for s in series.values())
-    count = int(math.floor((stop - start) * rate + 1e-9)) + 1
+    rows = math.floor((stop - start) * rate + 1e-9) + 1
+    if rows > MAX_ROWS:
+        raise LogError(f"read_log: the common clock at {rate:.6g} Hz over {stop - start:.6g} s "
+                       f"would have {rows:.4g} samples, more than {MAX_ROWS:,}; lower the rate "
+                       "or read a shorter part of the recording")  # fmt: skip
+    count = int(rows)
     clock = start + np.arange(count) / rate
     columns: dict[str, Any] = {"t": clock - start}
     for role in ROLES:
