@@ -170,14 +170,17 @@ def reference_samples(scenario: dict[str, Any]) -> dict[str, Any]:
     ``motion`` (s), ``motion_rate`` (ṡ), ``motion_accel`` (s̈), ndarrays of the run's
     sample count."""
 
-def predict_batch(scenarios: list[dict[str, Any]], threads: int | None = None) -> dict[str, Any]:
+def predict_batch(
+    scenarios: list[dict[str, Any]], threads: int | None = None, transient_only: bool = False
+) -> dict[str, Any]:
     """Linearise and predict every scenario on ``threads`` threads (None: all cores),
     GIL released: one ndarray per prediction field (``force_ss_error``, ``x_ss_error``,
     ``overshoot_pct``, ``rise_time_63``, ``settling_time``, ``spectral_radius``,
     ``dominant_frequency``, ``dominant_damping``, ``stable`` (bool: ρ < 1 only),
     ``peak_joint_speed``, the force loop's ``gain_margin``, ``phase_margin`` [deg] and
     ``delay_margin`` [samples]) and ``error`` (list of None or why a scenario has no
-    prediction; its fields are then NaN)."""
+    prediction; its fields are then NaN). ``transient_only``: only the poles and
+    ``peak_joint_speed``, the margins and step metrics NaN (a map's friction iteration)."""
 
 class Stepper:
     """The loop of one scenario, stepped (``admit_rs.Simulation`` wraps it). One thread at

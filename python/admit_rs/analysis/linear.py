@@ -382,35 +382,44 @@ def _predict_step(
     the peak joint speed A of the cell's own predicted step transient. From the slope at
     rest (A = 0), A is updated to the geometric mean of itself and the new peak speed,
     at most ``STEP_ITERATIONS`` times, while the cell stays stable (friction only loses
-    gain as A grows, so a cell unstable at some A stays unstable)."""
+    gain as A grows, so a cell unstable at some A stays unstable).
+
+    The iteration reads only the poles and the peak speed, so it asks the core for those
+    alone (``transient_only``: no margins, no long step response); each cell then gets
+    one full prediction at its final A, the values a full prediction at every step would
+    have left there."""
     robot = scenario.robot
     eps = getattr(robot, "friction_smoothing", None)
     coulomb = getattr(robot, "coulomb_friction", None)
     base = _cell_configs(scenario, points)
-    raw = {k: (np.asarray(v) if k != "error" else list(v))
-           for k, v in _core.predict_batch(base, threads).items()}  # fmt: skip
     amp = np.zeros(len(points))
     if eps is None or coulomb is None or eps <= 0:
+        raw = dict(_core.predict_batch(base, threads))
         raw["friction_amplitude"] = amp
         return raw
     c0 = np.atleast_1d(np.asarray(coulomb, dtype=float))
+
+    def at_amplitude(i: int) -> dict[str, Any]:
+        if amp[i] == 0:
+            return base[i]
+        gain = friction_gain(float(amp[i]), eps)
+        return _core_dict_with(base[i], {"robot.coulomb_friction": list(c0 * gain)})
+
+    quick = _core.predict_batch(base, threads, transient_only=True)
+    peak = np.asarray(quick["peak_joint_speed"], dtype=float)
+    stable = np.asarray(quick["stable"], dtype=bool)
     for it in range(STEP_ITERATIONS):
-        peak = np.asarray(raw["peak_joint_speed"], dtype=float)
-        live = np.asarray(raw["stable"], dtype=bool) & np.isfinite(peak) & (peak > 0)
+        live = stable & np.isfinite(peak) & (peak > 0)
         new = np.where(live, np.sqrt(np.maximum(amp, 0) * peak) if it else peak, amp)
         todo = np.nonzero(live & ~np.isclose(new, amp, rtol=0.05))[0]
         if todo.size == 0:
             break
         amp[todo] = new[todo]
-        configs = [
-            _core_dict_with(base[i], {"robot.coulomb_friction":
-                                      list(c0 * friction_gain(float(amp[i]), eps))})  # fmt: skip
-            for i in todo
-        ]
-        update = _core.predict_batch(configs, threads)
-        for name, values in update.items():
-            for i, v in zip(todo, values, strict=True):
-                raw[name][i] = v
+        update = _core.predict_batch([at_amplitude(int(i)) for i in todo], threads,
+                                     transient_only=True)  # fmt: skip
+        peak[todo] = update["peak_joint_speed"]
+        stable[todo] = update["stable"]
+    raw = dict(_core.predict_batch([at_amplitude(i) for i in range(len(points))], threads))
     raw["friction_amplitude"] = amp
     return raw
 

@@ -9,7 +9,9 @@ pub mod stability;
 pub use linearize::{
     linearize, linearize_driven, AnalysisError, AnalysisResult, DriveColumns, Linearization,
 };
-pub use stability::{predict, predict_batch, predict_from, Prediction, PREDICTION_NAMES};
+pub use stability::{
+    predict, predict_batch, predict_extent, predict_from, Extent, Prediction, PREDICTION_NAMES,
+};
 
 use crate::sim::dispatch::{visit_arm, ArmVisitor};
 use crate::sim::scenario::ScenarioConfig;
@@ -44,21 +46,22 @@ pub fn linearize_scenario(
 pub fn predict_scenarios(
     configs: &[ScenarioConfig],
     threads: Option<usize>,
+    extent: Extent,
 ) -> Vec<AnalysisResult<Prediction>> {
-    struct Visit<'a>(&'a [ScenarioConfig], Option<usize>);
+    struct Visit<'a>(&'a [ScenarioConfig], Option<usize>, Extent);
     impl ArmVisitor for Visit<'_> {
         type Output = Vec<AnalysisResult<Prediction>>;
         fn visit<R: crate::robot::RobotModel<N>, const N: usize>(
             self,
             build: &(dyn Fn(&ScenarioConfig) -> crate::error::Result<Simulation<R, N>> + Sync),
         ) -> Self::Output {
-            predict_batch(self.0, self.1, build)
+            predict_batch(self.0, self.1, self.2, build)
         }
     }
     let Some(first) = configs.first() else {
         return Vec::new();
     };
-    match visit_arm(&first.robot, Visit(configs, threads)) {
+    match visit_arm(&first.robot, Visit(configs, threads, extent)) {
         Ok(predictions) => predictions,
         Err(e) => configs.iter().map(|_| Err(e.clone().into())).collect(),
     }

@@ -100,7 +100,11 @@ impl Prediction {
 
 /// The pole of largest modulus: (ρ, frequency [Hz], damping ratio).
 pub fn dominant_pole(a: &DMatrix<f64>, period: f64) -> (f64, f64, f64) {
-    let eig = a.complex_eigenvalues();
+    dominant_of(a.complex_eigenvalues().as_slice(), period)
+}
+
+/// [`dominant_pole`] of eigenvalues already computed.
+fn dominant_of(eig: &[Complex<f64>], period: f64) -> (f64, f64, f64) {
     let Some(l) = eig
         .iter()
         .copied()
@@ -133,49 +137,170 @@ pub struct LoopMargins {
     pub delay: f64,
 }
 
-/// Solves (zI − H) x = r for an upper Hessenberg H, by Gaussian elimination with pivoting
-/// between neighbouring rows: O(n²).
-fn hessenberg_solve(h: &DMatrix<f64>, z: Complex<f64>, r: &[Complex<f64>]) -> Vec<Complex<f64>> {
-    let n = r.len();
-    let mut m: Vec<Complex<f64>> = (0..n * n)
-        .map(|k| {
-            let (i, j) = (k / n, k % n);
-            let v = Complex::new(-h[(i, j)], 0.0);
-            if i == j {
+/// The open loop L(z) = cᵀ (zI − A₀)⁻¹ b in an orthogonal basis Q where A₀ = Q M Qᵀ and M
+/// is quasi upper triangular (the real Schur form: 1×1 and 2×2 blocks on the diagonal), or
+/// only upper Hessenberg where the Schur iteration does not converge. Each L(z) is then
+/// one back substitution, O(n²/2) real-by-complex products and no pivoting, instead of an
+/// elimination; a map evaluates it about a thousand times per cell.
+struct OpenLoop {
+    n: usize,
+    /// M row by row.
+    m: Vec<f64>,
+    /// Qᵀb and Qᵀc.
+    b: Vec<f64>,
+    c: Vec<f64>,
+    /// The diagonal blocks' first rows and sizes (1 or 2); empty: M is only Hessenberg.
+    blocks: Vec<(usize, usize)>,
+    /// Scratch for the solution and, on the Hessenberg path, the eliminated matrix.
+    x: Vec<Complex<f64>>,
+    work: Vec<Complex<f64>>,
+}
+
+impl OpenLoop {
+    /// L for `a0`, `b`, `c`; also the eigenvalues of `a0`. `schur`: false takes the
+    /// Hessenberg path even where the Schur form exists.
+    fn new(
+        a0: DMatrix<f64>,
+        b: &DVector<f64>,
+        c: &DVector<f64>,
+        schur: bool,
+    ) -> (Self, Vec<Complex<f64>>) {
+        let n = a0.nrows();
+        let form = if schur {
+            a0.clone().try_schur(f64::EPSILON, 30 * n.max(10))
+        } else {
+            None
+        };
+        let (q, m, blocks, eig) = match form {
+            Some(schur) => {
+                let eig = schur.complex_eigenvalues().iter().copied().collect();
+                let (q, t) = schur.unpack();
+                let blocks = diagonal_blocks(&t);
+                (q, t, blocks, eig)
+            }
+            None => {
+                let eig = a0.complex_eigenvalues().iter().copied().collect();
+                let (q, h) = a0.hessenberg().unpack();
+                (q, h, Vec::new(), eig)
+            }
+        };
+        let row_major = (0..n * n).map(|k| m[(k / n, k % n)]).collect();
+        let loop_ = Self {
+            n,
+            m: row_major,
+            b: (q.transpose() * b).iter().copied().collect(),
+            c: (q.transpose() * c).iter().copied().collect(),
+            blocks,
+            x: vec![Complex::new(0.0, 0.0); n],
+            work: Vec::new(),
+        };
+        (loop_, eig)
+    }
+
+    /// L(e^{iθ}).
+    fn at(&mut self, theta: f64) -> Complex<f64> {
+        let z = Complex::from_polar(1.0, theta);
+        if self.blocks.is_empty() {
+            self.hessenberg_solve(z);
+        } else {
+            self.schur_solve(z);
+        }
+        self.c.iter().zip(&self.x).map(|(c, x)| x * *c).sum()
+    }
+
+    /// (zI − M) x = Qᵀb by back substitution over the diagonal blocks, bottom up.
+    fn schur_solve(&mut self, z: Complex<f64>) {
+        let n = self.n;
+        let m = &self.m;
+        for &(i, size) in self.blocks.iter().rev() {
+            let tail = i + size;
+            let rhs = |r: usize, x: &[Complex<f64>]| -> Complex<f64> {
+                let row = &m[r * n + tail..(r + 1) * n];
+                row.iter()
+                    .zip(&x[tail..])
+                    .fold(Complex::new(self.b[r], 0.0), |acc, (t, x)| acc + x * *t)
+            };
+            if size == 1 {
+                let r = rhs(i, &self.x);
+                self.x[i] = r / (z - m[i * n + i]);
+            } else {
+                // [[z − p, −q], [−s, z − u]] (x_i, x_i+1) = (r1, r2), by Cramer's rule.
+                let (r1, r2) = (rhs(i, &self.x), rhs(i + 1, &self.x));
+                let (p, q) = (m[i * n + i], m[i * n + i + 1]);
+                let (s, u) = (m[(i + 1) * n + i], m[(i + 1) * n + i + 1]);
+                let det = (z - p) * (z - u) - q * s;
+                self.x[i] = ((z - u) * r1 + r2 * q) / det;
+                self.x[i + 1] = (r1 * s + (z - p) * r2) / det;
+            }
+        }
+    }
+
+    /// (zI − H) x = Qᵀb for an upper Hessenberg H, by Gaussian elimination with pivoting
+    /// between neighbouring rows: O(n²).
+    fn hessenberg_solve(&mut self, z: Complex<f64>) {
+        let n = self.n;
+        let w = &mut self.work;
+        w.clear();
+        w.extend(self.m.iter().enumerate().map(|(k, h)| {
+            let v = Complex::new(-h, 0.0);
+            if k / n == k % n {
                 v + z
             } else {
                 v
             }
-        })
-        .collect();
-    let mut x = r.to_vec();
-    for k in 0..n.saturating_sub(1) {
-        if m[(k + 1) * n + k].norm() > m[k * n + k].norm() {
-            for j in k..n {
-                m.swap(k * n + j, (k + 1) * n + j);
+        }));
+        let x = &mut self.x;
+        for (xi, b) in x.iter_mut().zip(&self.b) {
+            *xi = Complex::new(*b, 0.0);
+        }
+        for k in 0..n.saturating_sub(1) {
+            if w[(k + 1) * n + k].norm() > w[k * n + k].norm() {
+                for j in k..n {
+                    w.swap(k * n + j, (k + 1) * n + j);
+                }
+                x.swap(k, k + 1);
             }
-            x.swap(k, k + 1);
+            let pivot = w[k * n + k];
+            if pivot.norm() == 0.0 {
+                continue;
+            }
+            let l = w[(k + 1) * n + k] / pivot;
+            for j in k..n {
+                let v = w[k * n + j];
+                w[(k + 1) * n + j] -= l * v;
+            }
+            let v = x[k];
+            x[k + 1] -= l * v;
         }
-        let pivot = m[k * n + k];
-        if pivot.norm() == 0.0 {
-            continue;
+        for i in (0..n).rev() {
+            let mut acc = x[i];
+            for j in i + 1..n {
+                acc -= w[i * n + j] * x[j];
+            }
+            x[i] = acc / w[i * n + i];
         }
-        let l = m[(k + 1) * n + k] / pivot;
-        for j in k..n {
-            let v = m[k * n + j];
-            m[(k + 1) * n + j] -= l * v;
-        }
-        let v = x[k];
-        x[k + 1] -= l * v;
     }
-    for i in (0..n).rev() {
-        let mut acc = x[i];
-        for j in i + 1..n {
-            acc -= m[i * n + j] * x[j];
+}
+
+/// The diagonal blocks of a real Schur form `t`: (first row, 1 or 2); empty if two
+/// subdiagonal entries in a row are nonzero (then `t` is not quasi-triangular).
+fn diagonal_blocks(t: &DMatrix<f64>) -> Vec<(usize, usize)> {
+    let n = t.nrows();
+    let mut blocks = Vec::with_capacity(n);
+    let mut i = 0;
+    while i < n {
+        if i + 1 < n && t[(i + 1, i)] != 0.0 {
+            if i + 2 < n && t[(i + 2, i + 1)] != 0.0 {
+                return Vec::new();
+            }
+            blocks.push((i, 2));
+            i += 2;
+        } else {
+            blocks.push((i, 1));
+            i += 1;
         }
-        x[i] = acc / m[i * n + i];
     }
-    x
+    blocks
 }
 
 /// The force loop cut where the measured force enters the filter (f_d enters only as
@@ -184,27 +309,19 @@ fn hessenberg_solve(h: &DMatrix<f64>, z: Complex<f64>, r: &[Complex<f64>]) -> Ve
 /// logarithmic grid of θ = ωT in (0, π] refined around every pole of the open and the
 /// closed loop, crossings located by bisection.
 pub fn loop_margins(lin: &Linearization) -> LoopMargins {
+    loop_margins_with(lin, lin.a.complex_eigenvalues().as_slice())
+}
+
+/// [`loop_margins`] with the closed loop's eigenvalues already computed.
+fn loop_margins_with(lin: &Linearization, closed: &[Complex<f64>]) -> LoopMargins {
     let c = &lin.c_measured;
     let a0 = &lin.a + &lin.b * c.transpose();
-    let (q, h) = a0.clone().hessenberg().unpack();
-    let qb: Vec<Complex<f64>> = (q.transpose() * &lin.b)
-        .iter()
-        .map(|v| Complex::new(*v, 0.0))
-        .collect();
-    let cq: DVector<f64> = q.transpose() * c;
-    let l_at = |theta: f64| -> Complex<f64> {
-        let x = hessenberg_solve(&h, Complex::from_polar(1.0, theta), &qb);
-        cq.iter().zip(&x).map(|(c, x)| x * *c).sum()
-    };
+    let (mut open, open_poles) = OpenLoop::new(a0, &lin.b, c, true);
     let pi = std::f64::consts::PI;
     let mut grid: Vec<f64> = (0..=600)
         .map(|i| 1e-5 * (pi / 1e-5).powf(i as f64 / 600.0))
         .collect();
-    for l in a0
-        .complex_eigenvalues()
-        .iter()
-        .chain(lin.a.complex_eigenvalues().iter())
-    {
+    for l in open_poles.iter().chain(closed) {
         let (r, th) = (l.norm(), l.arg().abs());
         if r > 0.2 && th > 0.0 {
             let w = (1.0 - r).abs().max(1e-7);
@@ -218,22 +335,23 @@ pub fn loop_margins(lin: &Linearization) -> LoopMargins {
     }
     grid.sort_by(f64::total_cmp);
     grid.dedup();
-    let values: Vec<Complex<f64>> = grid.iter().map(|&t| l_at(t)).collect();
+    let values: Vec<Complex<f64>> = grid.iter().map(|&t| open.at(t)).collect();
     // Bisection on a sign change of g between grid points a and b.
-    let bisect = |mut a: f64, mut b: f64, g: &dyn Fn(Complex<f64>) -> f64| -> f64 {
-        let mut ga = g(l_at(a));
-        for _ in 0..40 {
-            let m = 0.5 * (a + b);
-            let gm = g(l_at(m));
-            if (gm > 0.0) == (ga > 0.0) {
-                a = m;
-                ga = gm;
-            } else {
-                b = m;
+    let bisect =
+        |open: &mut OpenLoop, mut a: f64, mut b: f64, g: &dyn Fn(Complex<f64>) -> f64| -> f64 {
+            let mut ga = g(open.at(a));
+            for _ in 0..40 {
+                let m = 0.5 * (a + b);
+                let gm = g(open.at(m));
+                if (gm > 0.0) == (ga > 0.0) {
+                    a = m;
+                    ga = gm;
+                } else {
+                    b = m;
+                }
             }
-        }
-        0.5 * (a + b)
-    };
+            0.5 * (a + b)
+        };
     let magnitude = |l: Complex<f64>| l.norm().ln();
     let imaginary = |l: Complex<f64>| l.im;
     let (mut gain, mut phase, mut delay) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
@@ -243,22 +361,23 @@ pub fn loop_margins(lin: &Linearization) -> LoopMargins {
             continue;
         }
         if (magnitude(l0) > 0.0) != (magnitude(l1) > 0.0) {
-            let t = bisect(grid[i - 1], grid[i], &magnitude);
-            let arg = l_at(t).arg() + pi;
+            let t = bisect(&mut open, grid[i - 1], grid[i], &magnitude);
+            let arg = open.at(t).arg() + pi;
             // Wrapped to (−180°, 180°].
             let pm = if arg > pi { arg - 2.0 * pi } else { arg };
             phase = phase.min(pm.to_degrees());
             delay = delay.min(if pm > 0.0 { pm / t } else { 0.0 });
         }
         if (l0.im > 0.0) != (l1.im > 0.0) && (l0.re < 0.0 || l1.re < 0.0) {
-            let l = l_at(bisect(grid[i - 1], grid[i], &imaginary));
+            let t = bisect(&mut open, grid[i - 1], grid[i], &imaginary);
+            let l = open.at(t);
             if l.re < 0.0 {
                 gain = gain.min(1.0 / l.norm());
             }
         }
     }
     // At the Nyquist frequency L is real: a crossing of the negative axis if Re L < 0.
-    let nyquist = l_at(pi);
+    let nyquist = open.at(pi);
     if nyquist.re < 0.0 {
         gain = gain.min(1.0 / nyquist.norm());
     }
@@ -280,13 +399,12 @@ pub fn step_response_with_peak(
     peak_samples: usize,
 ) -> (Vec<f64>, f64) {
     let n = lin.state.len();
-    // Row-major A for a cache-friendly matrix-vector product.
-    let a: Vec<f64> = (0..n)
-        .flat_map(|i| (0..n).map(move |j| (i, j)))
-        .map(|(i, j)| lin.a[(i, j)])
-        .collect();
+    // A is column-major: next = A x + b accumulates column by column, an axpy down
+    // contiguous memory that vectorises over the rows while adding each row's products in
+    // the order of a row-by-row dot product (the same bits, a few times faster).
+    let a = lin.a.as_slice();
     let c: Vec<f64> = (0..n).map(|j| lin.c[(output, j)]).collect();
-    let b: Vec<f64> = lin.b.iter().copied().collect();
+    let b = lin.b.as_slice();
     let d = lin.d[output];
     let mut x = vec![0.0; n];
     let mut next = vec![0.0; n];
@@ -299,9 +417,14 @@ pub fn step_response_with_peak(
         if k < peak_samples {
             peak = watch.iter().fold(peak, |p, &i| p.max(x[i].abs()));
         }
-        for (i, nx) in next.iter_mut().enumerate() {
-            let row = &a[i * n..(i + 1) * n];
-            *nx = row.iter().zip(&x).map(|(a, x)| a * x).sum::<f64>() + b[i];
+        next.fill(-0.0);
+        for (column, xj) in a.chunks_exact(n.max(1)).zip(&x) {
+            for (nx, aij) in next.iter_mut().zip(column) {
+                *nx += aij * xj;
+            }
+        }
+        for (nx, bi) in next.iter_mut().zip(b) {
+            *nx += bi;
         }
         std::mem::swap(&mut x, &mut next);
     }
@@ -325,12 +448,34 @@ pub fn step_metrics(s: &[f64], period: f64) -> (f64, f64, f64) {
     (overshoot, rise, settling)
 }
 
+/// What a prediction computes: everything, or only what the describing-function friction
+/// iteration of a stability map reads between its steps (the poles and the peak joint
+/// speed; the margins and the step metrics are NaN), a fraction of the cost.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Extent {
+    Full,
+    Transient,
+}
+
 /// Predicted metrics from a linearisation about the equilibrium; `horizon` caps the step
 /// response [samples] (the run's length, like the simulated metrics).
 pub fn predict_from(lin: &Linearization, horizon: usize) -> Prediction {
-    let (rho, freq, damping) = dominant_pole(&lin.a, lin.period);
+    predict_extent(lin, horizon, Extent::Full)
+}
+
+/// [`predict_from`] to the given extent.
+pub fn predict_extent(lin: &Linearization, horizon: usize, extent: Extent) -> Prediction {
+    let closed = lin.a.complex_eigenvalues();
+    let (rho, freq, damping) = dominant_of(closed.as_slice(), lin.period);
     let stable = rho < 1.0;
-    let margins = loop_margins(lin);
+    let margins = match extent {
+        Extent::Full => loop_margins_with(lin, closed.as_slice()),
+        Extent::Transient => LoopMargins {
+            gain: f64::NAN,
+            phase: f64::NAN,
+            delay: f64::NAN,
+        },
+    };
     let watch: Vec<usize> = lin
         .labels
         .iter()
@@ -340,7 +485,7 @@ pub fn predict_from(lin: &Linearization, horizon: usize) -> Prediction {
         .collect();
     let window = (PEAK_WINDOW / lin.period).round() as usize;
     // Long enough for the slowest mode to decay to 1e-4 of its start.
-    let samples = if stable {
+    let samples = if stable && extent == Extent::Full {
         let decay = if rho > 0.0 {
             (1e-4f64.ln() / rho.ln()).ceil()
         } else {
@@ -351,7 +496,7 @@ pub fn predict_from(lin: &Linearization, horizon: usize) -> Prediction {
         0
     };
     let (s, peak) = step_response_with_peak(lin, 0, samples, &watch, window);
-    let (overshoot, rise, settling) = if stable {
+    let (overshoot, rise, settling) = if stable && extent == Extent::Full {
         step_metrics(&s, lin.period)
     } else {
         (f64::NAN, f64::NAN, f64::NAN)
@@ -381,8 +526,20 @@ pub fn predict<R, const N: usize>(
 where
     R: RobotModel<N>,
 {
+    predict_to(config, Extent::Full, build)
+}
+
+/// [`predict`] to the given extent.
+pub fn predict_to<R, const N: usize>(
+    config: &ScenarioConfig,
+    extent: Extent,
+    build: impl Fn(&ScenarioConfig) -> crate::error::Result<Simulation<R, N>>,
+) -> AnalysisResult<Prediction>
+where
+    R: RobotModel<N>,
+{
     let lin = linearize(config, None, build)?;
-    Ok(predict_from(&lin, config.samples()))
+    Ok(predict_extent(&lin, config.samples(), extent))
 }
 
 /// `predict` for every scenario on all cores (or `threads`), in order. One cell's error
@@ -390,6 +547,7 @@ where
 pub fn predict_batch<R, const N: usize, F>(
     configs: &[ScenarioConfig],
     threads: Option<usize>,
+    extent: Extent,
     build: F,
 ) -> Vec<AnalysisResult<Prediction>>
 where
@@ -399,7 +557,7 @@ where
     let work = || {
         configs
             .par_iter()
-            .map(|c| predict(c, &build))
+            .map(|c| predict_to(c, extent, &build))
             .collect::<Vec<_>>()
     };
     match threads {
@@ -481,6 +639,59 @@ mod tests {
         assert!((m.gain - 2.0 / k).abs() < 1e-9, "{m:?}");
     }
 
+    /// L(e^{iθ}) through the real Schur form and through the Hessenberg elimination equal a
+    /// dense complex LU's on fig. 14's loop (18 states, complex pole pairs) within its
+    /// conditioning, and both give the same eigenvalues.
+    #[test]
+    fn open_loop_schur_equals_hessenberg() {
+        let config = ScenarioConfig::default();
+        let lin = linearize(&config, None, ThreeLinkSimulation::new).unwrap();
+        let a0 = &lin.a + &lin.b * lin.c_measured.transpose();
+        let (mut schur, eig) = OpenLoop::new(a0.clone(), &lin.b, &lin.c_measured, true);
+        let (mut hess, eig_h) = OpenLoop::new(a0.clone(), &lin.b, &lin.c_measured, false);
+        let n = a0.nrows();
+        assert!(schur.blocks.iter().any(|b| b.1 == 2), "{:?}", schur.blocks);
+        assert!(hess.blocks.is_empty());
+        assert_eq!(eig, eig_h);
+        for theta in [1e-5, 1e-3, 0.05, 0.3, 1.0, 2.5, std::f64::consts::PI] {
+            let (ls, lh) = (schur.at(theta), hess.at(theta));
+            // The reference: a dense complex LU of zI − A₀ in the original basis.
+            let z = Complex::from_polar(1.0, theta);
+            let m = a0.map(|v| Complex::new(-v, 0.0)) + DMatrix::identity(n, n) * z;
+            let x = m.lu().solve(&lin.b.map(|v| Complex::new(v, 0.0))).unwrap();
+            let lf: Complex<f64> = lin
+                .c_measured
+                .iter()
+                .zip(x.iter())
+                .map(|(c, x)| x * c)
+                .sum();
+            // zI − A₀ nears singular as θ → 0 (the filter's integrator): cond ~ 1/θ.
+            let tol = 1e-9 + 2e-11 / theta;
+            for (path, l) in [("schur", ls), ("hessenberg", lh)] {
+                let rel = (l - lf).norm() / lf.norm();
+                assert!(
+                    rel <= tol,
+                    "θ = {theta}, {path}: {l} vs {lf} ({rel:e} > {tol:e})"
+                );
+            }
+        }
+    }
+
+    /// A transient-only prediction has the full one's poles and peak joint speed, and NaN
+    /// margins and step metrics.
+    #[test]
+    fn transient_extent_keeps_poles_and_peak() {
+        let config = ScenarioConfig::default();
+        let full = predict_to(&config, Extent::Full, ThreeLinkSimulation::new).unwrap();
+        let part = predict_to(&config, Extent::Transient, ThreeLinkSimulation::new).unwrap();
+        assert!(full.peak_joint_speed > 0.0 && full.gain_margin.is_finite());
+        assert_eq!(part.spectral_radius, full.spectral_radius);
+        assert_eq!(part.stable, full.stable);
+        assert_eq!(part.peak_joint_speed, full.peak_joint_speed);
+        assert_eq!(part.dominant_frequency, full.dominant_frequency);
+        assert!(part.gain_margin.is_nan() && part.overshoot_pct.is_nan());
+    }
+
     /// The fig. 14 prediction and a batch of it agree, in order; a bad cell is its error.
     #[test]
     fn batch_equals_single_and_keeps_errors() {
@@ -494,6 +705,7 @@ mod tests {
         let out = predict_batch(
             &[good.clone(), far, good],
             Some(2),
+            Extent::Full,
             ThreeLinkSimulation::new,
         );
         assert_eq!(out[0].as_ref().unwrap(), &one);

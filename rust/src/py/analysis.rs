@@ -95,12 +95,14 @@ pub(super) fn reference_samples<'py>(scenario: &Bound<'py, PyAny>) -> PyResult<B
 
 /// `predict` for many scenarios on all cores with the GIL released. Returns one column
 /// per prediction field (`stable` as bool) and `error` (None, or why a cell has no
-/// prediction).
+/// prediction). `transient_only`: only the poles and `peak_joint_speed` (the rest NaN),
+/// what a map's friction iteration reads between its steps.
 #[pyfunction]
-#[pyo3(signature = (scenarios, threads=None))]
+#[pyo3(signature = (scenarios, threads=None, transient_only=false))]
 pub(super) fn predict_batch<'py>(
     scenarios: &Bound<'py, PyList>,
     threads: Option<usize>,
+    transient_only: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let py = scenarios.py();
     let mut interner = HeightsInterner::default();
@@ -112,7 +114,12 @@ pub(super) fn predict_batch<'py>(
             Ok(config)
         })
         .collect::<PyResult<Vec<_>>>()?;
-    let results = py.detach(move || crate::analysis::predict_scenarios(&configs, threads));
+    let extent = if transient_only {
+        crate::analysis::Extent::Transient
+    } else {
+        crate::analysis::Extent::Full
+    };
+    let results = py.detach(move || crate::analysis::predict_scenarios(&configs, threads, extent));
     let names = crate::analysis::PREDICTION_NAMES;
     let mut columns: Vec<Vec<f64>> = vec![Vec::with_capacity(results.len()); names.len()];
     let errors = PyList::empty(py);
