@@ -48,6 +48,7 @@ from admit_rs.errors import (
     ParameterTypeError,
     UnknownParameterError,
 )
+from admit_rs.identification import CellFit, identify
 from admit_rs.metrics import METRICS, Metric
 from admit_rs.recording import LogError, read_log
 from admit_rs.simulation import Result, Simulation, SubstepWarning, simulate
@@ -79,6 +80,7 @@ __all__ = [
     "ExportError",
     "LaneBuildWarning",
     "LogError",
+    "CellFit",
     "LogUniform",
     "Metric",
     "Normal",
@@ -120,6 +122,7 @@ __all__ = [
     "parameter_paths",
     "plot",
     "read_log",
+    "identify",
     "simulate",
     "sweep",
     "ui",

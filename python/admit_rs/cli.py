@@ -297,6 +297,45 @@ def _ui(args: argparse.Namespace) -> int:
     return 0
 
 
+def _identify(args: argparse.Namespace) -> int:
+    """Reads the log, fits the cell on its first part, checks it on the rest, writes the
+    report and the fitted scenario (fig. 14's loop on the arm, the fitted wall and sensor)."""
+    import polars as pl
+    from tqdm.auto import tqdm
+
+    from admit_rs import export, paper
+    from admit_rs.blocks.controller import TimeDelayControl
+    from admit_rs.blocks.robot import UrdfArm
+    from admit_rs.identification import identify
+    from admit_rs.recording import read_log
+
+    if not 0 < args.holdout < 0.9:
+        raise ValueError(f"--holdout {args.holdout} is invalid: must be in (0, 0.9)")
+    out: Path = args.out
+    steps = ["read the log", "fit the cell", "check it on the held-out part", "write"]
+    bar = tqdm(total=len(steps), unit="step", disable=args.no_progress)
+    bar.set_description(steps[0])
+    arm = UrdfArm(args.urdf, args.tip, q0=tuple(args.q0) if args.q0 else None)
+    log = read_log(args.log, robot=arm)
+    split = int(round(log.height * (1 - args.holdout)))
+    bar.update()
+    bar.set_description(steps[1])
+    fit = identify(log.head(split), arm)
+    bar.update()
+    bar.set_description(steps[2])
+    held = log.slice(split).with_columns(pl.col("t") - pl.col("t").first())
+    report = fit.report(out, held, arm, title=f"Cell fitted from {Path(args.log).name}")
+    bar.update()
+    bar.set_description(steps[3])
+    base = paper.scenario("fig14").replace(robot=arm, controller=TimeDelayControl.for_arm(arm))
+    export.toml(fit.scenario(base), out / "cell.toml")
+    bar.update()
+    bar.close()
+    print(fit)
+    print(f"{fit.check(held, arm)}\nwrote {report}, {out / 'check.png'} and {out / 'cell.toml'}")
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="admit-rs",
@@ -356,6 +395,23 @@ def _parser() -> argparse.ArgumentParser:
     ui.add_argument("--port", type=int, default=None, help="port on 127.0.0.1 (default: free)")
     ui.add_argument("--no-browser", action="store_true", help="do not open a browser")
     ui.set_defaults(func=_ui)
+    ident = sub.add_parser(
+        "identify", help="fit your cell (surface, sensor, tool) from a recording, and check it",
+        epilog=EXIT_CODES, formatter_class=argparse.RawDescriptionHelpFormatter,
+    )  # fmt: skip
+    ident.add_argument("log", help="a ROS 2 bag (folder, .db3, .mcap), a ROS 1 .bag, or a "
+                                   ".csv / .parquet table (docs/recording.md)")  # fmt: skip
+    ident.add_argument("--urdf", type=Path, required=True, help="the arm's URDF file")
+    ident.add_argument("--tip", required=True, help="the tip (tool) link the sensor reads in")
+    ident.add_argument("--q0", type=float, nargs="+", help="the arm's start joints (default: "
+                                                           "the URDF's zero)")  # fmt: skip
+    ident.add_argument("--out", type=Path, required=True,
+                       help="folder for report.md, check.png and cell.toml")  # fmt: skip
+    ident.add_argument("--holdout", type=float, default=0.25,
+                       help="the last part of the log kept to check the fit "
+                            "(default 0.25)")  # fmt: skip
+    ident.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ident.set_defaults(func=_identify)
     return p
 
 

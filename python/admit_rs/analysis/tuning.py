@@ -177,6 +177,9 @@ def _box(scenario: Scenario, spec: Any, name: str) -> dict[str, tuple[float, flo
     out = {}
     for path, bounds in spec.items():
         p, _ = _numeric_axis(scenario, {path: [0.0]}, name)
+        if hasattr(bounds, "low") and hasattr(bounds, "high"):
+            # A distribution (ar.Uniform, ar.LogUniform; CellFit.box()): its support.
+            bounds = (bounds.low, bounds.high)
         try:
             lo, hi = (float(v) for v in bounds)
         except (TypeError, ValueError):
@@ -222,7 +225,7 @@ def _check_count(name: str, value: Any, low: int, high: int) -> None:
 def tune(
     scenario: Scenario,
     vary: Mapping[str, tuple[float, float]],
-    over: Mapping[str, tuple[float, float]],
+    over: Mapping[str, Any],
     max_overshoot_pct: float = 10.0,
     stability_margin: float = 0.001,
     grid: int = 7,
@@ -242,9 +245,10 @@ def tune(
 
     ``vary``: ``{path: (lo, hi)}`` of the gains to choose (e.g. ``admittance.b``,
     ``admittance.ka``). ``over``: ``{path: (lo, hi)}`` of what is uncertain (e.g.
-    ``wall.stiffness``). The search is a ``grid``-point grid per gain (geometric when hi/lo
-    ≥ 4) refined ``refine`` times around the best cell; the box is sampled with
-    ``over_points`` values per parameter (its corners included), and each candidate is
+    ``wall.stiffness``); a ``Uniform`` or ``LogUniform`` stands for its (low, high), so a
+    fitted cell's ``CellFit.box()`` is a box. The search is a ``grid``-point grid per gain
+    (geometric when hi/lo ≥ 4) refined ``refine`` times around the best cell; the box is
+    sampled with ``over_points`` values per parameter (its corners included), and each candidate is
     judged by its worst case there. Predictions use ``friction="step"`` (a force step from
     rest is a large signal). The force step is judged with the motion held at s(0), as
     linearised; the verification simulates that, and also the scenario as given

@@ -1,0 +1,137 @@
+"""A fitted cell: values and intervals by scenario path, and what becomes of them."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import polars as pl
+
+from admit_rs.blocks.robot import UrdfArm
+from admit_rs.blocks.scenario import Scenario
+from admit_rs.blocks.surface import Wall
+from admit_rs.distributions import LogUniform, Uniform
+from admit_rs.errors import AnalysisError, ParameterTypeError
+from admit_rs.identification.check import CellCheck, check, write_report
+from admit_rs.identification.log_arrays import LogArrays
+
+
+@dataclass(frozen=True)
+class CellFit:
+    """A cell fitted from a recording (:func:`identify`).
+
+    ``values`` and ``intervals`` are keyed by the scenario's dotted paths (``wall.stiffness``,
+    ``sensor.latency``, ...); an interval is ``(low, high)`` at ``confidence`` (vectors: per
+    component). ``unidentified`` maps a path to why the log cannot tell it; ``how`` maps
+    every path to how it was obtained. ``segments`` is the log's clock with each sample's
+    phase (``"free"``, ``"impact"``, ``"contact"``)."""
+
+    values: Mapping[str, Any]
+    intervals: Mapping[str, Any]
+    unidentified: Mapping[str, str]
+    how: Mapping[str, str]
+    segments: pl.DataFrame
+    confidence: float
+    residual_std: Mapping[str, float] = field(default_factory=dict)
+
+    def scenario(self, base: Scenario) -> Scenario:
+        """``base`` with the fitted wall and sensor: its other blocks (the arm, the
+        controller, the references) stay. A path the log did not identify keeps ``base``'s
+        value (a bias with the weight in it and ``tool_mass`` 0 when the mass is unknown)."""
+        if not isinstance(base, Scenario):
+            raise ParameterTypeError(
+                f"CellFit.scenario() takes an admit_rs.Scenario, got {type(base).__name__}"
+            )
+        v = self.values
+        wall_kw = {
+            name: v[f"wall.{name}"]
+            for name in ("normal", "position", "stiffness", "damping", "model", "exponent",
+                         "friction")
+            if f"wall.{name}" in v
+        }  # fmt: skip
+        old = base.wall if isinstance(base.wall, Wall) else Wall()
+        if "position" in wall_kw:
+            wall_kw["gap"] = 0.0  # the fitted plane is where the surface is
+        wall = dataclasses.replace(old, **wall_kw)
+        sensor_kw = {
+            name: v[f"sensor.{name}"]
+            for name in ("bias", "noise_std", "cutoff", "latency", "tool_mass")
+            if f"sensor.{name}" in v
+        }
+        sensor = dataclasses.replace(base.sensor, frame="tip", **sensor_kw)
+        return base.replace(wall=wall, sensor=sensor)
+
+    def box(self) -> dict[str, Uniform | LogUniform]:
+        """The identified scalar parameters as distributions over their intervals: what
+        ``sweep(vary=...)`` draws from and ``analysis.tune(over=...)`` takes as its box
+        ("gains stable over every cell this log admits"). Stiffness and cut-off are
+        log-uniform; vectors (normal, bias) and the latency stay at their values in
+        :meth:`scenario`."""
+        out: dict[str, Uniform | LogUniform] = {}
+        for path, iv in self.intervals.items():
+            if not isinstance(iv, tuple) or len(iv) != 2 or isinstance(iv[0], tuple):
+                continue
+            if path == "sensor.latency":
+                continue
+            lo, hi = float(iv[0]), float(iv[1])
+            if path in ("wall.stiffness", "sensor.cutoff") and lo > 0:
+                out[path] = LogUniform(lo, hi)
+            else:
+                out[path] = Uniform(max(lo, 0.0), max(hi, 0.0))
+        return out
+
+    def table(self) -> pl.DataFrame:
+        """One row per path: value, interval, how (or why it is unidentified)."""
+        rows = []
+        for path in sorted(set(self.values) | set(self.unidentified)):
+            if path in self.values:
+                iv = self.intervals.get(path)
+                rows.append({"path": path, "value": _shown(self.values[path]),
+                             "interval": "" if iv is None else _shown(iv),
+                             "how": self.how.get(path, "")})  # fmt: skip
+            else:
+                rows.append({"path": path, "value": "unidentified", "interval": "",
+                             "how": self.unidentified[path]})  # fmt: skip
+        return pl.DataFrame(rows)
+
+    def check(self, log: pl.DataFrame, robot: UrdfArm,
+              stiction_velocity: float = 1e-3) -> CellCheck:  # fmt: skip
+        """This cell's prediction of another recording (``log``, an ``ar.read_log`` table of
+        the same ``robot``): its motion replayed through the fitted plane, contact law,
+        friction and sensor, the force read compared with the recorded one (RMS and peak
+        error, the trace)."""
+        if not isinstance(robot, UrdfArm):
+            raise ParameterTypeError(
+                f"check() needs an admit_rs.UrdfArm, got {type(robot).__name__}")
+        needed = ("wall.normal", "wall.position", "wall.stiffness")
+        missing = [p for p in needed if p not in self.values]
+        if missing:
+            raise AnalysisError(f"the fit has no {', '.join(missing)}: its log had no contact to "
+                                "predict another from")  # fmt: skip
+        return check(self.values, LogArrays.of(log, robot), stiction_velocity)
+
+    def report(self, out: str | Path, log: pl.DataFrame, robot: UrdfArm,
+               title: str = "Your cell") -> Path:  # fmt: skip
+        """Writes ``report.md`` and ``check.png`` into ``out``: this cell's table and its
+        :meth:`check` against ``log`` (a part of the recording it was not fitted on); returns
+        the report's path."""
+        result = self.check(log, robot)
+        return write_report(self.table(), self.confidence, result, Path(out), title)
+
+    def __str__(self) -> str:
+        lines = [f"Cell fitted from the log ({100 * self.confidence:.0f} % intervals):"]
+        for row in self.table().iter_rows(named=True):
+            iv = f"  [{row['interval']}]" if row["interval"] else ""
+            lines.append(f"  {row['path']:20s} {row['value']}{iv}")
+        return "\n".join(lines)
+
+
+def _shown(v: Any) -> str:
+    if isinstance(v, tuple):
+        return "(" + ", ".join(_shown(x) for x in v) + ")"
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)

@@ -1,0 +1,169 @@
+"""The fit's order (free space, contact, noise) and the free-space fits: the sensor's bias,
+the tool's weight, the noise level."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+import polars as pl
+from scipy import stats
+
+from admit_rs.identification.cell_fit import CellFit
+from admit_rs.identification.contact import ContactFit
+from admit_rs.identification.findings import Findings
+from admit_rs.identification.least_squares import alpha_of, ar1_inflation, least_squares
+from admit_rs.identification.log_arrays import LogArrays
+from admit_rs.recording import LogError
+
+Array = npt.NDArray[np.float64]
+
+
+class Fitter:
+    """Fits a log's cell: free space first (the bias, the weight), then contact, then the
+    noise (whose scaling needs the low-pass found in contact)."""
+
+    def __init__(self, cell: LogArrays, confidence: float, stiction: float) -> None:
+        self.cell = cell
+        self.stiction = stiction
+        self.found = Findings(confidence)
+        self.found.touching = np.zeros(len(cell.t), dtype=bool)
+
+    def fit(self) -> CellFit:
+        free, static = self.free_space()
+        contact = ~free
+        self.found.touching = contact
+        if contact.sum() < 50:
+            for path in ("wall.stiffness", "wall.damping", "wall.position", "wall.normal",
+                         "sensor.latency", "sensor.cutoff"):  # fmt: skip
+                self.found.unidentified[path] = "no contact in the log (fewer than 50 samples)"
+            self.found.unidentified["wall.friction"] = "no contact in the log"
+        else:
+            ContactFit(self.cell, self.found, self.stiction).run(free, static)
+        self.noise(free)
+        # Phases: touching where the fitted law's force is positive (else where the reading
+        # leaves the free-space model), an impact for 50 ms after each first touch.
+        touching = self.found.touching
+        phases = np.where(touching, "contact", "free").astype(object)
+        onsets = np.nonzero(touching[1:] & ~touching[:-1])[0] + 1
+        if touching[0]:
+            onsets = np.concatenate([[0], onsets])
+        impact = max(1, int(round(0.05 / self.cell.period)))
+        for k in onsets:
+            phases[k : k + impact] = np.where(touching[k : k + impact], "impact",
+                                              phases[k : k + impact])  # fmt: skip
+        self.found.unidentified["tool.com"] = (
+            "needs the torques and the six-axis tool of SPEC §19 (issue 'Six axes'), not built"
+        )
+        segments = pl.DataFrame({"t": self.cell.t, "phase": phases.astype(str)})
+        f = self.found
+        return CellFit(f.values, f.intervals, f.unidentified, f.how, segments, f.confidence,
+                       f.residual_std)  # fmt: skip
+
+    # 1. Free space -------------------------------------------------------------------------
+
+    def free_space(self) -> tuple[npt.NDArray[np.bool_], Array]:
+        """The free-space mask and the static reading β + R_kᵀ w per sample."""
+        y = self.cell.reading
+        n = len(y)
+        head = max(20, n // 50)
+        start = np.median(y[:head], axis=0)
+        spread = np.median(np.abs(y[:head] - start), axis=0) * 1.4826
+        sigma = max(float(np.max(spread)), 1e-6)
+        deviation = np.linalg.norm(y - start, axis=1)
+        scale = float(np.max(deviation))
+        free = deviation < max(8 * sigma, 0.02 * scale)
+        up = self.cell.up_in_sensor()
+        fit_mass = False
+        coef = np.concatenate([start, [0.0]])
+        for _ in range(4):
+            if free.sum() < 20:
+                raise LogError(
+                    "the log has no free space to fit the sensor from: identify() needs the "
+                    "recording to start with the tool off the part (at least 20 samples)"
+                )
+            # Orientation spread of the weight's direction in free space: the mass needs it.
+            centred = up[free] - up[free].mean(axis=0)
+            spread_up = float(np.linalg.svd(centred, compute_uv=False)[0]) / math.sqrt(free.sum())
+            fit_mass = spread_up > 0.05 * self.cell.gravity
+            design = self.static_design(free, up, fit_mass)
+            lsq = least_squares(design, y[free].reshape(-1), columns=3)
+            coef = lsq.coef if fit_mass else np.concatenate([lsq.coef, [0.0]])
+            static = coef[:3] + coef[3] * up
+            resid = np.linalg.norm(y - static, axis=1)
+            sigma = max(float(np.std((y - static)[free])), 1e-6)
+            scale = float(np.max(resid))
+            new = resid < max(8 * sigma, 0.02 * scale)
+            # Keep clear of contact: a guard band around every contact sample.
+            guard = max(1, int(round(0.05 / self.cell.period)))
+            near = np.convolve((~new).astype(float), np.ones(2 * guard + 1), "same") > 0
+            new = new & ~near
+            if np.array_equal(new, free):
+                break
+            free = new
+        q = self.found.t_quantile(lsq.dof)
+        err = np.sqrt(np.maximum(np.diag(lsq.cov), 0.0)) * q
+        bias = tuple(float(b) for b in coef[:3])
+        bias_iv = tuple((float(b - e), float(b + e))
+                        for b, e in zip(coef[:3], err[:3], strict=True))  # fmt: skip
+        frame = "tip" if self.cell.tip_frame else "base"
+        if fit_mass:
+            self.found.put("sensor.bias", bias, bias_iv,
+                     f"free space ({int(free.sum())} samples, the tool at several "
+                     "orientations): least squares on y = β + Rᵀ(0, 0, g) m, "
+                     f"{frame} frame")  # fmt: skip
+            self.found.put("sensor.tool_mass", float(coef[3]),
+                     (float(coef[3] - err[3]), float(coef[3] + err[3])),
+                     "free space: the weight's change with the tool's orientation")  # fmt: skip
+        else:
+            self.found.put("sensor.bias", bias, bias_iv,
+                     f"free space ({int(free.sum())} samples): the mean reading, {frame} "
+                     "frame. The tool kept one orientation, so this is the bias plus the "
+                     "tool's weight in that pose (a scenario with tool_mass 0 reads the "
+                     "same)")  # fmt: skip
+            self.found.unidentified["sensor.tool_mass"] = (
+                "the tool kept one orientation in free space: its weight cannot be told from "
+                "the bias (record the tool turned through a few poses)"
+            )
+        return free, static
+
+    @staticmethod
+    def static_design(free: npt.NDArray[np.bool_], up: Array, fit_mass: bool) -> Array:
+        m = int(free.sum())
+        eye = np.tile(np.eye(3), (m, 1))
+        if not fit_mass:
+            return eye
+        return np.hstack([eye, up[free].reshape(-1, 1)])
+
+    def noise(self, free: npt.NDArray[np.bool_]) -> None:
+        static = np.asarray(self.found.values["sensor.bias"]) + self.found.values.get(
+            "sensor.tool_mass", 0.0) * self.cell.up_in_sensor()[free]
+        resid = (self.cell.reading[free] - static).ravel()
+        sigma_y = float(np.std(resid))
+        # A sample variance of an AR(1) series counts n (1 − ρ²)/(1 + ρ²) samples.
+        _, rho = ar1_inflation(resid, columns=3)
+        n_eff = max(resid.size * (1 - rho**2) / (1 + rho**2), 2.0)
+        lo_q = stats.chi2.ppf(0.5 + self.found.confidence / 2, n_eff)
+        hi_q = stats.chi2.ppf(0.5 - self.found.confidence / 2, n_eff)
+        cutoff = self.found.values.get("sensor.cutoff")
+        period = self.cell.period
+
+        def gain(fc: float | None) -> float:
+            # A first-order low-pass passes α/(2 − α) of white noise's variance.
+            alpha = alpha_of(fc, period)
+            return math.sqrt((2 - alpha) / alpha)
+
+        sigma_u = sigma_y * gain(cutoff)
+        # Over the cut-off's interval as well: a lower cut-off hides more noise.
+        cut_iv = self.found.intervals.get("sensor.cutoff")
+        gains = [gain(cutoff)] if cut_iv is None else [gain(cut_iv[0]), gain(cut_iv[1])]
+        lo = sigma_y * math.sqrt(n_eff / lo_q) * min(gains)
+        hi = sigma_y * math.sqrt(n_eff / hi_q) * max(gains)
+        filt = (" (no cut-off identified: the noise as read)" if cutoff is None else
+                f", scaled by √((2 − α)/α) = {gain(cutoff):.3g} for the low-pass")  # fmt: skip
+        self.found.put("sensor.noise_std", sigma_u, (lo, hi),
+                 f"free space: the residual's standard deviation {sigma_y:.3g} "
+                 f"N{filt}")  # fmt: skip
+
+    # 2. Contact ----------------------------------------------------------------------------
