@@ -72,11 +72,16 @@ def sensor_reading(rotation: np.ndarray, force: np.ndarray, seed: int) -> np.nda
     return np.concatenate([np.repeat(y[:1], lat, axis=0), y[:-lat]]) if lat else y
 
 
-def recording(wall: ar.Wall = WALL, seed: int = 1) -> tuple[pl.DataFrame, ar.Result]:
-    """The log table (t, q.<joint>, qd.<joint>, fx … tz) of the Panda pressing on ``wall``,
-    and the run it was made from (the truth: contact force, penetration)."""
+def recording(wall: ar.Wall = WALL, seed: int = 1,
+              slide: bool = True) -> tuple[pl.DataFrame, ar.Result]:  # fmt: skip
+    """The log table (t, q.<joint>, qd.<joint>, fx … tz) of the Panda pressing on ``wall``
+    (and sliding along it, unless ``slide`` is false), and the run it was made from (the
+    truth: contact force, penetration)."""
     sensor = ar.ForceSensor(tool_mass=SENSOR["mass"])
-    run = ar.simulate(base_scenario().replace(wall=wall, sensor=sensor))
+    scenario = base_scenario().replace(wall=wall, sensor=sensor)
+    if not slide:
+        scenario = scenario.replace(z_reference=ar.Sine(amplitude=0.0))
+    run = ar.simulate(scenario)
     tr = run.trace
     q = tr.select([f"q{i + 1}" for i in range(ARM.dof)]).to_numpy()
     qd = tr.select([f"qd{i + 1}" for i in range(ARM.dof)]).to_numpy()

@@ -95,6 +95,7 @@ def test_a_pressed_wall_and_its_sensor_come_back_within_their_intervals(kv: Any)
         assert lo <= SENSOR["bias"][a] + weight_in_tip[a] <= hi
     assert "one orientation" in fit.unidentified["sensor.tool_mass"]
     assert "six-axis" in fit.unidentified["tool.com"]
+    assert fit.trustworthy and fit.doubts == ()
 
 
 def test_the_log_is_segmented_where_the_tool_touches(kv: Any) -> None:
@@ -128,6 +129,22 @@ def test_the_tool_turned_in_free_space_gives_its_mass_and_the_bias() -> None:
     for path in ("wall.stiffness", "wall.friction", "sensor.latency"):
         assert "no contact" in fit.unidentified[path]
     assert set(fit.segments["phase"].unique()) == {"free"}
+    assert fit.trustworthy, fit.doubts
+
+
+def test_pressing_without_sliding_leaves_friction_unidentified() -> None:
+    log, _ = cell.recording(slide=False, seed=4)
+    fit = ar.identify(log, ARM)
+    assert "did not slide" in fit.unidentified["wall.friction"]
+    within(fit, "wall.stiffness", 3e4)
+
+
+def test_noise_ten_times_the_force_is_not_trusted(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(cell.SENSOR, "noise", 100.0)  # σ = 100 N against a 10 N contact
+    log, _ = cell.recording(seed=5)
+    fit = ar.identify(log, ARM)
+    assert not fit.trustworthy
+    assert "not trustworthy" in fit.doubts[0] and "NOT TRUSTWORTHY" in str(fit)
 
 
 def test_a_hunt_crossley_wall_is_told_from_kelvin_voigt() -> None:

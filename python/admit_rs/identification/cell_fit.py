@@ -36,6 +36,15 @@ class CellFit:
     segments: pl.DataFrame
     confidence: float
     residual_std: Mapping[str, float] = field(default_factory=dict)
+    doubts: tuple[str, ...] = ()
+    """Why the fit should not be trusted (empty: nothing found): a step hidden in what was
+    taken for free space, a contact force within the noise, a stiffness known to no better
+    than ±50 %."""
+
+    @property
+    def trustworthy(self) -> bool:
+        """No doubt found (:attr:`doubts` is empty)."""
+        return not self.doubts
 
     def scenario(self, base: Scenario) -> Scenario:
         """``base`` with the fitted wall and sensor: its other blocks (the arm, the
@@ -119,10 +128,12 @@ class CellFit:
         :meth:`check` against ``log`` (a part of the recording it was not fitted on); returns
         the report's path."""
         result = self.check(log, robot)
-        return write_report(self.table(), self.confidence, result, Path(out), title)
+        return write_report(self.table(), self.confidence, result, Path(out), title,
+                            self.doubts)  # fmt: skip
 
     def __str__(self) -> str:
         lines = [f"Cell fitted from the log ({100 * self.confidence:.0f} % intervals):"]
+        lines += [f"  NOT TRUSTWORTHY: {d}" for d in self.doubts]
         for row in self.table().iter_rows(named=True):
             iv = f"  [{row['interval']}]" if row["interval"] else ""
             lines.append(f"  {row['path']:20s} {row['value']}{iv}")

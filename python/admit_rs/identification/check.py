@@ -102,7 +102,7 @@ def check(values: Mapping[str, Any], cell: LogArrays, stiction: float) -> CellCh
 
 
 def write_report(table: pl.DataFrame, confidence: float, result: CellCheck, out: Path,
-                 title: str) -> Path:  # fmt: skip
+                 title: str, doubts: tuple[str, ...] = ()) -> Path:  # fmt: skip
     """``report.md`` and ``check.png`` in ``out``: the fitted cell's table, the check's errors,
     the recorded and predicted force and the residual."""
     import matplotlib
@@ -133,6 +133,7 @@ def write_report(table: pl.DataFrame, confidence: float, result: CellCheck, out:
         rows.append(f"| `{row['path']}` | {row['value']} | {row['interval']} | {row['how']} |")
     text = "\n".join([
         f"# {title}", "",
+        *[f"**Not trustworthy**: {d}.\n" for d in doubts],
         f"The cell fitted from the log, with {100 * confidence:.0f} % intervals:", "",
         *rows, "",
         "## Checked against the held-out log", "",

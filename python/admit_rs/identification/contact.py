@@ -137,6 +137,10 @@ class ContactFit:
         self.found.put("wall.model", "kelvin_voigt", None, "Kelvin–Voigt")
         self.put_sensor_dynamics(search)
         self.found.residual_std["contact normal force [N]"] = float(np.std(search.fit.residuals))
+        touched = search.touching & window
+        if touched.any():
+            self.found.residual_std["contact normal force read (median) [N]"] = float(
+                np.median((world @ normal)[touched]))
         self.hunt_crossley(world @ normal, normal, contact, window, search)
         latency, cutoff = self.found.values["sensor.latency"], self.found.values["sensor.cutoff"]
         self.friction(static, normal, contact, latency, alpha_of(cutoff, cell.period))
@@ -318,14 +322,25 @@ class ContactFit:
         return np.asarray(n / np.linalg.norm(n), dtype=float)
 
     def normal_parts(self, world: Array, contact: npt.NDArray[np.bool_]) -> Array:
+        """The force read in contact with friction taken out, where the model says how:
+        sliding (|v| > SLIDING v_s), the tip's velocity is tangential and the force's part
+        along it is friction; still (|v| < v_s/10), friction (μ f |v_t|/√(|v_t|² + v_s²))
+        is below a tenth of μ f and the force is kept. Samples in between (an impact, a
+        creep at about v_s, where the velocity has a normal part and friction is large) say
+        little about n and are left out, unless nothing else is left."""
         f = world[contact]
         v = self.cell.v[contact]
-        # The tip slides in the plane, so its velocity is (nearly) tangential: the part of
-        # the force along it is friction. (Projecting on v_t of a tilted estimate of n
-        # instead would leave the estimate where it is.)
         speed = np.linalg.norm(v, axis=1, keepdims=True)
-        direction = np.divide(v, speed, out=np.zeros_like(v), where=speed > 1e-9)
-        return f - np.sum(f * direction, axis=1, keepdims=True) * direction  # type: ignore[no-any-return]
+        vs = self.stiction
+        sliding = speed[:, 0] > SLIDING * vs
+        still = speed[:, 0] < 0.1 * vs
+        keep = sliding | still
+        if keep.sum() < 20:
+            keep = np.ones(len(f), dtype=bool)
+        moving = (speed > 1e-12) & ~still[:, None]
+        direction = np.divide(v, speed, out=np.zeros_like(v), where=moving)
+        parts = f - np.sum(f * direction, axis=1, keepdims=True) * direction
+        return parts[keep]  # type: ignore[no-any-return]
 
     def tilt_half_width(self, world: Array, contact: npt.NDArray[np.bool_], u: Array) -> float:
         """The half-width of n̂'s tilt towards the tangent ``u`` [rad] from the spread of the

@@ -19,6 +19,9 @@ from admit_rs.recording import LogError
 
 Array = npt.NDArray[np.float64]
 
+UNSEEN_CONTACT = 1.0
+"""A contact force [N] the noise may hide before a log without contact is doubted."""
+
 
 class Fitter:
     """Fits a log's cell: free space first (the bias, the weight), then contact, then the
@@ -59,7 +62,59 @@ class Fitter:
         segments = pl.DataFrame({"t": self.cell.t, "phase": phases.astype(str)})
         f = self.found
         return CellFit(f.values, f.intervals, f.unidentified, f.how, segments, f.confidence,
-                       f.residual_std)  # fmt: skip
+                       f.residual_std, tuple(self.doubts(free, static)))  # fmt: skip
+
+    def doubts(self, free: npt.NDArray[np.bool_], static: Array) -> list[str]:
+        """Why the fit should not be trusted, if it should not: a step in what was taken for
+        free space (contact hidden in the noise), a contact force within the noise, a
+        stiffness known to no better than ±50 %."""
+        out = []
+        v = self.found.values
+        resid = (self.cell.reading - static)[free]
+        # The largest step in the mean of the free-space reading, in standard errors
+        # (CUSUM, each axis, AR(1) effective counts): free space has none.
+        _, rho = ar1_inflation(resid.ravel(), columns=3)
+        scale = math.sqrt((1 + rho) / (1 - rho))
+        for axis in range(3):
+            r = resid[:, axis] - resid[:, axis].mean()
+            sigma = float(np.std(r))
+            n = len(r)
+            if sigma <= 0 or n < 20:
+                continue
+            k = np.arange(1, n)
+            cusum = np.cumsum(r)[:-1]
+            # The step between the samples before k and after: mean difference / its error.
+            step = np.abs(cusum) * n / (k * (n - k))
+            z = step / (sigma * scale * np.sqrt(1 / k + 1 / (n - k)))
+            worst = int(np.argmax(z))
+            if z[worst] > 6:
+                t = float(self.cell.t[np.nonzero(free)[0][worst]])
+                out.append(f"the reading taken for free space steps by {step[worst]:.3g} N on "
+                           f"axis {'xyz'[axis]} at t = {t:.3g} s ({z[worst]:.0f} standard "
+                           "errors): a contact hidden in the noise? The fit is not "
+                           "trustworthy")  # fmt: skip
+                break
+        alpha = alpha_of(v.get("sensor.cutoff"), self.cell.period)
+        noise_read = v.get("sensor.noise_std", 0.0) * math.sqrt(alpha / (2 - alpha))
+        if "wall.stiffness" not in v and not out:
+            # No contact found: the smallest contact force (held over half the log) the
+            # step test would have seen. Above 1 N, a pressing could hide in the noise.
+            unseen = 6 * noise_read * scale * 2 / math.sqrt(max(int(free.sum()), 1))
+            if unseen > UNSEEN_CONTACT:
+                out.append(f"no contact found, but the noise ({noise_read:.3g} N as read) would "
+                           f"hide a contact force of up to {unseen:.3g} N held over half the log, "
+                           "which the bias would absorb: the fit is not trustworthy")  # fmt: skip
+        level = self.found.residual_std.get("contact normal force read (median) [N]")
+        if level is not None and level < 3 * noise_read:
+            out.append(f"the force in contact ({level:.3g} N, median) is within 3× the noise as "
+                       f"read ({noise_read:.3g} N): the fit is not trustworthy")  # fmt: skip
+        if "wall.stiffness" in self.found.intervals:
+            lo, hi = self.found.intervals["wall.stiffness"]
+            k = v["wall.stiffness"]
+            if k <= 0 or (hi - lo) / 2 > 0.5 * k:
+                out.append(f"the stiffness is known only to [{lo:.3g}, {hi:.3g}] N/m: not "
+                           "trustworthy for predictions that depend on it")  # fmt: skip
+        return out
 
     # 1. Free space -------------------------------------------------------------------------
 
