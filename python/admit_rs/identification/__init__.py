@@ -1,4 +1,4 @@
-"""Your cell, fitted from your recording (SPEC §21, issue #58 part 2): :func:`identify` turns
+"""Your cell, fitted from your recording (SPEC §21, issue #58 parts 2–5): :func:`identify` turns
 a table of :func:`~admit_rs.read_log` (joint states and the flange force) into a
 :class:`CellFit`: the sensor's bias, noise, low-pass and latency, the tool's weight, and a
 plane surface's position, normal, contact law and friction, each with a confidence interval
@@ -22,19 +22,24 @@ How each number is obtained (the :attr:`CellFit.how` of each path says it again)
    the contact law passed through the same low-pass and latency. For each latency L and
    cut-off f_c the law is linear in (k, c, k x_e), so each pair costs one least-squares
    solve on regressors filtered like the reading; L is searched over whole samples, f_c by
-   a bounded scalar search, and the pair of least residual kept. Hunt–Crossley is fitted
+   a bounded scalar search, and the pair of least residual kept. The normal is the mean
+   force direction where friction is known: sliding (its part along the velocity taken
+   out) or still; the law tilts it where the tip moved along the surface. Hunt–Crossley is fitted
    from there by nonlinear least squares and chosen only if an F-test at the confidence
    level prefers it.
-3. **Friction**, where the tip slid (|v_t| > 10 v_s on 5 % of the contact samples or more):
-   μ by least squares on the tangential reading against the filtered f v_t / √(|v_t|² +
-   v_s²), with v_s the surface's default (it is not identifiable at recorded speeds).
+3. **Friction**, where the tip slid steadily one way (faster than 10 v_s for the filter's
+   settling time): μ by least squares of the tangential force read on the normal force read
+   times v_t / √(|v_t|² + v_s²) (both pass through the same filter), with v_s the surface's
+   default (it is not identifiable at recorded speeds).
 
 Intervals are (1 − confidence) two-sided, from the least-squares covariance with the
 residuals' lag-one autocorrelation taken into account (an AR(1) effective sample count: the
-low-pass makes neighbouring residuals alike, and ordinary least squares would claim too much);
-the latency's and cut-off's from the profile of the residual (every value an F-test does not
-reject). Not built yet (issue #58 stays open): the centre of mass (it needs the torques and
-the six-axis tool of SPEC §19), a sphere or other curved surface, the report of parts 4–5.
+low-pass makes neighbouring residuals alike, and ordinary least squares would claim too much),
+united over every latency and cut-off the residual's profile admits (an F-test). The fit's
+:attr:`CellFit.doubts` say when not to trust it; :meth:`CellFit.check` and
+:meth:`CellFit.report` replay another recording through the fitted cell. Not built yet (issue
+#58 stays open): the centre of mass (it needs the torques and the six-axis tool of SPEC §19),
+a sphere or other curved surface, the speed for long logs. docs/identify.md has the rest.
 """
 
 from __future__ import annotations
