@@ -139,8 +139,7 @@ class ContactFit:
         self.found.residual_std["contact normal force [N]"] = float(np.std(search.fit.residuals))
         touched = search.touching & window
         if touched.any():
-            self.found.residual_std["contact normal force read (median) [N]"] = float(
-                np.median((world @ normal)[touched]))
+            self.found.contact_level = float(np.median((world @ normal)[touched]))
         self.hunt_crossley(world @ normal, normal, contact, window, search)
         latency, cutoff = self.found.values["sensor.latency"], self.found.values["sensor.cutoff"]
         self.friction(static, normal, contact, latency, alpha_of(cutoff, cell.period))

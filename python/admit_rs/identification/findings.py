@@ -23,6 +23,8 @@ class Findings:
     touching: npt.NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
     """Where the tool touches: the fitted law's force is positive (else the segmentation's
     contact)."""
+    contact_level: float | None = None
+    """The median normal force read while touching [N] (None without contact)."""
 
     def t_quantile(self, dof: float) -> float:
         """Student's t two-sided quantile at the confidence, ``dof`` degrees of freedom."""

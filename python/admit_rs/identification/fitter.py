@@ -104,7 +104,7 @@ class Fitter:
                 out.append(f"no contact found, but the noise ({noise_read:.3g} N as read) would "
                            f"hide a contact force of up to {unseen:.3g} N held over half the log, "
                            "which the bias would absorb: the fit is not trustworthy")  # fmt: skip
-        level = self.found.residual_std.get("contact normal force read (median) [N]")
+        level = self.found.contact_level
         if level is not None and level < 3 * noise_read:
             out.append(f"the force in contact ({level:.3g} N, median) is within 3× the noise as "
                        f"read ({noise_read:.3g} N): the fit is not trustworthy")  # fmt: skip
