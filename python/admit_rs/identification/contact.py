@@ -75,21 +75,21 @@ class ContactFit:
         contact = ~free
         normal = self.normal(world, contact)
         window = self.fit_window(contact)
-        # Two passes: the first corrects n where the tip moved along the surface (a tilt ε
-        # of n shows as k ε·X in the law), the second fits again about the corrected n.
-        for _ in range(2):
+        # Up to three passes: each corrects n where the tip moved along the surface (a tilt ε
+        # of n shows as k ε·X in the law) and fits again about the corrected n; the values
+        # kept are the last fit's, about the normal reported.
+        for attempt in range(3):
             law, tangents = self.kelvin_voigt(normal, contact)
             search = self.law_search(world @ normal, law, contact, window)
             k = search.fit.coef[0]
             tilt = [(t, search.fit.coef[3 + i]) for i, t in enumerate(tangents)]
-            if k <= 0 or not tilt:
+            if k <= 0 or not tilt or attempt == 2:
                 break
             corrected = normal + sum(beta / k * t for t, beta in tilt)
             corrected /= np.linalg.norm(corrected)
-            moved = float(np.degrees(np.arccos(min(1.0, abs(float(corrected @ normal))))))
+            if float(corrected @ normal) > math.cos(math.radians(1e-4)):
+                break  # the tilt left is below 1e-4°: the fit about ``normal`` stands
             normal = corrected
-            if moved < 1e-4:
-                break
         k, kx, c = search.fit.coef[:3]
         if k <= 0:
             for path in ("wall.stiffness", "wall.damping", "wall.position", "sensor.latency",
