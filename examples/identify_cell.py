@@ -9,8 +9,10 @@ and fitted back.
    bias, white noise, a 60 Hz first-order low-pass and 3 samples of latency. The arm's joints
    come from an admit_rs run; the sensor is applied here, sample by sample, from its
    definition (SPEC §15), so the fit cannot lean on the simulator's own sensor code.
-2. The recording is written as a CSV table, read back with ``ar.read_log`` and fitted with
-   ``ar.identify``; the fitted cell is printed beside the truth.
+2. The recording is written as a ROS 2 bag in MCAP storage (``/joint_states`` and
+   ``/ft_sensor/wrench``, with rosbags' writer; a CSV table without the ``logs`` extra), read
+   back with ``ar.read_log`` and fitted with ``ar.identify``; the fitted cell is printed
+   beside the truth.
 3. The fitted cell, as a scenario, is simulated beside the true cell under the same
    controller.
 
@@ -98,6 +100,43 @@ def recording(wall: ar.Wall = WALL, seed: int = 1,
     return pl.DataFrame(cols), run
 
 
+def write_mcap(table: pl.DataFrame, path: Path, start_ns: int = 1_700_000_000 * 10**9) -> Path:
+    """The table as a ROS 2 bag in MCAP storage, as the robot would have recorded it with
+    ``ros2 bag record``: ``/joint_states`` (sensor_msgs/msg/JointState: names, positions,
+    velocities) and ``/ft_sensor/wrench`` (geometry_msgs/msg/WrenchStamped in the tool's
+    frame), every message stamped (header.stamp) on the driver's clock. Needs ``rosbags``
+    (the ``logs`` extra)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    types = ts.types
+    names = ARM.joint_names
+    q = np.ascontiguousarray(table.select([f"q.{j}" for j in names]).to_numpy())
+    qd = np.ascontiguousarray(table.select([f"qd.{j}" for j in names]).to_numpy())
+    force = table.select("fx", "fy", "fz").to_numpy()
+    vec = types["geometry_msgs/msg/Vector3"]
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as bag:
+        joints = bag.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=ts)
+        wrench = bag.add_connection("/ft_sensor/wrench", "geometry_msgs/msg/WrenchStamped",
+                                    typestore=ts)  # fmt: skip
+        for k, t in enumerate(table["t"].to_numpy()):
+            ns = start_ns + int(round(t * 1e9))
+            stamp = types["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+            state = types["sensor_msgs/msg/JointState"](
+                header=types["std_msgs/msg/Header"](stamp=stamp, frame_id=""), name=names,
+                position=np.ascontiguousarray(q[k]), velocity=np.ascontiguousarray(qd[k]),
+                effort=np.array([], dtype=float))  # fmt: skip
+            measured = types["geometry_msgs/msg/WrenchStamped"](
+                header=types["std_msgs/msg/Header"](stamp=stamp, frame_id=ARM.tip_link),
+                wrench=types["geometry_msgs/msg/Wrench"](
+                    force=vec(x=force[k, 0], y=force[k, 1], z=force[k, 2]),
+                    torque=vec(x=0.0, y=0.0, z=0.0)))  # fmt: skip
+            bag.write(joints, ns, ts.serialize_cdr(state, "sensor_msgs/msg/JointState"))
+            bag.write(wrench, ns, ts.serialize_cdr(measured, "geometry_msgs/msg/WrenchStamped"))
+    return path
+
+
 def truths(run: ar.Result) -> dict[str, Any]:
     """The true values by path (the bias with the tool's weight at q0 in it: the tool keeps
     that orientation, so the log shows them together)."""
@@ -182,9 +221,16 @@ def main() -> None:
     out = parser.parse_args().out
     out.mkdir(parents=True, exist_ok=True)
     table, run = recording()
-    table.write_csv(out / "cell.csv")
-    log = ar.read_log(out / "cell.csv", robot=ARM)
-    (out / "cell.csv").unlink()
+    try:
+        import shutil
+
+        shutil.rmtree(out / "cell_bag", ignore_errors=True)
+        log = ar.read_log(write_mcap(table, out / "cell_bag"), robot=ARM)  # a ROS 2 bag
+        shutil.rmtree(out / "cell_bag")
+    except ImportError:  # no rosbags (the ``logs`` extra): the same table as CSV
+        table.write_csv(out / "cell.csv")
+        log = ar.read_log(out / "cell.csv", robot=ARM)
+        (out / "cell.csv").unlink()
     fit = ar.identify(log, ARM)
     print(fit)
     truth = truths(run)

@@ -295,3 +295,15 @@ def test_the_identify_command_writes_the_report_and_the_cell(kv: Any, tmp_path: 
     assert cli.main(["identify", str(tmp_path / "cell.csv"), "--urdf", str(ARM.path), "--tip",
                      ARM.tip_link, "--out", str(out), "--holdout", "0.95",
                      "--no-progress"]) == 2  # fmt: skip
+
+
+def test_a_recording_written_as_an_mcap_bag_fits_as_its_table(kv: Any, tmp_path: Path) -> None:
+    pytest.importorskip("rosbags")
+    fit, _, log = kv
+    bag = cell.write_mcap(log, tmp_path / "cell_bag")
+    read = ar.read_log(bag, robot=ARM)
+    assert read.height == log.height and set(read["wrench_frame"].unique()) == {ARM.tip_link}
+    np.testing.assert_allclose(read["fx"].to_numpy(), log["fx"].to_numpy(), rtol=0, atol=1e-9)
+    again = ar.identify(read, ARM)
+    for path in ("wall.stiffness", "wall.friction", "sensor.latency"):
+        assert again.values[path] == pytest.approx(fit.values[path], rel=1e-6), path
