@@ -162,6 +162,22 @@ def test_checkpoint_resume_equals_clean_run(tmp_path):
         run(vary=VARY, samples=9, seed=3, chunk_size=4, checkpoint=ck)
 
 
+def test_checkpoint_checksum_lands_before_its_chunk(tmp_path, monkeypatch):
+    # A SIGKILL between the two writes must leave a checksum without a chunk (recomputed
+    # quietly), never a chunk without its checksum (CI once caught that as a warning).
+    module = sys.modules["admit_rs._checkpoint"]
+    real, order = module._atomic_write, []
+
+    def recording(path, write):
+        order.append(path.name)
+        real(path, write)
+
+    monkeypatch.setattr(module, "_atomic_write", recording)
+    run(vary=VARY, samples=4, seed=2, chunk_size=4, checkpoint=tmp_path / "ck")
+    chunks = [name for name in order if name.startswith("chunk-")]
+    assert chunks == ["chunk-000000.parquet.sha256", "chunk-000000.parquet"]
+
+
 SCRIPT = textwrap.dedent(
     """
     import sys, admit_rs as ar
@@ -235,11 +251,11 @@ def test_ctrl_c_during_a_checkpoint_write_is_one_interrupt(tmp_path, monkeypatch
     import threading
 
     module = sys.modules["admit_rs._checkpoint"]  # where a checkpoint chunk is written
-    real = module._atomic_parquet
+    real = module._parquet_bytes
     big = pl.DataFrame({f"c{i}": np.arange(2_000_000, dtype=float) for i in range(4)})
     calls = {"n": 0}
 
-    def slow_write(frame, path, *args, **kwargs):
+    def slow_write(frame, metadata):
         calls["n"] += 1
         if calls["n"] == 2:  # chunk 2's checkpoint
             kick = threading.Timer(0.02, os.kill, (os.getpid(), signal.SIGINT))
@@ -247,9 +263,9 @@ def test_ctrl_c_during_a_checkpoint_write_is_one_interrupt(tmp_path, monkeypatch
             big.write_parquet(tmp_path / "big.parquet")  # ~0.1 s of polars work
             for _ in range(500):  # in case the write beat the signal
                 time.sleep(0.01)
-        real(frame, path, *args, **kwargs)
+        return real(frame, metadata)
 
-    monkeypatch.setattr(module, "_atomic_parquet", slow_write)
+    monkeypatch.setattr(module, "_parquet_bytes", slow_write)
     try:
         run(vary=VARY, samples=40, seed=5, chunk_size=8, threads=1, checkpoint=tmp_path / "ck")
     except ar.SweepInterrupted as e:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import io
 import json
 import math
 import os
@@ -99,10 +100,16 @@ class _Checkpoint:
                 h.update(block)
         return h.hexdigest()
 
-    def _seal(self, path: Path) -> None:
-        """Writes the SHA-256 of ``path``'s bytes beside it (``<name>.sha256``)."""
-        digest = self._digest_of(path).encode()
+    @staticmethod
+    def _write_sealed(path: Path, frame: pl.DataFrame, metadata: dict[str, str]) -> None:
+        """Writes ``frame`` to ``path`` with the SHA-256 of its bytes beside it
+        (``<name>.sha256``). The checksum lands first and the file last, each atomically, so a
+        kill between the two leaves a checksum without a file (nothing to resume from, no
+        warning), never a file without its checksum."""
+        data = _parquet_bytes(frame, metadata)
+        digest = hashlib.sha256(data).hexdigest().encode()
         _atomic_write(_sidecar(path), lambda f: f.write(digest))
+        _atomic_write(path, lambda f: f.write(data))
 
     def _intact(self, path: Path) -> str | None:
         """Why ``path`` must not be parsed, or ``None``: its bytes are checked against the
@@ -189,11 +196,9 @@ class _Checkpoint:
         # Traces first, the chunk last and atomically: a chunk file means a finished chunk.
         if traces is not None:
             tpath = self._path("traces", index)
-            _atomic_parquet(traces, tpath, self._metadata(ids, traces))
-            self._seal(tpath)
+            self._write_sealed(tpath, traces, self._metadata(ids, traces))
         path = self._path("chunk", index)
-        _atomic_parquet(table, path, self._metadata(ids, table))
-        self._seal(path)
+        self._write_sealed(path, table, self._metadata(ids, table))
 
     def _metadata(self, ids: range, frame: pl.DataFrame) -> dict[str, str]:
         return {_FINGERPRINT: self.fingerprint, _RUNS: _runs(ids), _CHECKSUM: _checksum(frame)}
@@ -285,6 +290,13 @@ def _atomic_write(path: Path, write: Callable[[IO[bytes]], Any]) -> None:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+def _parquet_bytes(frame: pl.DataFrame, metadata: dict[str, str]) -> bytes:
+    """``frame`` as the bytes of a Parquet file with ``metadata`` in its footer."""
+    buffer = io.BytesIO()
+    frame.write_parquet(buffer, metadata=metadata)
+    return buffer.getvalue()
 
 
 def _atomic_parquet(
