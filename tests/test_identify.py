@@ -19,7 +19,10 @@ import numpy as np
 import polars as pl
 import pytest
 from admit_rs.errors import ArgumentError, ParameterTypeError
+from admit_rs.identification.check import check
 from admit_rs.identification.least_squares import ar1_inflation, low_pass_delay
+from admit_rs.identification.log_arrays import LogArrays
+from admit_rs.identification.model import STICTION_VELOCITY
 
 ROOT = Path(__file__).resolve().parents[1]
 _spec = importlib.util.spec_from_file_location("identify_cell",
@@ -276,6 +279,24 @@ def test_a_fit_checked_on_the_part_of_the_log_it_did_not_see(kv: Any, tmp_path: 
                                                   if not k.startswith("wall.")})  # fmt: skip
     with pytest.raises(ar.AnalysisError, match="no wall.normal"):
         no_contact.check(held, ARM)
+
+
+def test_the_stiction_velocity_fitted_with_is_kept_for_the_scenario_and_the_check(
+    kv: Any,
+) -> None:
+    assert kv[0].stiction_velocity == ar.Wall().stiction_velocity == STICTION_VELOCITY
+    # A wall whose friction saturates at v_s = 3 mm/s, fitted with that v_s.
+    log, _ = pressing(dataclasses.replace(KV_WALL, stiction_velocity=0.003))
+    fit = ar.identify(log, ARM, stiction_velocity=0.003)
+    assert fit.stiction_velocity == 0.003
+    within(fit, "wall.friction", 0.3)
+    assert fit.scenario(cell.base_scenario()).wall.stiction_velocity == 0.003
+    # The check replays with the fit's v_s: the tangential error is the noise's (0.124 N),
+    # not the 0.231 N the default v_s left.
+    cells = LogArrays.of(log, ARM)
+    own = fit.check(log, ARM).tangential_rms_error
+    assert own == check(fit.values, cells, 0.003).tangential_rms_error
+    assert own < 0.6 * check(fit.values, cells, STICTION_VELOCITY).tangential_rms_error
 
 
 def test_the_identify_command_writes_the_report_and_the_cell(kv: Any, tmp_path: Path) -> None:

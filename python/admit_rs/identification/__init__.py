@@ -51,11 +51,9 @@ from admit_rs.errors import ArgumentError, ParameterTypeError
 from admit_rs.identification.cell_fit import CellFit
 from admit_rs.identification.fitter import Fitter
 from admit_rs.identification.log_arrays import LogArrays
+from admit_rs.identification.model import STICTION_VELOCITY
 
 __all__ = ["STICTION_VELOCITY", "CellFit", "identify"]
-
-STICTION_VELOCITY = 1e-3
-"""v_s [m/s] used for friction (``Wall.stiction_velocity``'s default)."""
 
 
 def identify(

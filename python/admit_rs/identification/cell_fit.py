@@ -17,6 +17,7 @@ from admit_rs.distributions import LogUniform, Uniform
 from admit_rs.errors import AnalysisError, ParameterTypeError
 from admit_rs.identification.check import CellCheck, check, write_report
 from admit_rs.identification.log_arrays import LogArrays
+from admit_rs.identification.model import STICTION_VELOCITY
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,9 @@ class CellFit:
     how: Mapping[str, str]
     segments: pl.DataFrame
     confidence: float
+    stiction_velocity: float = STICTION_VELOCITY
+    """v_s [m/s] the friction was fitted with: :meth:`scenario`'s wall and :meth:`check`'s
+    replay use it too (μ means nothing without it)."""
     residual_std: Mapping[str, float] = field(default_factory=dict)
     doubts: tuple[str, ...] = ()
     """Why the fit should not be trusted (empty: nothing found): a step hidden in what was
@@ -64,6 +68,8 @@ class CellFit:
         old = base.wall if isinstance(base.wall, Wall) else Wall()
         if "position" in wall_kw:
             wall_kw["gap"] = 0.0  # the fitted plane is where the surface is
+        if "friction" in wall_kw:
+            wall_kw["stiction_velocity"] = self.stiction_velocity
         wall = dataclasses.replace(old, **wall_kw)
         sensor_kw = {
             name: v[f"sensor.{name}"]
@@ -106,12 +112,11 @@ class CellFit:
                              "how": self.unidentified[path]})  # fmt: skip
         return pl.DataFrame(rows)
 
-    def check(self, log: pl.DataFrame, robot: UrdfArm,
-              stiction_velocity: float = 1e-3) -> CellCheck:  # fmt: skip
+    def check(self, log: pl.DataFrame, robot: UrdfArm) -> CellCheck:
         """This cell's prediction of another recording (``log``, an ``ar.read_log`` table of
         the same ``robot``): its motion replayed through the fitted plane, contact law,
-        friction and sensor, the force read compared with the recorded one (RMS and peak
-        error, the trace)."""
+        friction (with :attr:`stiction_velocity`) and sensor, the force read compared with
+        the recorded one (RMS and peak error, the trace)."""
         if not isinstance(robot, UrdfArm):
             raise ParameterTypeError(
                 f"check() needs an admit_rs.UrdfArm, got {type(robot).__name__}")
@@ -120,7 +125,7 @@ class CellFit:
         if missing:
             raise AnalysisError(f"the fit has no {', '.join(missing)}: its log had no contact to "
                                 "predict another from")  # fmt: skip
-        return check(self.values, LogArrays.of(log, robot), stiction_velocity)
+        return check(self.values, LogArrays.of(log, robot), self.stiction_velocity)
 
     def report(self, out: str | Path, log: pl.DataFrame, robot: UrdfArm,
                title: str = "Your cell") -> Path:  # fmt: skip

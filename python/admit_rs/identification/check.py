@@ -11,13 +11,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 import polars as pl
 
-from admit_rs.identification.least_squares import alpha_of, low_pass_delay
+from admit_rs.identification.least_squares import Array, alpha_of, low_pass_delay
 from admit_rs.identification.log_arrays import LogArrays
-
-Array = npt.NDArray[np.float64]
+from admit_rs.identification.model import friction_direction, normal_force
 
 
 @dataclass(frozen=True)
@@ -52,16 +50,13 @@ def predicted_reading(values: Mapping[str, Any], cell: LogArrays, stiction: floa
     v = values
     n = np.asarray(v["wall.normal"], dtype=float)
     n = n / np.linalg.norm(n)
-    depth = np.maximum(cell.x @ n - v["wall.position"], 0.0)
-    rate = cell.v @ n
     exponent = v.get("wall.exponent", 1.0) if v.get("wall.model") == "hunt_crossley" else 1.0
-    force = np.maximum(depth**exponent * (v["wall.stiffness"] + v["wall.damping"] * rate), 0.0)
+    force = normal_force(cell.x @ n - v["wall.position"], cell.v @ n, v["wall.stiffness"],
+                         v["wall.damping"], exponent)  # fmt: skip
     world = force[:, None] * n
     if "wall.friction" in v:
-        vt = cell.v - np.outer(rate, n)
-        speed = np.linalg.norm(vt, axis=1)
-        world = world + v["wall.friction"] * force[:, None] * vt / np.sqrt(
-            speed**2 + stiction**2)[:, None]  # fmt: skip
+        world = world + v["wall.friction"] * force[:, None] * friction_direction(
+            cell.v, n, stiction)  # fmt: skip
     weight = np.array([0.0, 0.0, v.get("sensor.tool_mass", 0.0) * cell.gravity])
     if cell.tip_frame:
         u = np.einsum("kji,kj->ki", cell.rotation, world + weight)

@@ -14,6 +14,7 @@ from scipy import optimize, stats
 
 from admit_rs.identification.findings import Findings
 from admit_rs.identification.least_squares import (
+    Array,
     LinearFit,
     alpha_of,
     ar1_inflation,
@@ -21,8 +22,7 @@ from admit_rs.identification.least_squares import (
     low_pass_delay,
 )
 from admit_rs.identification.log_arrays import LogArrays
-
-Array = npt.NDArray[np.float64]
+from admit_rs.identification.model import friction_direction, normal_force
 
 MAX_LATENCY = 0.05
 """The longest latency searched [s]."""
@@ -374,8 +374,7 @@ class ContactFit:
 
             def residual(p: Array) -> Array:
                 k, tau, exponent, xe = math.exp(p[0]), p[1], p[2], p[3]
-                delta = np.maximum(depth - xe, 0.0)
-                law = np.maximum(k * delta**exponent * (1 + tau * rate), 0.0)
+                law = normal_force(depth - xe, rate, k, k * tau, exponent)
                 return (low_pass_delay(law, alpha, lat) - s)[window]  # type: ignore[no-any-return]
 
             try:
@@ -432,10 +431,9 @@ class ContactFit:
         there, g = v_t/√(|v_t|² + v_s²)); the interval adds the bias's own interval."""
         vs = self.stiction
         v = self.cell.v
-        vt = v - np.outer(v @ normal, normal)
-        speed = np.linalg.norm(vt, axis=1)
+        speed = np.linalg.norm(v - np.outer(v @ normal, normal), axis=1)
         sliding = contact & (speed > SLIDING * vs)
-        g = vt / np.sqrt(speed**2 + vs**2)[:, None]
+        g = friction_direction(v, normal, vs)
         # Steady: sliding, in the same direction (g within 10°), for the filter's settling
         # time (five time constants) plus the latency.
         settle = latency + int(math.ceil(5 / max(alpha, 1e-9)))

@@ -13,11 +13,14 @@ from scipy import stats
 from admit_rs.identification.cell_fit import CellFit
 from admit_rs.identification.contact import ContactFit
 from admit_rs.identification.findings import Findings
-from admit_rs.identification.least_squares import alpha_of, ar1_inflation, least_squares
+from admit_rs.identification.least_squares import (
+    Array,
+    alpha_of,
+    ar1_inflation,
+    least_squares,
+)
 from admit_rs.identification.log_arrays import LogArrays
 from admit_rs.recording import LogError
-
-Array = npt.NDArray[np.float64]
 
 UNSEEN_CONTACT = 1.0
 """A contact force [N] the noise may hide before a log without contact is doubted."""
@@ -62,7 +65,7 @@ class Fitter:
         segments = pl.DataFrame({"t": self.cell.t, "phase": phases.astype(str)})
         f = self.found
         return CellFit(f.values, f.intervals, f.unidentified, f.how, segments, f.confidence,
-                       f.residual_std, tuple(self.doubts(free, static)))  # fmt: skip
+                       self.stiction, f.residual_std, tuple(self.doubts(free, static)))  # fmt: skip
 
     def doubts(self, free: npt.NDArray[np.bool_], static: Array) -> list[str]:
         """Why the fit should not be trusted, if it should not: a step in what was taken for

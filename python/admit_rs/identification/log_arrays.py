@@ -6,13 +6,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 import polars as pl
 
 from admit_rs.blocks.robot import UrdfArm
+from admit_rs.identification.least_squares import Array
 from admit_rs.recording import LogError
-
-Array = npt.NDArray[np.float64]
 
 MAX_FORCE = 1e6
 """The largest force reading [N] a log may hold (beyond it, a unit or a corrupt value)."""
