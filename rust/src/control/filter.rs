@@ -232,6 +232,17 @@ impl<T: Real> AdmittanceFilter<T> {
         self.state = Vector2::zeros();
     }
 
+    /// The state (x_a, ẋ_a).
+    pub(crate) fn get(&self) -> (T, T) {
+        (self.state[0], self.state[1])
+    }
+
+    /// Sets the state (x_a, ẋ_a): the six-axis filter holds a rotation axis's (θ, ω) in its
+    /// rotation and sets them here each period.
+    pub(crate) fn set(&mut self, x_a: T, xa_dot: T) {
+        self.state = Vector2::new(x_a, xa_dot);
+    }
+
     /// Lanes in `mask` take the state (x_a, ẋ_a).
     #[inline(always)]
     fn start(&mut self, mask: T::SimdBool, x_a: T, xa_dot: T) {

@@ -11,3 +11,4 @@ pub mod laws;
 pub mod params;
 pub mod reference;
 pub mod task;
+pub mod wrench_admittance;
