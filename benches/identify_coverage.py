@@ -1,11 +1,12 @@
 """How often ar.identify's intervals hold the truth (issue #58 part 2): not a timed test.
 
-    python benches/identify_coverage.py [--seeds 20]
+    python benches/identify_coverage.py [--seeds 20] [--surface plane|sphere]
 
 Records the cell of examples/identify_cell.py (the Panda pressing and sliding on a wall, a
 flange sensor with bias, noise, a 60 Hz low-pass and 3 samples of latency) with as many noise
 seeds, fits each and counts, per path, the seeds whose 95 % interval holds the true value;
-prints the median interval width relative to the truth and the fit's time.
+prints the median interval width relative to the truth (the centre's: the widest axis's, in
+metres) and the fit's time. ``--surface sphere``: the same tool sliding over a 0.2 m ball.
 """
 
 from __future__ import annotations
@@ -38,16 +39,24 @@ def at_contact(fit: ar.CellFit, run: ar.Result, position: float) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--seeds", type=int, default=20)
-    seeds = parser.parse_args().seeds
+    parser.add_argument("--surface", choices=("plane", "sphere"), default="plane")
+    args = parser.parse_args()
+    seeds, sphere = args.seeds, args.surface == "sphere"
     hits: dict[str, int] = {}
     widths: dict[str, list[float]] = {}
     times = []
     for seed in range(seeds):
-        log, run = cell.recording(seed=seed)
-        truth = cell.truths(run)
+        log, run = cell.recording(cell.SPHERE if sphere else cell.WALL, seed=seed)
+        truth = cell.sphere_truths() if sphere else cell.truths(run)
         start = time.perf_counter()
-        fit = ar.identify(log, cell.ARM)
+        fit = ar.identify(log, cell.ARM, surface=args.surface)
         times.append(time.perf_counter() - start)
+        if sphere and "wall.centre" in fit.intervals:
+            inside = all(lo <= c <= hi for (lo, hi), c in zip(fit.intervals["wall.centre"],
+                                                              truth["wall.centre"], strict=True))
+            hits["wall.centre"] = hits.get("wall.centre", 0) + int(inside)
+            widths.setdefault("wall.centre", []).append(
+                max(hi - lo for lo, hi in fit.intervals["wall.centre"]))  # fmt: skip
         for path, true in truth.items():
             if not isinstance(true, float | int) or path not in fit.intervals:
                 continue

@@ -40,6 +40,8 @@ ARM = ar.UrdfArm(DATA / "panda.urdf", "panda_hand_tcp",
                  q0=(0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785))  # fmt: skip
 PERIOD = 1e-3
 WALL = ar.Wall(stiffness=3e4, damping=30.0, friction=0.3, gap=0.005)
+SPHERE = ar.Sphere(radius=0.2, stiffness=3e4, damping=30.0, friction=0.3, gap=0.005)
+"""A ball the same tool slides over (``identify(surface="sphere")``): the force turns ±12°."""
 SENSOR = {"bias": (0.5, -0.3, 1.2), "noise": 0.2, "cutoff": 60.0, "latency": 3, "mass": 0.5}
 """The true flange sensor and tool: bias [N] per tool axis, noise σ [N], cut-off [Hz],
 latency [samples], tool mass [kg]."""
@@ -150,6 +152,16 @@ def truths(run: ar.Result) -> dict[str, Any]:
             "wall.friction": WALL.friction, "wall.position": float(np.mean(x)),
             "sensor.latency": SENSOR["latency"], "sensor.cutoff": SENSOR["cutoff"],
             "sensor.noise_std": SENSOR["noise"]}  # fmt: skip
+
+
+def sphere_truths() -> dict[str, Any]:
+    """The true values of :data:`SPHERE`'s cell by path: its centre is X0 + (gap + R) n."""
+    start = ARM.tip_position(ARM.initial_position)
+    centre = start + (SPHERE.gap + SPHERE.radius) * np.asarray(SPHERE.normal, dtype=float)
+    return {"wall.centre": tuple(float(c) for c in centre), "wall.radius": SPHERE.radius,
+            "wall.stiffness": SPHERE.stiffness, "wall.damping": SPHERE.damping,
+            "wall.friction": SPHERE.friction, "sensor.latency": SENSOR["latency"],
+            "sensor.cutoff": SENSOR["cutoff"], "sensor.noise_std": SENSOR["noise"]}  # fmt: skip
 
 
 def markdown(fit: ar.CellFit, truth: dict[str, Any]) -> str:

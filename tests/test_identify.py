@@ -232,8 +232,8 @@ def test_refusals_name_what_is_wrong(short_log: pl.DataFrame) -> None:
         ar.identify(short_log, ar.Robot())  # type: ignore[arg-type]
     with pytest.raises(ParameterTypeError, match="DataFrame"):
         ar.identify(short_log.to_dict(as_series=False), ARM)  # type: ignore[arg-type]
-    with pytest.raises(ArgumentError, match="only 'plane'"):
-        ar.identify(short_log, ARM, surface="sphere")
+    with pytest.raises(ArgumentError, match="must be 'plane' or 'sphere'"):
+        ar.identify(short_log, ARM, surface="cylinder")
     for bad in (0, -1, 1, 1e300, -1e300, math.nan, math.inf, -math.inf, "0.9"):
         with pytest.raises(ArgumentError, match="confidence"):
             ar.identify(short_log, ARM, confidence=bad)  # type: ignore[arg-type]
@@ -297,6 +297,46 @@ def test_the_stiction_velocity_fitted_with_is_kept_for_the_scenario_and_the_chec
     own = fit.check(log, ARM).tangential_rms_error
     assert own == check(fit.values, cells, 0.003).tangential_rms_error
     assert own < 0.6 * check(fit.values, cells, STICTION_VELOCITY).tangential_rms_error
+
+
+def test_a_sphere_comes_back_within_its_intervals() -> None:
+    # The Panda presses 10 N on a ball of 0.2 m and slides ±5 cm over it (the force turns
+    # by ±12°): its centre, radius, law, friction and sensor, fitted with surface="sphere".
+    log, _ = pressing(cell.SPHERE)
+    fit = ar.identify(log, ARM, surface="sphere")
+    truths = cell.sphere_truths()
+    centre = np.asarray(truths.pop("wall.centre"))
+    for path, truth in truths.items():
+        within(fit, path, truth)
+    for axis, ((lo, hi), truth) in enumerate(zip(fit.intervals["wall.centre"], centre,
+                                                 strict=True)):  # fmt: skip
+        assert lo <= truth <= hi, (axis, lo, truth, hi)
+    # In the plane the tip slid in (x, z) the law places the centre to micrometres; across
+    # it (y) the force's sideways part does, to a millimetre.
+    found = np.asarray(fit.values["wall.centre"])
+    assert np.abs(found[[0, 2]] - centre[[0, 2]]).max() < 3e-5
+    assert abs(found[1] - centre[1]) < 1e-3
+    assert abs(fit.values["wall.radius"] - 0.2) < 3e-5
+    # What is left of the force read is the noise as read.
+    alpha = 1 - math.exp(-2 * math.pi * SENSOR["cutoff"] * PERIOD)
+    assert fit.check(log, ARM).rms_error < 1.2 * SENSOR["noise"] * math.sqrt(alpha / (2 - alpha))
+    # As a scenario: the sphere placed from the tip's start holds the true cell's force.
+    sc = fit.scenario(cell.base_scenario())
+    assert isinstance(sc.wall, ar.Sphere) and abs(sc.wall.gap - 0.005) < 5e-5
+    fitted = ar.simulate(sc).trace
+    truth = ar.simulate(cell.true_cell().replace(wall=cell.SPHERE)).trace
+    last = truth["t"].to_numpy() >= 3.0
+    held = float(truth["f"].to_numpy()[last].mean())
+    assert abs(float(fitted["f"].to_numpy()[last].mean()) - held) < 0.01 * held
+    assert abs(float(fitted["f"].max()) - float(truth["f"].max())) < 0.05 * float(truth["f"].max())
+
+
+def test_a_flat_wall_fitted_as_a_sphere_says_it_is_a_plane(kv: Any) -> None:
+    fit = ar.identify(kv[2], ARM, surface="sphere")
+    assert "the log shows a plane; fit surface='plane'" in fit.unidentified["wall.centre"]
+    assert "wall.radius" not in fit.values and "wall.stiffness" in fit.unidentified
+    with pytest.raises(ar.AnalysisError, match="no wall.centre"):
+        fit.check(kv[2], ARM)
 
 
 def test_the_identify_command_writes_the_report_and_the_cell(kv: Any, tmp_path: Path) -> None:

@@ -39,7 +39,8 @@ united over every latency and cut-off the residual's profile admits (an F-test).
 :attr:`CellFit.doubts` say when not to trust it; :meth:`CellFit.check` and
 :meth:`CellFit.report` replay another recording through the fitted cell. Not built yet (issue
 #58 stays open): the centre of mass (it needs the torques and the six-axis tool of SPEC §19),
-a sphere or other curved surface, the speed for long logs. docs/identify.md has the rest.
+curved surfaces other than a sphere touched from outside (``surface="sphere"``:
+``identification/sphere.py``), the speed for long logs. docs/identify.md has the rest.
 """
 
 from __future__ import annotations
@@ -69,7 +70,9 @@ def identify(
     ``log``: a table of :func:`~admit_rs.read_log` (``t``, ``q.<joint>`` for every joint of
     ``robot``, optionally ``qd.<joint>``, ``fx``, ``fy``, ``fz``, optionally
     ``wrench_frame``: the wrench is read in the tip link's frame unless that column names
-    the base link). ``surface``: ``"plane"`` (the only one fitted so far).
+    the base link). ``surface``: ``"plane"``, or ``"sphere"`` (a ball touched from outside:
+    ``wall.centre`` in the base frame and ``wall.radius`` instead of ``wall.normal`` and
+    ``wall.position``).
 
     Raises :class:`~admit_rs.LogError` for a log it cannot use (a missing joint, a wrench
     frame that is neither the tip nor the base link, no free space to fit the sensor from)
@@ -84,8 +87,8 @@ def identify(
         raise ParameterTypeError(
             f"identify() takes a polars DataFrame (ar.read_log's table), got {type(log).__name__}"
         )
-    if surface != "plane":
-        raise ArgumentError(f"surface = {surface!r} is invalid: only 'plane' is fitted so far")
+    if surface not in ("plane", "sphere"):
+        raise ArgumentError(f"surface = {surface!r} is invalid: must be 'plane' or 'sphere'")
     if not (isinstance(confidence, float | int) and 0.5 <= confidence < 1):
         raise ArgumentError(f"confidence = {confidence!r} is invalid: must be in [0.5, 1)")
     if not (isinstance(stiction_velocity, float | int) and 0 < stiction_velocity < 1):
@@ -93,4 +96,4 @@ def identify(
             f"stiction_velocity = {stiction_velocity!r} is invalid: must be in (0, 1) m/s"
         )
     cell = LogArrays.of(log, robot)
-    return Fitter(cell, float(confidence), float(stiction_velocity)).fit()
+    return Fitter(cell, float(confidence), float(stiction_velocity), surface).fit()

@@ -8,11 +8,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import polars as pl
 
 from admit_rs.blocks.robot import UrdfArm
 from admit_rs.blocks.scenario import Scenario
-from admit_rs.blocks.surface import Wall
+from admit_rs.blocks.sensor import ForceSensor
+from admit_rs.blocks.surface import Sphere, Wall
 from admit_rs.distributions import LogUniform, Uniform
 from admit_rs.errors import AnalysisError, ParameterTypeError
 from admit_rs.identification.check import CellCheck, check, write_report
@@ -53,12 +55,16 @@ class CellFit:
     def scenario(self, base: Scenario) -> Scenario:
         """``base`` with the fitted wall and sensor: its other blocks (the arm, the
         controller, the references) stay. A path the log did not identify keeps ``base``'s
-        value (a bias with the weight in it and ``tool_mass`` 0 when the mass is unknown)."""
+        value (a bias with the weight in it and ``tool_mass`` 0 when the mass is unknown); a
+        damping fitted below 0 becomes 0. A fitted sphere is placed from ``base``'s tip at its
+        q0 (:class:`~admit_rs.Sphere` is), so that its centre is the fitted one."""
         if not isinstance(base, Scenario):
             raise ParameterTypeError(
                 f"CellFit.scenario() takes an admit_rs.Scenario, got {type(base).__name__}"
             )
         v = self.values
+        if "wall.centre" in v:
+            return base.replace(wall=self.sphere(base), sensor=self.sensor(base))
         wall_kw = {
             name: v[f"wall.{name}"]
             for name in ("normal", "position", "stiffness", "damping", "model", "exponent",
@@ -66,18 +72,51 @@ class CellFit:
             if f"wall.{name}" in v
         }  # fmt: skip
         old = base.wall if isinstance(base.wall, Wall) else Wall()
+        if "damping" in wall_kw:
+            wall_kw["damping"] = _physical_damping(wall_kw["damping"])
         if "position" in wall_kw:
             wall_kw["gap"] = 0.0  # the fitted plane is where the surface is
         if "friction" in wall_kw:
             wall_kw["stiction_velocity"] = self.stiction_velocity
         wall = dataclasses.replace(old, **wall_kw)
+        return base.replace(wall=wall, sensor=self.sensor(base))
+
+    def sensor(self, base: Scenario) -> ForceSensor:
+        """``base``'s sensor with the fitted values, reading in the tip frame."""
+        v = self.values
         sensor_kw = {
             name: v[f"sensor.{name}"]
             for name in ("bias", "noise_std", "cutoff", "latency", "tool_mass")
             if f"sensor.{name}" in v
         }
-        sensor = dataclasses.replace(base.sensor, frame="tip", **sensor_kw)
-        return base.replace(wall=wall, sensor=sensor)
+        return dataclasses.replace(base.sensor, frame="tip", **sensor_kw)
+
+    def sphere(self, base: Scenario) -> Sphere:
+        """The fitted sphere as ``base``'s surface: a sphere is placed from the tip's start X0
+        (``Sphere``'s centre is X0 + (gap + R) n), so n and the gap follow from the fitted
+        centre and ``base``'s arm at its q0."""
+        v = self.values
+        start = np.asarray(base.robot.tip_position(_initial_q(base.robot)), dtype=float)
+        towards = np.asarray(v["wall.centre"], dtype=float) - start
+        distance = float(np.linalg.norm(towards))
+        gap = distance - float(v["wall.radius"])
+        if not gap >= 0.0:
+            raise AnalysisError(
+                f"the base scenario's tip starts {-gap:.3g} m inside the fitted sphere (its "
+                f"centre is {distance:.4g} m from the tip at q0, its radius "
+                f"{v['wall.radius']:.4g} m): choose a q0 outside it"
+            )
+        kw = {name: v[f"wall.{name}"]
+              for name in ("stiffness", "damping", "model", "exponent", "friction", "radius")
+              if f"wall.{name}" in v}  # fmt: skip
+        if "friction" in kw:
+            kw["stiction_velocity"] = self.stiction_velocity
+        if "damping" in kw:
+            kw["damping"] = _physical_damping(kw["damping"])
+        old = base.wall if isinstance(base.wall, Sphere) else Sphere()
+        n = towards / distance
+        return dataclasses.replace(old, normal=(float(n[0]), float(n[1]), float(n[2])), gap=gap,
+                                   inside=False, **kw)  # fmt: skip
 
     def box(self) -> dict[str, Uniform | LogUniform]:
         """The identified scalar parameters as distributions over their intervals: what
@@ -120,11 +159,14 @@ class CellFit:
         if not isinstance(robot, UrdfArm):
             raise ParameterTypeError(
                 f"check() needs an admit_rs.UrdfArm, got {type(robot).__name__}")
-        needed = ("wall.normal", "wall.position", "wall.stiffness")
+        sphere = "wall.centre" in self.values or "wall.centre" in self.unidentified
+        needed = (("wall.centre", "wall.radius") if sphere
+                  else ("wall.normal", "wall.position")) + ("wall.stiffness",)  # fmt: skip
         missing = [p for p in needed if p not in self.values]
         if missing:
-            raise AnalysisError(f"the fit has no {', '.join(missing)}: its log had no contact to "
-                                "predict another from")  # fmt: skip
+            why = self.unidentified.get(missing[0], "its log had no contact")
+            raise AnalysisError(f"the fit has no {', '.join(missing)} to predict another log "
+                                f"from: {why}")  # fmt: skip
         return check(self.values, LogArrays.of(log, robot), self.stiction_velocity)
 
     def report(self, out: str | Path, log: pl.DataFrame, robot: UrdfArm,
@@ -151,3 +193,14 @@ def _shown(v: Any) -> str:
     if isinstance(v, float):
         return f"{v:.6g}"
     return str(v)
+
+
+def _initial_q(robot: Any) -> Any:
+    """The arm's q0 as used (a URDF arm's default is zero clipped into its limits)."""
+    return robot.initial_position if isinstance(robot, UrdfArm) else robot.q0
+
+
+def _physical_damping(value: float) -> float:
+    """A damping fitted below 0 (the log leaves it loose: its interval reaches past 0) as the
+    nearest one a surface can have, 0."""
+    return max(float(value), 0.0)

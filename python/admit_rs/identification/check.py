@@ -15,7 +15,7 @@ import polars as pl
 
 from admit_rs.identification.least_squares import Array, alpha_of, low_pass_delay
 from admit_rs.identification.log_arrays import LogArrays
-from admit_rs.identification.model import friction_direction, normal_force
+from admit_rs.identification.model import contact_geometry, friction_direction, normal_force
 
 
 @dataclass(frozen=True)
@@ -48,10 +48,9 @@ def predicted_reading(values: Mapping[str, Any], cell: LogArrays, stiction: floa
     the law's normal force and Coulomb friction on the fitted plane, the tool's weight and
     the bias, the low-pass and the latency (SPEC §10, §15)."""
     v = values
-    n = np.asarray(v["wall.normal"], dtype=float)
-    n = n / np.linalg.norm(n)
+    depth, n = contact_geometry(v, cell.x)
     exponent = v.get("wall.exponent", 1.0) if v.get("wall.model") == "hunt_crossley" else 1.0
-    force = normal_force(cell.x @ n - v["wall.position"], cell.v @ n, v["wall.stiffness"],
+    force = normal_force(depth, np.sum(cell.v * n, axis=1), v["wall.stiffness"],
                          v["wall.damping"], exponent)  # fmt: skip
     world = force[:, None] * n
     if "wall.friction" in v:
@@ -70,18 +69,17 @@ def predicted_reading(values: Mapping[str, Any], cell: LogArrays, stiction: floa
 def check(values: Mapping[str, Any], cell: LogArrays, stiction: float) -> CellCheck:
     """The fitted cell's (``values``) prediction of ``cell``'s recording, compared."""
     predicted = predicted_reading(values, cell, stiction)
-    n = np.asarray(values["wall.normal"], dtype=float)
-    n = n / np.linalg.norm(n)
+    _, n = contact_geometry(values, cell.x)
     static = np.asarray(values["sensor.bias"], dtype=float) + values.get(
         "sensor.tool_mass", 0.0) * cell.up_in_sensor()  # fmt: skip
     recorded_w = cell.to_world(cell.reading - static)
     predicted_w = cell.to_world(predicted - static)
-    recorded, model = recorded_w @ n, predicted_w @ n
+    recorded, model = np.sum(recorded_w * n, axis=1), np.sum(predicted_w * n, axis=1)
     alpha = alpha_of(values.get("sensor.cutoff"), cell.period)
     settle = int(values.get("sensor.latency", 0)) + int(math.ceil(5 / max(alpha, 1e-9)))
     keep = np.arange(len(recorded)) >= settle
     residual = recorded - model
-    tangential = (recorded_w - np.outer(recorded, n)) - (predicted_w - np.outer(model, n))
+    tangential = (recorded_w - recorded[:, None] * n) - (predicted_w - model[:, None] * n)
     trace = pl.DataFrame({"t": cell.t, "recorded": recorded, "predicted": model,
                           "residual": residual})  # fmt: skip
     return CellCheck(

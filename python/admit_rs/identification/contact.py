@@ -62,7 +62,11 @@ class Search:
 
 
 class ContactFit:
-    """Fits the contact samples of ``cell`` into ``found``."""
+    """Fits the contact samples of ``cell`` into ``found`` (a plane)."""
+
+    paths: tuple[str, ...] = ("wall.stiffness", "wall.damping", "wall.position", "wall.normal",
+                              "sensor.latency", "sensor.cutoff")  # fmt: skip
+    """What the contact fit finds besides friction (unidentified without contact)."""
 
     def __init__(self, cell: LogArrays, found: Findings, stiction: float) -> None:
         self.cell = cell
@@ -125,9 +129,9 @@ class ContactFit:
         rotation = cell.rotation[contact].mean(axis=0) if cell.tip_frame else np.eye(3)
         shift = float(np.abs(rotation.T @ normal) @ half) / k
         p_lo, p_hi = self.ratio_interval(search, 0.0, 1)
-        self.found.put("wall.position", float(kx / k), (p_lo - shift, p_hi + shift),
-                 "the contact law's offset: n·X where the force vanishes; the interval "
-                 "includes the bias's")  # fmt: skip
+        self.put_offset(float(kx / k), (p_lo - shift, p_hi + shift),
+                        "the contact law's offset: n·X where the force vanishes; the interval "
+                        "includes the bias's")  # fmt: skip
         self.found.put("wall.stiffness", float(k), (float(lo[0]), float(hi[0])),
                  f"contact ({samples} samples): least squares on f = k δ + c δ̇ passed through "
                  "the sensor's low-pass and latency")  # fmt: skip
@@ -140,9 +144,16 @@ class ContactFit:
         touched = search.touching & window
         if touched.any():
             self.found.contact_level = float(np.median((world @ normal)[touched]))
-        self.hunt_crossley(world @ normal, normal, contact, window, search)
+        self.hunt_crossley(world @ normal, (cell.x @ normal, cell.v @ normal), contact, window,
+                           search)  # fmt: skip
         latency, cutoff = self.found.values["sensor.latency"], self.found.values["sensor.cutoff"]
-        self.friction(static, normal, contact, latency, alpha_of(cutoff, cell.period))
+        normals = np.broadcast_to(normal, cell.x.shape)
+        self.friction(static, normals, contact, latency, alpha_of(cutoff, cell.period))
+
+    def put_offset(self, offset: float, interval: tuple[float, float], how: str) -> None:
+        """The law's offset x_e (where the force vanishes along the coordinate): a plane's
+        position."""
+        self.found.put("wall.position", offset, interval, how)
 
     def put_sensor_dynamics(self, search: Search) -> None:
         accepted = (min(search.accepted), max(search.accepted))
@@ -197,13 +208,13 @@ class ContactFit:
 
         return Law(columns, force), tangents
 
-    def hunt_crossley_about(self, normal: Array, exponent: float, position: float) -> Law:
+    def hunt_crossley_about(self, coordinate: tuple[Array, Array], exponent: float,
+                            position: float) -> Law:  # fmt: skip
         """f = k δ^p + c δ^p δ̇ linearised in x_e and p about ``position`` and ``exponent``:
         regressors δ₀^p, δ₀^p δ̇, −p δ₀^(p−1) and δ₀^p ln δ₀ for (k, c, k Δx_e, k Δp),
         δ₀ = max(n·X − x_e, 0), so that k's interval carries p's and x_e's."""
-        cell = self.cell
-        delta = np.maximum(cell.x @ normal - position, 0.0)
-        rate = cell.v @ normal
+        depth, rate = coordinate
+        delta = np.maximum(depth - position, 0.0)
         power = delta**exponent
         slope = exponent * delta ** (exponent - 1) if exponent > 1 else (delta > 0).astype(float)
         logs = np.log(delta, out=np.zeros_like(delta), where=delta > 0)
@@ -316,17 +327,20 @@ class ContactFit:
     def normal(self, world: Array, contact: npt.NDArray[np.bool_]) -> Array:
         """n̂: the mean force direction in contact with its part along the tip's velocity
         taken out (friction acts along v_t, the normal force along n)."""
-        normal_part = self.normal_parts(world, contact)
+        normal_part, _ = self.normal_parts(world, contact)
         n = np.sum(normal_part, axis=0)
         return np.asarray(n / np.linalg.norm(n), dtype=float)
 
-    def normal_parts(self, world: Array, contact: npt.NDArray[np.bool_]) -> Array:
+    def normal_parts(
+        self, world: Array, contact: npt.NDArray[np.bool_]
+    ) -> tuple[Array, npt.NDArray[np.intp]]:
         """The force read in contact with friction taken out, where the model says how:
         sliding (|v| > SLIDING v_s), the tip's velocity is tangential and the force's part
         along it is friction; still (|v| < v_s/10), friction (μ f |v_t|/√(|v_t|² + v_s²))
         is below a tenth of μ f and the force is kept. Samples in between (an impact, a
         creep at about v_s, where the velocity has a normal part and friction is large) say
-        little about n and are left out, unless nothing else is left."""
+        little about n and are left out, unless nothing else is left. Also the samples'
+        indices."""
         f = world[contact]
         v = self.cell.v[contact]
         speed = np.linalg.norm(v, axis=1, keepdims=True)
@@ -339,12 +353,12 @@ class ContactFit:
         moving = (speed > 1e-12) & ~still[:, None]
         direction = np.divide(v, speed, out=np.zeros_like(v), where=moving)
         parts = f - np.sum(f * direction, axis=1, keepdims=True) * direction
-        return parts[keep]  # type: ignore[no-any-return]
+        return parts[keep], np.flatnonzero(contact)[keep]
 
     def tilt_half_width(self, world: Array, contact: npt.NDArray[np.bool_], u: Array) -> float:
         """The half-width of n̂'s tilt towards the tangent ``u`` [rad] from the spread of the
         force directions (those of at least a fifth of the median force)."""
-        parts = self.normal_parts(world, contact)
+        parts, _ = self.normal_parts(world, contact)
         size = np.linalg.norm(parts, axis=1)
         keep = size > 0.2 * float(np.median(size))
         tilt = parts[keep] @ u / size[keep]
@@ -357,15 +371,16 @@ class ContactFit:
         bias = float(np.abs(rotation.T @ u) @ half) / float(np.median(size))
         return spread + bias
 
-    def hunt_crossley(self, s: Array, normal: Array, contact: npt.NDArray[np.bool_],
-                      window: npt.NDArray[np.bool_], kv: Search) -> None:  # fmt: skip
+    def hunt_crossley(self, s: Array, coordinate: tuple[Array, Array],
+                      contact: npt.NDArray[np.bool_], window: npt.NDArray[np.bool_],
+                      kv: Search) -> None:  # fmt: skip
         """Hunt–Crossley, f = k δ^p + c δ^p δ̇: p and x_e by nonlinear least squares at the
         best latency and cut-off, then the latency and cut-off searched again with the law
         linearised about them (k, c and x_e's shift are linear there), twice. Kept only if an
         F-test prefers it to Kelvin–Voigt. Intervals from the linearised fits, united over
         the latencies and cut-offs the log admits."""
         cell = self.cell
-        depth, rate = cell.x @ normal, cell.v @ normal
+        depth, rate = coordinate
         k0, kx0, c0 = kv.fit.coef[:3]
         period = cell.period
 
@@ -391,7 +406,8 @@ class ContactFit:
         search = kv
         for _ in range(2):
             exponent, position = float(sol.x[2]), float(sol.x[3])
-            search = self.law_search(s, self.hunt_crossley_about(normal, exponent, position),
+            search = self.law_search(s, self.hunt_crossley_about(coordinate, exponent,
+                                                                 position),
                                      contact, window)  # fmt: skip
             if search.fit.coef[0] <= 0:
                 return
@@ -418,22 +434,21 @@ class ContactFit:
         self.found.put("wall.damping", k * float(sol.x[1]), (float(lo[1]), float(hi[1])), how)
         p_lo, p_hi = self.ratio_interval(search, exponent, 3)
         self.found.put("wall.exponent", float(sol.x[2]), (max(p_lo, 1.0), p_hi), how)
-        position_iv = self.ratio_interval(search, position, 2)
-        self.found.put("wall.position", float(sol.x[3]), position_iv, how)
+        self.put_offset(float(sol.x[3]), self.ratio_interval(search, position, 2), how)
         self.put_sensor_dynamics(search)
         self.found.touching = search.touching
         self.found.residual_std["contact normal force [N]"] = math.sqrt(rss_hc / len(sol.fun))
 
-    def friction(self, static: Array, normal: Array, contact: npt.NDArray[np.bool_],
+    def friction(self, static: Array, normals: Array, contact: npt.NDArray[np.bool_],
                  latency: int, alpha: float) -> None:  # fmt: skip
         """μ from the ratio of the tangential to the normal force as read, where the tip slid
         steadily one way (both pass through the same low-pass, so their ratio is μ |g|
         there, g = v_t/√(|v_t|² + v_s²)); the interval adds the bias's own interval."""
         vs = self.stiction
         v = self.cell.v
-        speed = np.linalg.norm(v - np.outer(v @ normal, normal), axis=1)
+        speed = np.linalg.norm(v - np.sum(v * normals, axis=1, keepdims=True) * normals, axis=1)
         sliding = contact & (speed > SLIDING * vs)
-        g = friction_direction(v, normal, vs)
+        g = friction_direction(v, normals, vs)
         # Steady: sliding, in the same direction (g within 10°), for the filter's settling
         # time (five time constants) plus the latency.
         settle = latency + int(math.ceil(5 / max(alpha, 1e-9)))
@@ -453,8 +468,8 @@ class ContactFit:
 
         def fit_mu(static_: Array) -> tuple[float, float]:
             world = self.cell.to_world(self.cell.reading - static_)
-            normal_force = world @ normal
-            tangential = world - np.outer(normal_force, normal)
+            normal_force = np.sum(world * normals, axis=1)
+            tangential = world - normal_force[:, None] * normals
             regressor = (normal_force[:, None] * g)[steady]
             lsq = least_squares(regressor.reshape(-1, 1), tangential[steady].reshape(-1),
                                  columns=3)  # fmt: skip
@@ -462,14 +477,20 @@ class ContactFit:
             return float(lsq.coef[0]), err
 
         mu, err = fit_mu(static)
-        lo, hi = mu - err, mu + err
+        # The bias is off on every axis at once: its corners move μ by the sum of what each
+        # axis's interval does (one axis at a time, the union, covered 6 of 8 seeds of a
+        # sphere; the sum, all).
+        below = above = 0.0
         for axis, (b_lo, b_hi) in enumerate(self.found.intervals["sensor.bias"]):
+            moves = []
             for end in (b_lo, b_hi):
                 shifted = static.copy()
                 shifted[:, axis] += end - self.found.values["sensor.bias"][axis]
-                m, e = fit_mu(shifted)
-                lo, hi = min(lo, m - e), max(hi, m + e)
+                moves.append(fit_mu(shifted)[0] - mu)
+            below += max(0.0, -min(moves))
+            above += max(0.0, max(moves))
+        lo, hi = mu - err - below, mu + err + above
         self.found.put("wall.friction", mu, (lo, hi),
                  f"steady sliding ({int(steady.sum())} samples): least squares of the "
                  f"tangential force read on f v_t/√(|v_t|² + v_s²), f the normal force read, "
-                 f"v_s = {vs:g} m/s; the interval includes the bias's")  # fmt: skip
+                 f"v_s = {vs:g} m/s; the interval includes the bias's (its corners)")  # fmt: skip

@@ -20,6 +20,7 @@ from admit_rs.identification.least_squares import (
     least_squares,
 )
 from admit_rs.identification.log_arrays import LogArrays
+from admit_rs.identification.sphere import SphereFit
 from admit_rs.recording import LogError
 
 UNSEEN_CONTACT = 1.0
@@ -30,9 +31,11 @@ class Fitter:
     """Fits a log's cell: free space first (the bias, the weight), then contact, then the
     noise (whose scaling needs the low-pass found in contact)."""
 
-    def __init__(self, cell: LogArrays, confidence: float, stiction: float) -> None:
+    def __init__(self, cell: LogArrays, confidence: float, stiction: float,
+                 surface: str = "plane") -> None:  # fmt: skip
         self.cell = cell
         self.stiction = stiction
+        self.surface = surface
         self.found = Findings(confidence)
         self.found.touching = np.zeros(len(cell.t), dtype=bool)
 
@@ -40,13 +43,14 @@ class Fitter:
         free, static = self.free_space()
         contact = ~free
         self.found.touching = contact
+        fit = (SphereFit if self.surface == "sphere" else ContactFit)(self.cell, self.found,
+                                                                      self.stiction)  # fmt: skip
         if contact.sum() < 50:
-            for path in ("wall.stiffness", "wall.damping", "wall.position", "wall.normal",
-                         "sensor.latency", "sensor.cutoff"):  # fmt: skip
+            for path in fit.paths:
                 self.found.unidentified[path] = "no contact in the log (fewer than 50 samples)"
             self.found.unidentified["wall.friction"] = "no contact in the log"
         else:
-            ContactFit(self.cell, self.found, self.stiction).run(free, static)
+            fit.run(free, static)
         self.noise(free)
         # Phases: touching where the fitted law's force is positive (else where the reading
         # leaves the free-space model), an impact for 50 ms after each first touch.

@@ -4,6 +4,8 @@ normal force and the direction of Coulomb friction (SPEC §15, §21)."""
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -28,7 +30,22 @@ def normal_force(depth: Array, rate: Array, stiffness: float, damping: float,
 
 def friction_direction(velocity: Array, normal: Array, stiction_velocity: float) -> Array:
     """g = v_t / √(|v_t|² + v_s²) per sample: friction is −μ f g on the tool and the sensor
-    reads +μ f g (the regularised Coulomb law, SPEC §15)."""
-    vt = velocity - np.outer(velocity @ normal, normal)
+    reads +μ f g (the regularised Coulomb law, SPEC §15). ``normal``: one unit normal, or one
+    per sample."""
+    vt = velocity - np.sum(velocity * normal, axis=-1, keepdims=True) * normal
     speed = np.linalg.norm(vt, axis=1)
     return vt / np.sqrt(speed**2 + stiction_velocity**2)[:, None]  # type: ignore[no-any-return]
+
+
+def contact_geometry(values: Mapping[str, Any], x: Array) -> tuple[Array, Array]:
+    """The fitted surface at tip positions ``x``: the penetration before clipping (δ, one
+    per sample) and the unit normal N into the surface (one per sample). A plane (``values``
+    with ``wall.normal``, ``wall.position``): δ = n·X − x_e along n. A sphere touched from
+    outside (``wall.centre``, ``wall.radius``): δ = R − |X − c| along the line to c."""
+    if "wall.centre" in values:
+        towards = np.asarray(values["wall.centre"], dtype=float) - x
+        distance = np.linalg.norm(towards, axis=1)
+        return values["wall.radius"] - distance, towards / distance[:, None]
+    n = np.asarray(values["wall.normal"], dtype=float)
+    n = n / np.linalg.norm(n)
+    return x @ n - values["wall.position"], np.broadcast_to(n, x.shape)
