@@ -356,6 +356,15 @@ def test_the_identify_command_writes_the_report_and_the_cell(kv: Any, tmp_path: 
     assert cli.main(["identify", str(tmp_path / "cell.csv"), "--urdf", str(ARM.path), "--tip",
                      ARM.tip_link, "--out", str(out), "--holdout", "0.95",
                      "--no-progress"]) == 2  # fmt: skip
+    # --surface sphere: the ball's cell, as a sphere placed from the arm's start.
+    pressing(cell.SPHERE)[0].write_csv(tmp_path / "ball.csv")
+    args = ["identify", str(tmp_path / "ball.csv"), "--urdf", str(ARM.path), "--tip",
+            ARM.tip_link, "--q0", *map(str, ARM.q0), "--out", str(tmp_path / "ball"),
+            "--surface", "sphere", "--no-progress"]  # fmt: skip
+    assert cli.main(args) == 0
+    ball = cli._scenario_argument(str(tmp_path / "ball" / "cell.toml"))
+    assert isinstance(ball.wall, ar.Sphere) and abs(ball.wall.radius - 0.2) < 1e-4
+    assert abs(ball.wall.gap - 0.005) < 1e-4
 
 
 def test_a_recording_written_as_an_mcap_bag_fits_as_its_table(kv: Any, tmp_path: Path) -> None:

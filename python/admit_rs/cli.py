@@ -320,7 +320,7 @@ def _identify(args: argparse.Namespace) -> int:
     split = int(round(log.height * (1 - args.holdout)))
     bar.update()
     bar.set_description(steps[1])
-    fit = identify(log.head(split), arm)
+    fit = identify(log.head(split), arm, surface=args.surface)
     bar.update()
     bar.set_description(steps[2])
     held = log.slice(split).with_columns(pl.col("t") - pl.col("t").first())
@@ -410,6 +410,9 @@ def _parser() -> argparse.ArgumentParser:
     ident.add_argument("--holdout", type=float, default=0.25,
                        help="the last part of the log kept to check the fit "
                             "(default 0.25)")  # fmt: skip
+    ident.add_argument("--surface", choices=("plane", "sphere"), default="plane",
+                       help="the part's shape: a plane (default) or a ball touched from "
+                            "outside")  # fmt: skip
     ident.add_argument("--no-progress", action="store_true", help="no progress bar")
     ident.set_defaults(func=_identify)
     return p
