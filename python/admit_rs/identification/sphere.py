@@ -24,6 +24,9 @@ class SphereFit(ContactFit):
 
     paths = ("wall.stiffness", "wall.damping", "wall.radius", "wall.centre", "sensor.latency",
              "sensor.cutoff")
+    radius_slack: float = 0.0
+    """The radius's interval widening [m] from the centre's and the bias's intervals (set by
+    :meth:`run` before the radius is put)."""
 
     def run(self, free: npt.NDArray[np.bool_], static: Array) -> None:
         cell = self.cell
@@ -40,6 +43,7 @@ class SphereFit(ContactFit):
         # weakly).
         latency, alpha = 0, 1.0
         free_directions = self.law_directions(centre, contact)
+        search = None
         for _ in range(2):
             refined = self.refine(world, centre, cov, free_directions, contact, window,
                                   latency, alpha)  # fmt: skip
@@ -52,7 +56,8 @@ class SphereFit(ContactFit):
             latency, alpha = search.latency, alpha_of(search.cutoff, cell.period)
         depth, rate, normals = self.coordinate(centre)
         s = np.sum(world * normals, axis=1)
-        search = self.law_search(s, self.linear_law(depth, rate), contact, window)
+        if search is None:  # the law's search about the final centre, if not done above
+            search = self.law_search(s, self.linear_law(depth, rate), contact, window)
         k, kx, c = search.fit.coef[:3]
         if k <= 0:
             for path in (*self.paths, "wall.friction"):
@@ -115,9 +120,6 @@ class SphereFit(ContactFit):
         read = low_pass_delay(normals, alpha, latency)
         read /= np.linalg.norm(read, axis=1)[:, None]
         self.friction(static, read, contact, latency, alpha)
-
-    radius_slack: float = 0.0
-    """The radius's interval widening [m] from the centre's and the bias's intervals."""
 
     def put_offset(self, offset: float, interval: tuple[float, float], how: str) -> None:
         """x_e = −R on the coordinate −|X − c|."""

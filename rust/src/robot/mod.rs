@@ -185,6 +185,12 @@ pub trait RobotModel<const N: usize>: Clone + Send + Sync + std::fmt::Debug + 's
     /// Runs' equations in lanes of `W` (four or eight runs).
     type Lanes<W: Real>: ArmModel<W, N>;
 
+    /// Whether sweeps run this arm in SIMD lanes (SPEC §13). Each arm that does compiles the
+    /// whole lane loop once per lane build (three), most of the extension's build time
+    /// (docs/performance.md, "Build and install time"); an arm that does not runs its sweeps
+    /// one run at a time, with the same results but for `exp`'s last bits.
+    const LANES: bool = true;
+
     /// The arm's equations.
     fn model(&self) -> &Self::Model;
 

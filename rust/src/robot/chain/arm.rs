@@ -514,6 +514,11 @@ impl<const N: usize> RobotModel<N> for UrdfArm<N> {
     type Model = Chain<f64, N>;
     type Lanes<W: Real> = Chain<W, N>;
 
+    /// The arms users sweep: six joints (UR, xArm 6, Kinova Gen3 lite) and seven (Panda, iiwa,
+    /// Gen3). Other joint counts run sweeps one run at a time: the lane loop compiled for each
+    /// of the eight counts and three lane builds took two thirds of the build.
+    const LANES: bool = N == 6 || N == 7;
+
     #[inline(always)]
     fn model(&self) -> &Chain<f64, N> {
         &self.model
