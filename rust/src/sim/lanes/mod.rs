@@ -6,9 +6,11 @@
 //! `rk4_period` and the same [`ArmModel`] code (the three-link closed form, a chain's ABA) and
 //! `Wall` code the scalar plant runs, with the arms' and walls' parameters packed
 //! ([`RobotModel::pack`]). Stages 1–8 (environment, sensor, references, filter, controller,
-//! actuator, record) run in lanes too, for every arm (`stages::LaneStages`: the same
+//! actuator, record) run in lanes too (`stages::LaneStages`: the same
 //! `sim::pipeline::Pipeline` a scalar run steps, over `W`). An arm brings nothing else: what runs
-//! in lanes is its `ArmModel<W, N>`. A group whose runs do not share one stage structure (a
+//! in lanes is its `ArmModel<W, N>`. Sweeps take the lanes for the arms whose
+//! [`RobotModel::LANES`] holds (the three-link arm, 6- and 7-joint chains) and run other arms
+//! one run at a time. A group whose runs do not share one stage structure (a
 //! caller's mixed group; sweeps group by [`LaneKey`]) runs its stages lane by lane through
 //! `Simulation::step_to_plant`.
 //!
