@@ -20,6 +20,7 @@ import polars as pl
 import pytest
 from admit_rs.errors import ArgumentError, ParameterTypeError
 from admit_rs.identification.check import check
+from admit_rs.identification.fitter import Fitter
 from admit_rs.identification.least_squares import ar1_inflation, low_pass_delay
 from admit_rs.identification.log_arrays import LogArrays
 from admit_rs.identification.model import STICTION_VELOCITY
@@ -188,6 +189,25 @@ def test_a_fit_becomes_a_scenario_and_a_box(kv: Any) -> None:
     assert swept["wall.stiffness"].is_between(lo, hi).all()
     text = str(fit)
     assert "wall.stiffness" in text and "unidentified" in text
+
+
+def test_a_long_log_mostly_in_contact_finds_its_free_space(kv: Any) -> None:
+    # 36 s of steady contact appended to the 4-s log (its last second, repeated): a fiftieth
+    # of the log is then 0.8 s, ten times the 73 free samples at its start. The start's
+    # reading is taken from its first 50 ms, not from that fiftieth (whose median was the
+    # contact's: the bias absorbed a 10 N force, and a 60-s log fitted nothing).
+    fit, _, log = kv
+    arrays = LogArrays.of(log, ARM)
+    n = len(arrays.t)
+    index = np.concatenate([np.arange(n), np.tile(np.arange(n - 1000, n), 36)])
+    long = dataclasses.replace(
+        arrays, t=np.arange(len(index)) * arrays.period, x=arrays.x[index], v=arrays.v[index],
+        rotation=arrays.rotation[index], reading=arrays.reading[index])  # fmt: skip
+    fitter = Fitter(long, 0.95, STICTION_VELOCITY)
+    free, _ = fitter.free_space()
+    assert free[:70].all() and not free[100:].any()  # the 4-s log's own free space
+    bias = np.asarray(fitter.found.values["sensor.bias"])
+    assert np.abs(bias - np.asarray(fit.values["sensor.bias"])).max() < 1e-9
 
 
 def test_the_low_pass_and_latency_model() -> None:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -16,13 +16,17 @@ from admit_rs.identification.findings import Findings
 from admit_rs.identification.least_squares import (
     Array,
     LinearFit,
+    ResidualFit,
     alpha_of,
     ar1_inflation,
     least_squares,
     low_pass_delay,
+    residual_fit,
 )
 from admit_rs.identification.log_arrays import LogArrays
 from admit_rs.identification.model import friction_direction, normal_force
+
+Fit = TypeVar("Fit", LinearFit, ResidualFit)
 
 MAX_LATENCY = 0.05
 """The longest latency searched [s]."""
@@ -240,16 +244,21 @@ class ContactFit:
         def at(latency: int, cutoff: float | None) -> tuple[LinearFit, Any]:
             return self.law_fit(s, law, contact, latency, alpha_of(cutoff, cell.period), window)
 
+        def residual_at(latency: int, cutoff: float | None) -> float:
+            alpha = alpha_of(cutoff, cell.period)
+            fit, _ = self.touching_fit(s, law, contact, latency, alpha, window, residual_fit)
+            return fit.rss
+
         profile: dict[int, tuple[float, float | None]] = {}
         for latency in range(max_latency + 1):
             result = optimize.minimize_scalar(
-                lambda lf, lat=latency: at(lat, math.exp(lf))[0].rss,
+                lambda lf, lat=latency: residual_at(lat, math.exp(lf)),
                 bounds=(math.log(0.5), math.log(nyquist)), method="bounded",
                 options={"xatol": 1e-3},
             )
             cutoff: float | None = float(math.exp(result.x))
             rss = float(result.fun)
-            rss_none = at(latency, None)[0].rss
+            rss_none = residual_at(latency, None)
             if rss_none <= rss:
                 cutoff, rss = None, rss_none
             profile[latency] = (rss, cutoff)
@@ -310,19 +319,28 @@ class ContactFit:
         """The coefficients of s ≈ D_L LPF_α[law's regressors on the touching set]: the
         touching set from the previous estimate (starting from the segmentation's
         contact), until it stops changing (ten times at most)."""
+        return self.touching_fit(s, law, contact, latency, alpha, window, least_squares)
+
+    @staticmethod
+    def touching_fit(
+        s: Array, law: Law, contact: npt.NDArray[np.bool_], latency: int, alpha: float,
+        window: npt.NDArray[np.bool_], solve: Callable[[Array, Array], Fit],
+    ) -> tuple[Fit, npt.NDArray[np.bool_]]:
+        """:meth:`law_fit` with the solver ``solve`` (``least_squares``, or ``residual_fit``
+        where only the residual is wanted)."""
         touching = contact
-        lsq = None
+        fit = None
         for _ in range(10):
             design = low_pass_delay(law.columns(touching.astype(float)), alpha, latency)
-            lsq = least_squares(design[window], s[window])
-            if lsq.coef[0] <= 0:
+            fit = solve(design[window], s[window])
+            if fit.coef[0] <= 0:
                 break
-            new = law.force(lsq.coef) > 0
+            new = law.force(fit.coef) > 0
             if np.array_equal(new, touching):
                 break
             touching = new
-        assert lsq is not None
-        return lsq, touching
+        assert fit is not None
+        return fit, touching
 
     def normal(self, world: Array, contact: npt.NDArray[np.bool_]) -> Array:
         """n̂: the mean force direction in contact with its part along the tip's velocity

@@ -129,7 +129,9 @@ class Fitter:
         """The free-space mask and the static reading β + R_kᵀ w per sample."""
         y = self.cell.reading
         n = len(y)
-        head = max(20, n // 50)
+        # The start's reading, from its first 50 ms at most (a fiftieth of a 60-s log is 1.2 s,
+        # longer than an approach: the median was the contact's, and the bias absorbed it).
+        head = max(20, min(n // 50, int(round(0.05 / self.cell.period))))
         start = np.median(y[:head], axis=0)
         spread = np.median(np.abs(y[:head] - start), axis=0) * 1.4826
         sigma = max(float(np.max(spread)), 1e-6)
