@@ -77,15 +77,16 @@ class ResidualFit:
 def residual_fit(design: Array, target: Array) -> ResidualFit:
     """The coefficients and residual sum of squares of ``target`` ≈ ``design`` · coef by the
     normal equations on unit-norm columns (no covariance: what a profile search over the
-    sensor's latency and cut-off needs, about six times faster than :func:`least_squares`).
+    sensor's latency and cut-off needs, without :func:`least_squares`' SVD and covariance).
     Columns scaled to unit norm keep the normal matrix's condition near the square of the
     design's (a contact law's δ and offset columns: about 1e6, far from float64's limit)."""
     gram = design.T @ design
     scale = np.sqrt(np.diag(gram))
     scale[scale == 0] = 1.0
     try:
-        coef = np.linalg.solve(gram / np.outer(scale, scale), (design.T @ target) / scale) / scale
+        solved = np.linalg.solve(gram / np.outer(scale, scale), (design.T @ target) / scale)
+        coef = np.asarray(solved / scale, dtype=float)
     except np.linalg.LinAlgError:
-        coef = np.linalg.lstsq(design, target, rcond=None)[0]
+        coef = np.asarray(np.linalg.lstsq(design, target, rcond=None)[0], dtype=float)
     res = target - design @ coef
-    return ResidualFit(np.asarray(coef, dtype=float), float(res @ res))
+    return ResidualFit(coef, float(res @ res))
