@@ -98,7 +98,7 @@ class ContactFit:
             if float(corrected @ normal) > math.cos(math.radians(1e-4)):
                 break  # the tilt left is below 1e-4°: the fit about ``normal`` stands
             normal = corrected
-        k, kx, c = search.fit.coef[:3]
+        k, kx = search.fit.coef[:2]
         if k <= 0:
             for path in ("wall.stiffness", "wall.damping", "wall.position", "sensor.latency",
                          "sensor.cutoff", "wall.friction"):  # fmt: skip
@@ -107,8 +107,6 @@ class ContactFit:
                     "fitted normal (no stiffness > 0 fits)"
                 )
             return
-        lo, hi = search.law_interval
-        samples = int(search.touching.sum())
         self.found.touching = search.touching
         excited = ", tilted by the law where the tip moved along the surface" if tangents else ""
         # The interval: a tilt half-width per tangent direction, from the law where the tip
@@ -136,23 +134,34 @@ class ContactFit:
         self.put_offset(float(kx / k), (p_lo - shift, p_hi + shift),
                         "the contact law's offset: n·X where the force vanishes; the interval "
                         "includes the bias's")  # fmt: skip
-        self.found.put("wall.stiffness", float(k), (float(lo[0]), float(hi[0])),
-                 f"contact ({samples} samples): least squares on f = k δ + c δ̇ passed through "
-                 "the sensor's low-pass and latency")  # fmt: skip
-        self.found.put("wall.damping", float(c), (float(lo[2]), float(hi[2])),
-                 "with the stiffness, the same fit; its interval spans every latency and "
-                 "cut-off the log admits (they trade off with the damping)")  # fmt: skip
-        self.found.put("wall.model", "kelvin_voigt", None, "Kelvin–Voigt")
-        self.put_sensor_dynamics(search)
-        self.found.residual_std["contact normal force [N]"] = float(np.std(search.fit.residuals))
-        touched = search.touching & window
-        if touched.any():
-            self.found.contact_level = float(np.median((world @ normal)[touched]))
+        self.put_law(search, world @ normal, window, "δ = n·X − x_e")
         self.hunt_crossley(world @ normal, (cell.x @ normal, cell.v @ normal), contact, window,
                            search)  # fmt: skip
         latency, cutoff = self.found.values["sensor.latency"], self.found.values["sensor.cutoff"]
         normals = np.broadcast_to(normal, cell.x.shape)
         self.friction(static, normals, contact, latency, alpha_of(cutoff, cell.period))
+
+    def put_law(self, search: Search, s: Array, window: npt.NDArray[np.bool_],
+                penetration: str) -> None:  # fmt: skip
+        """Kelvin–Voigt's stiffness and damping from the law's search (``penetration`` says
+        what δ is), the sensor's latency and cut-off, the residual and the contact level of
+        ``s``, the normal force read."""
+        lo, hi = search.law_interval
+        k, c = search.fit.coef[0], search.fit.coef[2]
+        samples = int(search.touching.sum())
+        self.found.put("wall.stiffness", float(k), (float(lo[0]), float(hi[0])),
+                       f"contact ({samples} samples): least squares on f = k δ + c δ̇, "
+                       f"{penetration}, passed through the sensor's low-pass and "
+                       "latency")  # fmt: skip
+        self.found.put("wall.damping", float(c), (float(lo[2]), float(hi[2])),
+                       "with the stiffness, the same fit; its interval spans every latency and "
+                       "cut-off the log admits (they trade off with the damping)")  # fmt: skip
+        self.found.put("wall.model", "kelvin_voigt", None, "Kelvin–Voigt")
+        self.put_sensor_dynamics(search)
+        self.found.residual_std["contact normal force [N]"] = float(np.std(search.fit.residuals))
+        touched = search.touching & window
+        if touched.any():
+            self.found.contact_level = float(np.median(s[touched]))
 
     def put_offset(self, offset: float, interval: tuple[float, float], how: str) -> None:
         """The law's offset x_e (where the force vanishes along the coordinate): a plane's

@@ -58,7 +58,7 @@ class SphereFit(ContactFit):
         s = np.sum(world * normals, axis=1)
         if search is None:  # the law's search about the final centre, if not done above
             search = self.law_search(s, self.linear_law(depth, rate), contact, window)
-        k, kx, c = search.fit.coef[:3]
+        k, kx = search.fit.coef[:2]
         if k <= 0:
             for path in (*self.paths, "wall.friction"):
                 self.found.unidentified[path] = (
@@ -93,24 +93,11 @@ class SphereFit(ContactFit):
         mean_normal /= np.linalg.norm(mean_normal)
         self.radius_slack = float(math.sqrt(max(float(mean_normal @ cov @ mean_normal), 0.0))) * q
         self.radius_slack += float(np.abs(rotation.T @ mean_normal) @ bias_half) / k
-        lo, hi = search.law_interval
-        samples = int(search.touching.sum())
         self.put_offset(float(kx / k), self.ratio_interval(search, 0.0, 1),
                         "the contact law's offset: the distance from the centre where the force "
                         "vanishes; the interval includes the centre's along the mean normal and "
                         "the bias's")  # fmt: skip
-        self.found.put("wall.stiffness", float(k), (float(lo[0]), float(hi[0])),
-                       f"contact ({samples} samples): least squares on f = k δ + c δ̇, "
-                       "δ = R − |X − c|, passed through the sensor's low-pass and "
-                       "latency")  # fmt: skip
-        self.found.put("wall.damping", float(c), (float(lo[2]), float(hi[2])),
-                       "with the stiffness, the same fit; its interval spans every latency and "
-                       "cut-off the log admits")  # fmt: skip
-        self.found.put("wall.model", "kelvin_voigt", None, "Kelvin–Voigt")
-        self.put_sensor_dynamics(search)
-        self.found.residual_std["contact normal force [N]"] = float(np.std(search.fit.residuals))
-        if (search.touching & window).any():
-            self.found.contact_level = float(np.median(s[search.touching & window]))
+        self.put_law(search, s, window, "δ = R − |X − c|")
         self.hunt_crossley(s, (depth, rate), contact, window, search)
         latency, cutoff = self.found.values["sensor.latency"], self.found.values["sensor.cutoff"]
         alpha = alpha_of(cutoff, cell.period)
